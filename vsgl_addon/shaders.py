@@ -1,0 +1,213 @@
+"""GLSL sources from `glsl/`, composed into Blender `GPUShaderCreateInfo`s.
+
+Sources carry no declarations (the create-info does, Blender's rule). A source names the shared
+libraries it needs with `// @require lib/NAME.glsl` lines; they are included once each, in
+dependency order, before it.
+
+Blender reports a compile failure as a bare "Shader Compile Error, see console" and writes the
+GLSL compiler's messages to the console with line numbers of its own composite source. We tag every
+included file with a `#line` directive whose number encodes the file (file k starts at line
+k * LINE_STRIDE), capture the console output of the compile, and turn each message back into
+`glsl/<file>:<line>:<column>: error: <compiler's message>` in the exception we raise.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import re
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+GLSL_ROOT = Path(__file__).resolve().parent.parent / "glsl"
+LINE_STRIDE = 100_000
+
+_REQUIRE = re.compile(r"^\s*//\s*@require\s+(\S+)\s*$", re.MULTILINE)
+# Blender 5.x reformats the driver's messages as "name:LINE:COL: Error: text"; Mesa's own form is
+# "0:LINE(COL): error: text". Both are accepted.
+_MESSAGE = re.compile(
+    r"(?P<line>\d+)(?::(?P<col>\d+)|\((?P<pcol>\d+)\)):\s*(?P<kind>error|warning)\s*:\s*(?P<text>.*\S)",
+    re.IGNORECASE,
+)
+
+
+class ShaderCompileError(RuntimeError):
+    """A GLSL compile or link failure, with the compiler's messages mapped to our source files."""
+
+    def __init__(self, shader_name: str, messages: list[str], raw_log: str):
+        self.shader_name = shader_name
+        self.messages = messages
+        self.raw_log = raw_log
+        detail = "\n".join(messages) if messages else raw_log.strip() or "(the compiler printed nothing)"
+        super().__init__(f"GLSL shader '{shader_name}' failed to compile:\n{detail}")
+
+
+class ShaderSourceError(FileNotFoundError):
+    """A stage source or an `@require`d library is missing from glsl/."""
+
+
+@dataclass
+class ComposedSource:
+    """One stage's source with every library it requires, and the files in the order of their tags."""
+
+    text: str
+    files: list[str]
+
+    def locate(self, tagged_line: int) -> tuple[str, int] | None:
+        index, line = divmod(tagged_line, LINE_STRIDE)
+        if 1 <= index <= len(self.files):
+            return self.files[index - 1], line
+        return None
+
+
+def _read(relative: str, root: Path) -> str:
+    path = root / relative
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ShaderSourceError(f"GLSL source '{relative}' not found in {root}") from None
+
+
+def _dependency_order(stage: str, root: Path) -> list[str]:
+    order: list[str] = []
+    visiting: list[str] = []
+
+    def visit(relative: str) -> None:
+        if relative in order:
+            return
+        if relative in visiting:
+            cycle = " -> ".join(visiting + [relative])
+            raise ShaderSourceError(f"GLSL @require cycle: {cycle}")
+        visiting.append(relative)
+        for required in _REQUIRE.findall(_read(relative, root)):
+            visit(required)
+        visiting.pop()
+        order.append(relative)
+
+    visit(stage)
+    return order
+
+
+def compose(stage: str, root: Path = GLSL_ROOT, defines: dict[str, object] | None = None) -> ComposedSource:
+    """The stage source `stage` (relative to `root`) preceded by its libraries, each `#line`-tagged."""
+    files = _dependency_order(stage, root)
+    parts = [f"#define {name} {value}" for name, value in (defines or {}).items()]
+    for index, relative in enumerate(files, start=1):
+        # `#line N` numbers the next line N (GLSL 3.30+), so a file's first line is tagged index*STRIDE + 1.
+        parts.append(f"#line {index * LINE_STRIDE + 1}")
+        parts.append(_read(relative, root).rstrip("\n"))
+    return ComposedSource("\n".join(parts) + "\n", files)
+
+
+def map_messages(log: str, sources: list[ComposedSource]) -> list[str]:
+    """Compiler messages of `log` as `glsl/<file>:<line>:<col>: <kind>: <text>` (unique, in order)."""
+    messages: list[str] = []
+    for match in _MESSAGE.finditer(log):
+        tagged = int(match["line"])
+        column = match["col"] or match["pcol"]
+        where = None
+        for source in sources:
+            where = source.locate(tagged)
+            if where is not None:
+                break
+        place = f"glsl/{where[0]}:{where[1]}" if where else f"<Blender's generated code>:{tagged}"
+        message = f"{place}:{column}: {match['kind'].lower()}: {match['text']}"
+        if message not in messages:
+            messages.append(message)
+    return messages
+
+
+class _CapturedConsole:
+    """Redirects the process's stdout and stderr (file descriptors 1 and 2) into a temporary file.
+
+    Blender's logger writes with C stdio, so C's buffers are flushed before the descriptors return.
+    """
+
+    def __enter__(self):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        self._file = tempfile.TemporaryFile()
+        self._saved = [os.dup(1), os.dup(2)]
+        os.dup2(self._file.fileno(), 1)
+        os.dup2(self._file.fileno(), 2)
+        return self
+
+    def __exit__(self, *exc):
+        try:
+            ctypes.CDLL(None).fflush(None)
+        except (OSError, AttributeError):
+            pass
+        sys.stdout.flush()
+        sys.stderr.flush()
+        for fd, saved in zip((1, 2), self._saved):
+            os.dup2(saved, fd)
+            os.close(saved)
+        self._file.seek(0)
+        self.text = self._file.read().decode("utf-8", "replace")
+        self._file.close()
+        return False
+
+
+@dataclass
+class ShaderInterface:
+    """Declarations of one shader (Blender create-info terms); names come from the GLSL sources."""
+
+    push_constants: list[tuple[str, str]] = field(default_factory=list)  # (type, name)
+    samplers: list[tuple[str, str]] = field(default_factory=list)  # (type, name); slots in order
+    images: list[tuple[str, str, str]] = field(default_factory=list)  # (format, type, name)
+    vertex_inputs: list[tuple[str, str]] = field(default_factory=list)  # (type, name)
+    varyings: list[tuple[str, str]] = field(default_factory=list)  # (type, name), smooth
+    flat_varyings: list[tuple[str, str]] = field(default_factory=list)
+    fragment_outputs: list[tuple[str, str]] = field(default_factory=list)  # (type, name)
+    local_group_size: tuple[int, ...] | None = None
+
+
+def create_shader(name: str, interface: ShaderInterface, *, vertex: str | None = None,
+                  fragment: str | None = None, compute: str | None = None,
+                  defines: dict[str, object] | None = None, root: Path = GLSL_ROOT):
+    """Compile a shader from glsl/ stage files; raise ShaderCompileError with mapped messages."""
+    import gpu
+
+    info = gpu.types.GPUShaderCreateInfo()
+    for glsl_type, constant in interface.push_constants:
+        info.push_constant(glsl_type, constant)
+    for slot, (glsl_type, sampler) in enumerate(interface.samplers):
+        info.sampler(slot, glsl_type, sampler)
+    for slot, (image_format, glsl_type, image) in enumerate(interface.images):
+        info.image(slot, image_format, glsl_type, image, qualifiers={"READ", "WRITE"})
+    for slot, (glsl_type, attribute) in enumerate(interface.vertex_inputs):
+        info.vertex_in(slot, glsl_type, attribute)
+    stage_interface = None
+    if interface.varyings or interface.flat_varyings:
+        stage_interface = gpu.types.GPUStageInterfaceInfo(f"{name}_interface")
+        for glsl_type, varying in interface.varyings:
+            stage_interface.smooth(glsl_type, varying)
+        for glsl_type, varying in interface.flat_varyings:
+            stage_interface.flat(glsl_type, varying)
+        info.vertex_out(stage_interface)
+    for slot, (glsl_type, output) in enumerate(interface.fragment_outputs):
+        info.fragment_out(slot, glsl_type, output)
+    if interface.local_group_size:
+        info.local_group_size(*interface.local_group_size)
+
+    sources = []
+    for stage, setter in ((vertex, info.vertex_source), (fragment, info.fragment_source),
+                          (compute, info.compute_source)):
+        if stage is not None:
+            composed = compose(stage, root, defines)
+            setter(composed.text)
+            sources.append(composed)
+
+    with _CapturedConsole() as console:
+        try:
+            shader = gpu.shader.create_from_info(info)
+            failed = None
+        except Exception as error:  # Blender raises a bare Exception for compile errors.
+            shader, failed = None, error
+    if failed is not None:
+        raise ShaderCompileError(name, map_messages(console.text, sources), console.text) from failed
+    if console.text.strip():
+        sys.stderr.write(console.text)
+    return shader
