@@ -1,0 +1,118 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""ensure_gpu_context() in the Blender 5.2 application: `-b` (gpu.init), no OpenGL, and with a window.
+
+The bpy-module (Blender 5.0, no gpu.init) side is in test_gpu_context.py.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import textwrap
+
+import pytest
+
+from helpers_blender import REAL_BLENDER, REPO, describe, run_blender, scratch_dir
+
+pytestmark = pytest.mark.real_blender
+
+# Runs inside Blender: imports the add-on package from the repository (visible in the chroot at
+# its own path) and writes what it saw as JSON.
+CHECK = textwrap.dedent("""
+    import json, os, sys
+    sys.path.insert(0, {repo!r})
+    import bpy, gpu
+    out = {{"background": bpy.app.background, "has_init": hasattr(gpu, "init")}}
+    if {break_egl!r}:
+        os.environ["__EGL_VENDOR_LIBRARY_DIRS"] = "/nonexistent"
+    init_calls = []
+    if hasattr(gpu, "init"):
+        real_init = gpu.init
+        def counting_init():
+            init_calls.append(1)
+            real_init()
+        gpu.init = counting_init
+    from vsgl_addon.gpu_context import GPUContextError, ensure_gpu_context
+    from vsgl_addon import shaders
+    counts = lambda: [len(c) for c in (bpy.data.scenes, bpy.data.objects, bpy.data.cameras, bpy.data.images)]
+    before = counts()
+    def check():
+        try:
+            out["renderer"] = ensure_gpu_context()
+            out["renderer_again"] = ensure_gpu_context()
+            root = {folder!r}
+            interface = shaders.ShaderInterface(vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")],
+                                                fragment_outputs=[("VEC4", "out_color")])
+            shaders.create_shader("good", interface, vertex="fullscreen_triangle.vert.glsl",
+                                  fragment="good.frag.glsl", root=__import__("pathlib").Path(root))
+            try:
+                shaders.create_shader("bad", interface, vertex="fullscreen_triangle.vert.glsl",
+                                      fragment="bad.frag.glsl", root=__import__("pathlib").Path(root))
+            except shaders.ShaderCompileError as error:
+                out["compile_error"] = str(error)
+        except GPUContextError as error:
+            out["error"] = str(error)
+        out["init_calls"] = len(init_calls)
+        out["data_unchanged"] = counts() == before
+        with open({result!r}, "w") as f:
+            json.dump(out, f)
+        marker = os.environ.get("REAL_BLENDER_SHOT_NOW")
+        if marker and not bpy.app.background:
+            open(marker, "w").close()
+    if bpy.app.background:
+        check()
+    else:
+        bpy.app.timers.register(lambda: check(), first_interval=0.5)
+""")
+
+
+def _script(folder, *, break_egl=False):
+    result = folder / "result.json"
+    script = folder / "check.py"
+    script.write_text(CHECK.format(repo=str(REPO), result=str(result), break_egl=break_egl, folder=str(folder)))
+    (folder / "fullscreen_triangle.vert.glsl").write_text((REPO / "glsl" / "fullscreen_triangle.vert.glsl").read_text())
+    (folder / "good.frag.glsl").write_text("void main()\n{\n  out_color = vec4(uv, 0.0, 1.0);\n}\n")
+    (folder / "bad.frag.glsl").write_text("void main()\n{\n  out_color = vec4(uv, 0.0, 1.0);\n  out_color.x = no_such_name;\n}\n")
+    return script, result
+
+
+def test_background_uses_gpu_init_once_and_leaves_data_alone():
+    with scratch_dir("vsgl-gpu-") as folder:
+        script, result = _script(folder)
+        proc = run_blender("-b", "--factory-startup", "--python-exit-code", "1", "--python", str(script))
+        assert proc.returncode == 0, describe(proc)
+        seen = json.loads(result.read_text())
+    assert seen["background"] and seen["has_init"], seen
+    assert "llvmpipe" in seen["renderer"] and seen["renderer_again"] == seen["renderer"], seen
+    assert seen["init_calls"] == 1, seen
+    assert seen["data_unchanged"], seen
+    # Shader loading works on 5.2 too, and a compile error names our file and line.
+    assert "bad.frag.glsl:4:" in seen["compile_error"] and "no_such_name" in seen["compile_error"], seen
+
+
+def test_background_without_opengl_names_what_is_missing():
+    with scratch_dir("vsgl-gpu-") as folder:
+        script, result = _script(folder, break_egl=True)
+        proc = run_blender("-b", "--factory-startup", "--python-exit-code", "1", "--python", str(script))
+        assert proc.returncode == 0, describe(proc)  # a clear exception, not an abort
+        seen = json.loads(result.read_text())
+    message = seen.get("error", "")
+    assert "EGL" in message and "OpenGL 4.3" in message and "libegl-mesa0" in message, seen
+    assert seen["init_calls"] == 0, seen
+
+
+def test_with_a_window_it_does_nothing():
+    if not os.access(REAL_BLENDER, os.X_OK):
+        pytest.fail(f"{REAL_BLENDER} not found")
+    with scratch_dir("vsgl-gpu-") as folder:
+        script, result = _script(folder)
+        proc = subprocess.run([str(REAL_BLENDER), "gui", "--wait", "90", "--shot", str(folder / "shot.png"),
+                               "--factory-startup", "--python", str(script)],
+                              cwd=REPO, capture_output=True, text=True, timeout=180)
+        assert result.exists(), describe(proc)
+        seen = json.loads(result.read_text())
+    assert seen["background"] is False, seen
+    assert "llvmpipe" in seen["renderer"], seen
+    assert seen["init_calls"] == 0, seen
+    assert seen["data_unchanged"], seen
