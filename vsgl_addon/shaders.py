@@ -9,6 +9,11 @@ GLSL compiler's messages to the console with line numbers of its own composite s
 included file with a `#line` directive whose number encodes the file (file k starts at line
 k * LINE_STRIDE), capture the console output of the compile, and turn each message back into
 `glsl/<file>:<line>:<column>: error: <compiler's message>` in the exception we raise.
+
+Sources are looked up in one root (`glsl/` by default) or in a list of roots, first hit wins, so a
+stage file kept elsewhere (the tests' GLSL harness) can `@require` the shipped `glsl/lib` files.
+Messages name a file by its path relative to the repository (`glsl/lib/sg.glsl`), or absolute when
+it lies outside.
 """
 
 from __future__ import annotations
@@ -20,8 +25,12 @@ import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Sequence, Union
 
 GLSL_ROOT = Path(__file__).resolve().parent.parent / "glsl"
+_REPOSITORY = GLSL_ROOT.parent
+# One folder or several, searched in order.
+Roots = Union[str, os.PathLike, Sequence[Union[str, os.PathLike]]]
 LINE_STRIDE = 100_000
 
 _REQUIRE = re.compile(r"^\s*//\s*@require\s+(\S+)\s*$", re.MULTILINE)
@@ -53,56 +62,79 @@ class ComposedSource:
     """One stage's source with every library it requires, and the files in the order of their tags."""
 
     text: str
-    files: list[str]
+    files: list[str]  # as messages name them: relative to the repository, or absolute
+    first_tag: int = 1  # files[0] is tagged first_tag * LINE_STRIDE; stages of a shader do not overlap
 
     def locate(self, tagged_line: int) -> tuple[str, int] | None:
         index, line = divmod(tagged_line, LINE_STRIDE)
-        if 1 <= index <= len(self.files):
-            return self.files[index - 1], line
+        if 0 <= index - self.first_tag < len(self.files):
+            return self.files[index - self.first_tag], line
         return None
 
 
-def _read(relative: str, root: Path) -> str:
-    path = root / relative
+def _roots(root: Roots) -> tuple[Path, ...]:
+    if isinstance(root, (str, os.PathLike)):
+        return (Path(root),)
+    return tuple(Path(folder) for folder in root)
+
+
+def _find(relative: str, roots: tuple[Path, ...]) -> Path:
+    for folder in roots:
+        path = folder / relative
+        if path.is_file():
+            return path
+    where = ", ".join(str(folder) for folder in roots)
+    raise ShaderSourceError(f"GLSL source '{relative}' not found in {where}")
+
+
+def _display_name(path: Path) -> str:
     try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ShaderSourceError(f"GLSL source '{relative}' not found in {root}") from None
+        return path.resolve().relative_to(_REPOSITORY).as_posix()
+    except ValueError:
+        return str(path)
 
 
-def _dependency_order(stage: str, root: Path) -> list[str]:
-    order: list[str] = []
+def _dependency_order(stage: str, roots: tuple[Path, ...]) -> list[tuple[str, Path]]:
+    order: list[tuple[str, Path]] = []
+    done: set[str] = set()
     visiting: list[str] = []
 
     def visit(relative: str) -> None:
-        if relative in order:
+        if relative in done:
             return
         if relative in visiting:
             cycle = " -> ".join(visiting + [relative])
             raise ShaderSourceError(f"GLSL @require cycle: {cycle}")
+        path = _find(relative, roots)
         visiting.append(relative)
-        for required in _REQUIRE.findall(_read(relative, root)):
+        for required in _REQUIRE.findall(path.read_text(encoding="utf-8")):
             visit(required)
         visiting.pop()
-        order.append(relative)
+        done.add(relative)
+        order.append((relative, path))
 
     visit(stage)
     return order
 
 
-def compose(stage: str, root: Path = GLSL_ROOT, defines: dict[str, object] | None = None) -> ComposedSource:
-    """The stage source `stage` (relative to `root`) preceded by its libraries, each `#line`-tagged."""
-    files = _dependency_order(stage, root)
+def compose(stage: str, root: Roots = GLSL_ROOT, defines: dict[str, object] | None = None,
+            first_tag: int = 1) -> ComposedSource:
+    """The stage source `stage` (relative to a root) preceded by its libraries, each `#line`-tagged.
+
+    Files are tagged first_tag, first_tag + 1, ...: the stages of one shader take disjoint ranges,
+    or a message could not tell a vertex file from a fragment file.
+    """
+    files = _dependency_order(stage, _roots(root))
     parts = [f"#define {name} {value}" for name, value in (defines or {}).items()]
-    for index, relative in enumerate(files, start=1):
+    for index, (_, path) in enumerate(files, start=first_tag):
         # `#line N` numbers the next line N (GLSL 3.30+), so a file's first line is tagged index*STRIDE + 1.
         parts.append(f"#line {index * LINE_STRIDE + 1}")
-        parts.append(_read(relative, root).rstrip("\n"))
-    return ComposedSource("\n".join(parts) + "\n", files)
+        parts.append(path.read_text(encoding="utf-8").rstrip("\n"))
+    return ComposedSource("\n".join(parts) + "\n", [_display_name(path) for _, path in files], first_tag)
 
 
 def map_messages(log: str, sources: list[ComposedSource]) -> list[str]:
-    """Compiler messages of `log` as `glsl/<file>:<line>:<col>: <kind>: <text>` (unique, in order)."""
+    """Compiler messages of `log` as `<file>:<line>:<col>: <kind>: <text>` (unique, in order)."""
     messages: list[str] = []
     for match in _MESSAGE.finditer(log):
         tagged = int(match["line"])
@@ -112,7 +144,7 @@ def map_messages(log: str, sources: list[ComposedSource]) -> list[str]:
             where = source.locate(tagged)
             if where is not None:
                 break
-        place = f"glsl/{where[0]}:{where[1]}" if where else f"<Blender's generated code>:{tagged}"
+        place = f"{where[0]}:{where[1]}" if where else f"<Blender's generated code>:{tagged}"
         message = f"{place}:{column}: {match['kind'].lower()}: {match['text']}"
         if message not in messages:
             messages.append(message)
@@ -166,8 +198,9 @@ class ShaderInterface:
 
 def create_shader(name: str, interface: ShaderInterface, *, vertex: str | None = None,
                   fragment: str | None = None, compute: str | None = None,
-                  defines: dict[str, object] | None = None, root: Path = GLSL_ROOT):
-    """Compile a shader from glsl/ stage files; raise ShaderCompileError with mapped messages."""
+                  defines: dict[str, object] | None = None, root: Roots = GLSL_ROOT):
+    """Compile a shader from stage files under `root` (glsl/ by default; a folder or a list of
+    folders searched in order); raise ShaderCompileError with mapped messages."""
     import gpu
 
     info = gpu.types.GPUShaderCreateInfo()
@@ -181,7 +214,8 @@ def create_shader(name: str, interface: ShaderInterface, *, vertex: str | None =
         info.vertex_in(slot, glsl_type, attribute)
     stage_interface = None
     if interface.varyings or interface.flat_varyings:
-        stage_interface = gpu.types.GPUStageInterfaceInfo(f"{name}_interface")
+        # The interface name becomes a GLSL identifier in Blender's generated code.
+        stage_interface = gpu.types.GPUStageInterfaceInfo(re.sub(r"\W", "_", f"{name}_interface"))
         for glsl_type, varying in interface.varyings:
             stage_interface.smooth(glsl_type, varying)
         for glsl_type, varying in interface.flat_varyings:
@@ -196,7 +230,8 @@ def create_shader(name: str, interface: ShaderInterface, *, vertex: str | None =
     for stage, setter in ((vertex, info.vertex_source), (fragment, info.fragment_source),
                           (compute, info.compute_source)):
         if stage is not None:
-            composed = compose(stage, root, defines)
+            first_tag = sum(len(source.files) for source in sources) + 1
+            composed = compose(stage, root, defines, first_tag)
             setter(composed.text)
             sources.append(composed)
 
