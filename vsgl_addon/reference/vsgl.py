@@ -1,0 +1,517 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""VSGL generation from a reflective shadow map (RSM), float64 ground truth (formulas.md §5).
+
+Virtual spherical Gaussian lights (VSGLs) are clusters of the RSM's virtual point lights (VPLs,
+one per texel), each described by an isotropic Gaussian in position and one spherical Gaussian
+(SG) per reflection lobe for its radiant intensity (000 app. B). The clusters are kernels on the
+RSM picked by filtered importance sampling (000 §3-4):
+
+1. mip chains of the per-texel VPL moments of 000 app. B.3 and of the PDF (``mipmap.py``);
+2. kernel centres x_i: a Fibonacci lattice (optionally Cranley-Patterson rotated) warped through
+   the PDF mipmap by hierarchical sample warping (000 §3.2, app. D);
+3. kernel level l_i: the modified kernel size (000 Eq. 3 with K, Algorithm 1) or the original one
+   (000 Eq. 1, Křivánek-Colbert, with K);
+4. cluster totals of the moments (000 Eq. 5, resp. Eq. 4) and from them the VSGL parameters
+   (000 app. B.1-B.3);
+5. or 003's simplified mode: two VSGLs (diffuse, specular) from the totals of the whole RSM.
+
+Papers: 000 = Tokuyoshi, "Modified filtered importance sampling for virtual spherical Gaussian
+lights" (CVM 2016); 003 = the Square Enix SG talk (2015), section 4 "単純化した実装".
+
+Input: an :class:`RSM` (or a mapping with the same keys), arrays of shape (H, W, ...) with
+H = W = 2^n (1x1 works). Image coordinates and mip conventions are those of ``mipmap.py``:
+``kernel_center[:, 0]`` runs along W (columns), ``kernel_center[:, 1]`` along H (rows).
+
+Scalar weights. 000 writes the VPL power Φ_j R_j as a scalar; the RSM holds RGB. The weights of
+the averaged directions and positions (the denominators of ξ̄_v and µ_v, 000 app. B.1-B.2) are
+the luminance of the RGB power (Rec. 709 / Blender's scene-linear coefficients), the same
+luminance that makes the default PDF; amplitudes c_v and ``power`` stay RGB. Luminance is linear,
+so lum(Σ ΦR) = Σ lum(ΦR) and the mipmapped RGB power gives the weights without extra channels.
+
+Normalization of Eqs. 4-5. 000 treats f and p as functions on [0, 1]^2: p integrates to 1, and
+Σ_j Φ_j R_j over a kernel = ∫ f g dx = 4^l/M · f̄ (000 app. B.3), so f is the texel value times M
+and p is the texel probability times M. With F̄ the mipmapped *texel value* (mean over a block)
+and p̄ the mipmapped *density* (top level = 1):
+
+* modified (Eq. 5):  cluster estimate = M F̄(x_i, l_i) / (N p̄(x_i, l_i)).  With Eq. 3 this is
+  4^l_i F̄ / K = (texel sum inside the kernel) / K: the K-fold overlap of K > 1 is divided out.
+* original (Eq. 4):  cluster estimate = M F̄(x_i, l_i) / max(N p(x_i), 1), p(x_i) = M times the
+  probability of the level-0 texel x_i lies in (the density the warp sampled x_i with, fetched
+  without filtering: Eq. 4's denominator is "not filtered", 000 §4.1).
+
+Summed over the N kernels both are estimates of the RSM total Σ_j Φ_j R_j: for a point x_i with
+density p, E[f(x_i)/(N p(x_i))] = ∫ f dx / N; filtering at a fixed level preserves ∫ f dx
+(``mipmap.py``), and 000 Eq. 5 divides by the same filter of p, so where p ∝ f the modified
+estimate is exact for every lattice. Residual bias: the level varies with x_i (both modes), Eq. 5
+divides by the filtered p̄ while x_i was drawn from the unfiltered p (modified), and Eq. 4's clamp max(N p, 1) replaces 1/(N p) by 1 where N p(x_i) < 1 (a kernel centre in a texel
+whose probability is below 1/(N M)); we implement Eq. 4 as written. ``power`` is therefore an
+estimate (the 2-VSGL mode is exact). Measured mean over lattice rotations (tests and report):
+smooth PDFs, 32² RSM, N = 256: within 0.5 % for both modes; a PDF of iid noise not proportional
+to the flux: Eq. 5 reads 0.5 % low at 128², N = 256 (kernels of ~8x8 texels) and 9 % low at 32²,
+N = 256 (~2x2 texels), while Eq. 4 stays within ~1 % but varies 12-16 % from one lattice to the
+next: the bias-for-variance trade of the modified kernels (000 §6, "Overlaps and gaps"). A PDF
+that is 0 where the flux is not misses that flux entirely, as any importance sampling does.
+
+Empty RSM (all flux 0) or a lobe with no power in a cluster: the VSGLs are still returned, with
+power and amplitudes 0 and every other field finite (axis (0, 0, 1), sharpness 0, mean and
+variance of the whole RSM, or 0 and the variance floor for an empty RSM); the kernel centres of
+an empty RSM come from a uniform PDF. A fixed VSGL count keeps the GPU buffers fixed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from . import mipmap
+from .sg import DIFFUSE_SHARPNESS, sg_integral  # λ_d ≈ 2 (000 Eq. 6); A(λ) (000 app. A)
+
+#: Rec. 709 luminance (Blender's scene-linear RGB): scalar weight of an RGB power.
+LUMINANCE_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
+
+#: Iterations of the bisection of 000 Algorithm 1 ("an iteration count of 12", 000 §3.2).
+BISECTION_ITERATIONS = 12
+
+#: Clamp |ξ̄_v| <= 1 - 2^-20, so λ_v = |ξ̄_v| / (1 - |ξ̄_v|) <= 2^20 - 1 ≈ 1.05e6 (000 app. B.1).
+#: |ξ̄_v| -> 1 when every VPL of a cluster has the same, very sharp lobe (λ_v -> the VPLs' λ,
+#: unbounded at grazing incidence). A float32 GPU computes 1 - |ξ̄_v| from float32 mip values whose
+#: spacing below 1 is 2^-24: at 2^-20 the difference still holds 16 ulps (~6 % rounding), beyond it
+#: λ_v would be rounding noise, up to inf at |ξ̄_v| = 1. The cap still covers the specular lobe of
+#: roughness 1e-3 at normal incidence (λ_s = 2/α² / 4 = 5e5, 000 app. A.1), c_v = ΣΦR / A(λ_v)
+#: <= ΣΦR · 1.7e5 and shading's λ products stay far inside float32.
+MAX_AXIS_LENGTH = 1.0 - 2.0**-20
+MAX_SHARPNESS = MAX_AXIS_LENGTH / (1.0 - MAX_AXIS_LENGTH)
+
+#: σ_v² >= max(2^-20 · E|y|², 1e-12) (000 app. B.2). σ_v² = E|y|² - |µ_v|² is 0 for a cluster of
+#: one VPL or of identical VPLs and can come out slightly negative by cancellation. The relative
+#: term is where the paper's formula stops meaning anything in float32: its rounding error is a few
+#: 2^-24 E|y|², so 2^-20 E|y|² is 16 ulps, and the reference clamps where a float32 GPU result
+#: would be noise (both then agree). The absolute term (in scene units², 1e-12 m² = 1 µm²) covers
+#: VPLs at the origin (E|y|² = 0): 1/σ_v² <= 1e12 and c_v / (2π σ_v²) stay finite in float32, and
+#: shading such a VSGL gives the point-light limit, which is what one VPL is.
+VARIANCE_FLOOR_RELATIVE = 2.0**-20
+VARIANCE_FLOOR_ABSOLUTE = 1e-12
+
+KERNEL_MODES = ("modified", "original", "two-vsgl")
+
+#: Channels of the per-texel moment image (mip-chained; "w" = luminance of the RGB power):
+#: Σ Φ Rd, Σ w_d ξ̄_d, Σ Φ Rs, Σ w_s ξ̄_s, Σ w y, Σ w |y|² (000 app. B.3, Fig. 4).
+CH_DIFFUSE = slice(0, 3)
+CH_DIFFUSE_DIRECTION = slice(3, 6)
+CH_SPECULAR = slice(6, 9)
+CH_SPECULAR_DIRECTION = slice(9, 12)
+CH_POSITION = slice(12, 15)
+CH_POSITION_SQUARED = 15
+MOMENT_CHANNELS = 16
+
+OUTPUT_KEYS = (
+    "mean",
+    "variance",
+    "diffuse_amplitude",
+    "diffuse_axis",
+    "diffuse_sharpness",
+    "specular_amplitude",
+    "specular_axis",
+    "specular_sharpness",
+    "power",
+    "kernel_center",
+    "kernel_level",
+)
+
+_FALLBACK_AXIS = np.array([0.0, 0.0, 1.0])
+
+
+def _f64(x):
+    return np.asarray(x, dtype=np.float64)
+
+
+def luminance(rgb) -> np.ndarray:
+    """Rec. 709 luminance of RGB values (..., 3)."""
+    return _f64(rgb) @ LUMINANCE_WEIGHTS
+
+
+@dataclass(frozen=True)
+class RSM:
+    """A reflective shadow map: one VPL per texel (formulas.md §4), arrays (H, W, ...), H = W = 2^n.
+
+    position            (H, W, 3)  VPL position y (world space)
+    normal              (H, W, 3)  surface normal n (axis of the diffuse lobe, 000 Eq. 6)
+    flux_diffuse        (H, W, 3)  Φ·Rd, RGB, >= 0
+    flux_specular       (H, W, 3)  Φ·Rs, RGB, >= 0
+    specular_axis       (H, W, 3)  ξ_s of the warped specular lobe (000 Eq. 7)
+    specular_sharpness  (H, W)     λ_s of the warped specular lobe, >= 0 (inf = mirror is allowed)
+
+    Directions are renormalized here (a zero vector counts as an isotropic lobe). Positions,
+    directions and sharpness of texels without flux are ignored, so background texels may hold
+    anything, NaN included.
+    """
+
+    position: np.ndarray
+    normal: np.ndarray
+    flux_diffuse: np.ndarray
+    flux_specular: np.ndarray
+    specular_axis: np.ndarray
+    specular_sharpness: np.ndarray
+
+    @classmethod
+    def coerce(cls, rsm) -> "RSM":
+        """Accept an RSM or a mapping with the field names; validate shapes and flux."""
+        if isinstance(rsm, RSM):
+            fields = {name: getattr(rsm, name) for name in cls.__dataclass_fields__}
+        elif isinstance(rsm, Mapping):
+            fields = {name: rsm[name] for name in cls.__dataclass_fields__}
+        else:
+            raise TypeError(f"expected an RSM or a mapping, got {type(rsm).__name__}")
+        fields = {name: _f64(value) for name, value in fields.items()}
+        size = mipmap.check_square_power_of_two(fields["position"].shape)
+        for name, value in fields.items():
+            expected = (size, size) if name == "specular_sharpness" else (size, size, 3)
+            if value.shape != expected:
+                raise ValueError(f"{name} must have shape {expected}, got {value.shape}")
+        for name in ("flux_diffuse", "flux_specular"):
+            value = fields[name]
+            if not np.all(np.isfinite(value)) or np.any(value < 0.0):
+                raise ValueError(f"{name} must be finite and non-negative")
+        return cls(**fields)
+
+    @property
+    def size(self) -> int:
+        return self.position.shape[0]
+
+    @property
+    def texel_count(self) -> int:
+        """M, the number of texels (000 §3.1)."""
+        return self.size * self.size
+
+
+def _unit_or_zero(vectors, mask):
+    """Normalize where mask and the length is positive and finite; zero elsewhere."""
+    vectors = np.where(mask[..., None], vectors, 0.0)
+    length = np.sqrt(np.sum(vectors * vectors, axis=-1))
+    ok = mask & (length > 0.0) & np.isfinite(length)
+    return np.where(ok[..., None], vectors / np.where(ok, length, 1.0)[..., None], 0.0)
+
+
+def _toksvig_mean_direction(axis, sharpness):
+    """ξ̄ = λ/(λ+1) ξ (Toksvig; 000 app. B.1), written ξ / (1 + 1/λ): finite for λ = 0 and λ = inf."""
+    with np.errstate(divide="ignore"):
+        factor = 1.0 / (1.0 + 1.0 / sharpness)
+    return factor[..., None] * axis
+
+
+def texel_moments(rsm: RSM) -> np.ndarray:
+    """Per-texel VPL moments (H, W, 16) of 000 app. B.3 (channel layout: ``CH_*``).
+
+    Σ Φ Rd, Σ w_d ξ̄_d, Σ Φ Rs, Σ w_s ξ̄_s, Σ w y, Σ w |y|² with w_d = lum(Φ Rd), w_s = lum(Φ Rs),
+    w = w_d + w_s = lum(Φ (Rd + Rs)); ξ̄_d = λ_d/(λ_d + 1) n with λ_d = DIFFUSE_SHARPNESS (000 Eq. 6)
+    and ξ̄_s = λ_s/(λ_s + 1) ξ_s (000 Eq. 7). Texels without power contribute zeros everywhere.
+    """
+    w_d = luminance(rsm.flux_diffuse)
+    w_s = luminance(rsm.flux_specular)
+    w = w_d + w_s
+    lit_d = w_d > 0.0
+    lit_s = w_s > 0.0
+    lit = w > 0.0
+    normal = _unit_or_zero(rsm.normal, lit_d)
+    spec_axis = _unit_or_zero(rsm.specular_axis, lit_s)
+    spec_sharpness = np.where(lit_s, rsm.specular_sharpness, 0.0)
+    if np.any(np.isnan(spec_sharpness)) or np.any(spec_sharpness < 0.0):
+        raise ValueError("specular_sharpness of lit texels must be >= 0 (inf allowed)")
+    position = np.where(lit[..., None], rsm.position, 0.0)
+    if not np.all(np.isfinite(position)):
+        raise ValueError("position of lit texels must be finite")
+    out = np.zeros(rsm.position.shape[:2] + (MOMENT_CHANNELS,))
+    out[..., CH_DIFFUSE] = rsm.flux_diffuse
+    out[..., CH_DIFFUSE_DIRECTION] = w_d[..., None] * _toksvig_mean_direction(
+        normal, np.full(w_d.shape, float(DIFFUSE_SHARPNESS))
+    )
+    out[..., CH_SPECULAR] = rsm.flux_specular
+    out[..., CH_SPECULAR_DIRECTION] = w_s[..., None] * _toksvig_mean_direction(
+        spec_axis, spec_sharpness
+    )
+    out[..., CH_POSITION] = w[..., None] * position
+    out[..., CH_POSITION_SQUARED] = w * np.sum(position * position, axis=-1)
+    return out
+
+
+def default_pdf(rsm: RSM) -> np.ndarray:
+    """Luminance of Φ (Rd + Rs) per texel normalized to sum 1; uniform if the RSM has no power."""
+    return normalize_pdf(luminance(rsm.flux_diffuse + rsm.flux_specular))
+
+
+def normalize_pdf(pdf) -> np.ndarray:
+    """Texel probabilities (H, W) summing to 1; an all-zero image becomes uniform."""
+    pdf = _f64(pdf)
+    if pdf.ndim != 2:
+        raise ValueError(f"a PDF image has shape (H, W), got {pdf.shape}")
+    if not np.all(np.isfinite(pdf)) or np.any(pdf < 0.0):
+        raise ValueError("a PDF image must be finite and non-negative")
+    total = pdf.sum()
+    if total <= 0.0:
+        return np.full(pdf.shape, 1.0 / pdf.size)
+    return pdf / total
+
+
+@dataclass(frozen=True)
+class RSMMipmaps:
+    """Mip chains of an RSM: ``moments`` (levels of (h, w, 16), means of ``texel_moments``) and
+    ``pdf`` (levels of (h, w), the density p = M · texel probability, so the top level is 1)."""
+
+    moments: list
+    pdf: list
+    texel_count: int
+
+    @property
+    def top_level(self) -> int:
+        return len(self.pdf) - 1
+
+
+def build_mipmaps(rsm, pdf=None) -> RSMMipmaps:
+    """The mipmapped RSM of 000 §4.1 / Fig. 4 and the PDF mipmap (000 §3.2)."""
+    rsm = RSM.coerce(rsm)
+    probability = default_pdf(rsm) if pdf is None else normalize_pdf(pdf)
+    if probability.shape != (rsm.size, rsm.size):
+        raise ValueError(f"pdf must have shape {(rsm.size, rsm.size)}, got {probability.shape}")
+    return RSMMipmaps(
+        moments=mipmap.build_mip_chain(texel_moments(rsm)),
+        pdf=mipmap.build_mip_chain(probability * rsm.texel_count),
+        texel_count=rsm.texel_count,
+    )
+
+
+def kernel_pdf_mass(pdf_chain, uv, level, texel_count) -> np.ndarray:
+    """4^l / M · p̄(x, l): the PDF mass of a kernel (left side of 000 Eq. 3)."""
+    level = _f64(level)
+    return 4.0**level / texel_count * mipmap.trilinear(pdf_chain, uv, level)
+
+
+def kernel_level_modified(pdf_chain, uv, k, vsgl_count, texel_count,
+                          iterations=BISECTION_ITERATIONS) -> np.ndarray:
+    """Modified kernel size: solve 4^l / M · p̄(x_i, l) = K / N by bisection (000 Eq. 3, Alg. 1).
+
+    l in [0, top]; l_min <- l where the left side is below K/N, else l_max <- l; the result is the
+    final midpoint, so it lies strictly inside [0, top] (within top · 2^-(iterations+1) of an end
+    when the equation has no root inside). The comparisons alone steer the bisection, so l_i is
+    non-decreasing in K/N even where the left side is not monotone in l (trilinear p̄ need not be).
+    """
+    per_level = mipmap.sample_all_levels(pdf_chain, uv)
+    top = per_level.shape[0] - 1
+    target = float(k) / float(vsgl_count)
+    count = per_level.shape[1]
+    l_min = np.zeros(count)
+    l_max = np.full(count, float(top))
+    for _ in range(int(iterations)):
+        level = 0.5 * (l_min + l_max)
+        mass = 4.0**level / texel_count * mipmap.interpolate_levels(per_level, level)
+        below = mass < target
+        l_min = np.where(below, level, l_min)
+        l_max = np.where(below, l_max, level)
+    return 0.5 * (l_min + l_max)
+
+
+def kernel_level_original(pdf_at_center, k, vsgl_count, texel_count, top_level) -> np.ndarray:
+    """Original kernel size: 4^l / M = min(K / (N p(x_i)), 1) (000 Eq. 1; Křivánek-Colbert).
+
+    l = log4(M · min(K / (N p), 1)), clamped to [0, top]. l < 0 (a texel of probability p/M above
+    K/N) would ask for a kernel smaller than a texel, which the mipmap cannot resolve. p is the
+    unfiltered density at x_i, so l jumps between texels: the weakness 000 §3.1 points out.
+    """
+    p = np.maximum(_f64(pdf_at_center), np.finfo(np.float64).tiny)
+    area = np.minimum(float(k) / (float(vsgl_count) * p), 1.0)
+    return np.clip(0.5 * np.log2(texel_count * area), 0.0, float(top_level))
+
+
+def _safe_ratio(numerator, denominator):
+    """numerator / denominator where denominator > 0, else 0 (broadcast over trailing dims)."""
+    den = np.asarray(denominator)
+    ok = den > 0.0
+    den = np.where(ok, den, 1.0)
+    extra = (Ellipsis,) + (None,) * (np.ndim(numerator) - np.ndim(den))
+    return np.where(ok[extra], numerator / den[extra], 0.0)
+
+
+def _lobe(power, direction_sum):
+    """SG of one lobe from Σ ΦR (RGB) and Σ w ξ̄ (000 app. B.1): amplitude, axis, sharpness."""
+    weight = luminance(power)
+    mean_direction = _safe_ratio(direction_sum, weight)
+    length = np.sqrt(np.sum(mean_direction * mean_direction, axis=-1))
+    has_axis = length > 0.0
+    axis = np.where(
+        has_axis[..., None], mean_direction / np.where(has_axis, length, 1.0)[..., None],
+        _FALLBACK_AXIS,
+    )
+    # |ξ̄_v| <= 1 holds for any non-negative weighting; the clamp keeps λ_v finite (MAX_AXIS_LENGTH).
+    length = np.minimum(length, MAX_AXIS_LENGTH)
+    sharpness = length / (1.0 - length)
+    amplitude = power / sg_integral(sharpness)[..., None]
+    return amplitude, axis, sharpness
+
+
+def _position(weight, position_sum, position_squared_sum, fallback_mean, fallback_variance):
+    """µ_v and σ_v² = E|y|² - |µ_v|² (000 app. B.2), clamped to the variance floor."""
+    has = weight > 0.0
+    mean = np.where(has[..., None], _safe_ratio(position_sum, weight), fallback_mean)
+    second = _safe_ratio(position_squared_sum, weight)
+    variance = np.where(has, second - np.sum(mean * mean, axis=-1), fallback_variance)
+    floor = np.maximum(VARIANCE_FLOOR_RELATIVE * second, VARIANCE_FLOOR_ABSOLUTE)
+    return mean, np.maximum(variance, np.where(has, floor, VARIANCE_FLOOR_ABSOLUTE))
+
+
+def vsgl_parameters(totals, fallback_mean=None, fallback_variance=None) -> dict:
+    """VSGL parameters from cluster totals (..., 16) of ``texel_moments`` (000 app. B.1-B.3).
+
+    Per lobe: ξ̄_v = Σ w ξ̄ / Σ w, ξ_v = ξ̄_v / |ξ̄_v|, λ_v = |ξ̄_v| / (1 - |ξ̄_v|), c_v = Σ ΦR / A(λ_v);
+    position: µ_v = Σ w y / Σ w, σ_v² = Σ w |y|² / Σ w - |µ_v|² with w = lum(Φ (Rd + Rs)).
+    Any common positive scale of the totals cancels except in c_v and ``power``.
+    """
+    totals = _f64(totals)
+    if fallback_mean is None:
+        fallback_mean = np.zeros(3)
+    if fallback_variance is None:
+        fallback_variance = VARIANCE_FLOOR_ABSOLUTE
+    d_amp, d_axis, d_sharp = _lobe(totals[..., CH_DIFFUSE], totals[..., CH_DIFFUSE_DIRECTION])
+    s_amp, s_axis, s_sharp = _lobe(totals[..., CH_SPECULAR], totals[..., CH_SPECULAR_DIRECTION])
+    power = totals[..., CH_DIFFUSE] + totals[..., CH_SPECULAR]
+    mean, variance = _position(
+        luminance(power), totals[..., CH_POSITION], totals[..., CH_POSITION_SQUARED],
+        fallback_mean, fallback_variance,
+    )
+    return {
+        "mean": mean,
+        "variance": variance,
+        "diffuse_amplitude": d_amp,
+        "diffuse_axis": d_axis,
+        "diffuse_sharpness": d_sharp,
+        "specular_amplitude": s_amp,
+        "specular_axis": s_axis,
+        "specular_sharpness": s_sharp,
+        "power": power,
+    }
+
+
+def _rsm_fallback(top_moments):
+    """Mean and variance of the whole RSM (its 1x1 level): the position of power-less clusters."""
+    totals = top_moments[0, 0]
+    power = totals[CH_DIFFUSE] + totals[CH_SPECULAR]
+    mean, variance = _position(
+        luminance(power), totals[CH_POSITION], totals[CH_POSITION_SQUARED], np.zeros(3),
+        VARIANCE_FLOOR_ABSOLUTE,
+    )
+    return mean, float(variance)
+
+
+def lattice_rotation(seed=0, rotation=None) -> np.ndarray:
+    """Cranley-Patterson shift of the lattice: ``rotation`` if given, else uniform from ``seed``
+    (numpy's default_rng), else (seed None) no shift."""
+    if rotation is not None:
+        rotation = _f64(rotation).reshape(2)
+        return rotation - np.floor(rotation)
+    if seed is None:
+        return np.zeros(2)
+    return np.random.default_rng(seed).random(2)
+
+
+def two_vsgls(rsm) -> dict:
+    """003's simplified mode: one diffuse-only and one specular-only VSGL from whole-RSM totals.
+
+    No mipmap and no sampling: a parallel sum over the RSM (003, "VSGLのパラメータ: Reflective
+    Shadow Maps全領域の平均"). Row 0 carries only the diffuse lobe, row 1 only the specular lobe.
+    003 does not say which power weights each VSGL's position; a VSGL that emits only one lobe is
+    placed at that lobe's power centroid (weights lum(Φ Rd), resp. lum(Φ Rs)), which is what the
+    full method's shared weights lum(Φ (Rd + Rs)) reduce to for a cluster holding a single lobe.
+    ``power`` is exact: Σ Φ Rd and Σ Φ Rs, summing to the RSM total.
+    """
+    rsm = RSM.coerce(rsm)
+    moments = texel_moments(rsm).reshape(-1, MOMENT_CHANNELS)
+    w_d = luminance(rsm.flux_diffuse).reshape(-1)
+    w_s = luminance(rsm.flux_specular).reshape(-1)
+    w = w_d + w_s
+    y = np.where((w > 0.0)[:, None], rsm.position.reshape(-1, 3), 0.0)
+    yy = np.sum(y * y, axis=-1)
+    total_mean, total_variance = _rsm_fallback(moments.sum(axis=0)[None, None])
+    rows = np.zeros((2, MOMENT_CHANNELS))
+    rows[0, CH_DIFFUSE] = moments[:, CH_DIFFUSE].sum(axis=0)
+    rows[0, CH_DIFFUSE_DIRECTION] = moments[:, CH_DIFFUSE_DIRECTION].sum(axis=0)
+    rows[0, CH_POSITION] = (w_d[:, None] * y).sum(axis=0)
+    rows[0, CH_POSITION_SQUARED] = (w_d * yy).sum()
+    rows[1, CH_SPECULAR] = moments[:, CH_SPECULAR].sum(axis=0)
+    rows[1, CH_SPECULAR_DIRECTION] = moments[:, CH_SPECULAR_DIRECTION].sum(axis=0)
+    rows[1, CH_POSITION] = (w_s[:, None] * y).sum(axis=0)
+    rows[1, CH_POSITION_SQUARED] = (w_s * yy).sum()
+    out = vsgl_parameters(rows, total_mean, total_variance)
+    out["kernel_center"] = np.full((2, 2), 0.5)
+    out["kernel_level"] = np.full(2, float(mipmap.mip_level_count(rsm.size) - 1))
+    out["rsm_total_power"] = (rsm.flux_diffuse + rsm.flux_specular).reshape(-1, 3).sum(axis=0)
+    return out
+
+
+def cluster_totals(maps: RSMMipmaps, center, texel, k, vsgl_count, kernel="modified"):
+    """Kernel levels (N) and cluster estimates (N, 16) of the moments at warped kernel centres.
+
+    ``center`` (N, 2) and ``texel`` (N, 2) as returned by ``mipmap.warp_hierarchical``.
+    'modified': l_i from Eq. 3 (Algorithm 1), estimate M F̄(x_i, l_i) / (N p̄(x_i, l_i)) (Eq. 5).
+    'original': l_i from Eq. 1, estimate M F̄(x_i, l_i) / max(N p(x_i), 1) (Eq. 4).
+    """
+    texel_count = maps.texel_count
+    if kernel == "modified":
+        level = kernel_level_modified(maps.pdf, center, k, vsgl_count, texel_count)
+        # Eq. 5: numerator and denominator filtered with the same kernel.
+        denominator = vsgl_count * mipmap.trilinear(maps.pdf, center, level)
+    elif kernel == "original":
+        pdf_at_center = maps.pdf[0][texel[:, 0], texel[:, 1]]
+        level = kernel_level_original(pdf_at_center, k, vsgl_count, texel_count, maps.top_level)
+        # Eq. 4 as written: unfiltered density; with K = 1 the clamp max(N p, 1) makes a kernel that
+        # covers the whole RSM (N p <= 1) return the RSM total rather than total / (N p).
+        denominator = np.maximum(vsgl_count * pdf_at_center, 1.0)
+    else:
+        raise ValueError(f"kernel must be 'modified' or 'original', got {kernel!r}")
+    # p̄ > 0 at a warped centre (its own texel has bilinear weight >= 1/4 at every level); the
+    # floor only guards against a subnormal PDF.
+    denominator = np.maximum(denominator, np.finfo(np.float64).tiny)
+    filtered = mipmap.trilinear(maps.moments, center, level)
+    return level, texel_count * filtered / denominator[:, None]
+
+
+def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
+                   rotation=None) -> dict:
+    """Generate VSGLs from an RSM by filtered importance sampling (000 §4, app. B.3, app. D).
+
+    rsm         an :class:`RSM` or a mapping with its field names.
+    vsgl_count  N, the number of kernels (ignored by 'two-vsgl', which always returns 2).
+    k           K > 0, the kernel-size parameter (000 Eq. 1 and §4.2: K/N in Eq. 3).
+    kernel      'modified' (000 Eq. 3 + Eq. 5), 'original' (000 Eq. 1 + Eq. 4) or 'two-vsgl' (003).
+    seed        seed of the random lattice rotation (None: no rotation); ignored if ``rotation``.
+    pdf         (H, W) non-negative image, normalized here; default: lum(Φ (Rd + Rs)).
+    rotation    explicit Cranley-Patterson shift (2,) of the Fibonacci lattice.
+
+    Returns a dict of float64 arrays, one row per VSGL: ``mean`` (N, 3), ``variance`` (N),
+    ``diffuse_amplitude`` (N, 3), ``diffuse_axis`` (N, 3), ``diffuse_sharpness`` (N),
+    ``specular_amplitude`` (N, 3), ``specular_axis`` (N, 3), ``specular_sharpness`` (N),
+    ``power`` (N, 3) (the cluster's estimate of Σ Φ (Rd + Rs)), ``kernel_center`` (N, 2) in
+    [0, 1]^2, ``kernel_level`` (N); and ``rsm_total_power`` (3), the exact Σ Φ (Rd + Rs).
+    """
+    if kernel not in KERNEL_MODES:
+        raise ValueError(f"kernel must be one of {KERNEL_MODES}, got {kernel!r}")
+    rsm = RSM.coerce(rsm)
+    if kernel == "two-vsgl":
+        return two_vsgls(rsm)
+    vsgl_count = int(vsgl_count)
+    if vsgl_count < 1:
+        raise ValueError(f"vsgl_count must be >= 1, got {vsgl_count}")
+    k = float(k)
+    if not (np.isfinite(k) and k > 0.0):
+        raise ValueError(f"k must be finite and positive, got {k}")
+    maps = build_mipmaps(rsm, pdf)
+
+    lattice = mipmap.fibonacci_lattice(vsgl_count, lattice_rotation(seed, rotation))
+    center, texel = mipmap.warp_hierarchical(maps.pdf, lattice)
+    level, totals = cluster_totals(maps, center, texel, k, vsgl_count, kernel)
+
+    fallback_mean, fallback_variance = _rsm_fallback(maps.moments[-1])
+    out = vsgl_parameters(totals, fallback_mean, fallback_variance)
+    out["kernel_center"] = center
+    out["kernel_level"] = level
+    out["rsm_total_power"] = (rsm.flux_diffuse + rsm.flux_specular).reshape(-1, 3).sum(axis=0)
+    return out
