@@ -46,8 +46,9 @@ def _command_demo(arguments) -> int:
     print()
     started = time.perf_counter()
     rows = accuracy.measure()
-    print(accuracy.to_markdown(rows))
-    print(f"\n{len(rows)} math checks against numerical quadrature in {time.perf_counter() - started:.1f} s")
+    print(accuracy.to_markdown(rows, header=False))
+    print(f"{len(rows)} math checks against numerical quadrature in {time.perf_counter() - started:.1f} s "
+          "(how each is measured: docs/accuracy.md)")
     return 0
 
 

@@ -729,8 +729,8 @@ def _format(value, exact):
     return f"{value:.4g}"
 
 
-def to_markdown(rows):
-    lines = [HEADER.format(bound=EXACT_BOUND)]
+def to_markdown(rows, header=True):
+    lines = [HEADER.format(bound=EXACT_BOUND)] if header else []
     lines.append("| Approximation | Parameters | Metric | Measured |")
     lines.append("|---|---|---|---|")
     for row in rows:
