@@ -1,0 +1,236 @@
+// @require lib/mip_atlas.glsl
+// @require lib/vsgl_parameters.glsl
+//
+// One invocation per VSGL (000 section 3-4, Algorithm 1, app. B.3 and D; 003 for the 2-VSGL mode):
+// Fibonacci lattice point (+ Cranley-Patterson rotation), hierarchical warp through the PDF plane
+// of the mip chains (glsl/lib/mip_atlas.glsl), kernel level, cluster totals, VSGL parameters. Twin of
+// vsgl_addon/reference/vsgl.py `generate_vsgls`, float32 with exact (float32) trilinear weights.
+//
+// kernel_mode: 0 = modified kernel size (000 Eq. 3 by bisection, Algorithm 1; Eq. 5),
+//              1 = original kernel size (000 Eqs. 1 and 4),
+//              2 = 003's two VSGLs from the whole-RSM totals (the atlas's top level).
+//
+// Output table `vsgl_table` (RGBA32F, vsgl_count x 8), column i = VSGL i:
+//   row 0: mean.xyz, variance              row 1: diffuse_amplitude.rgb, diffuse_sharpness
+//   row 2: diffuse_axis.xyz, kernel_level  row 3: specular_amplitude.rgb, specular_sharpness
+//   row 4: specular_axis.xyz, center.u     row 5: power.rgb, center.v
+//   row 6: the level-0 texel the warp chose (row, column), 0, 0 (the centre can round onto the
+//          texel's far edge: (texel + u) / S in float32 with u just below 1)
+//   row 7 (column 0 only): rsm_total_power.rgb, 0
+
+const int BISECTION_ITERATIONS = 12;   // 000 section 3.2
+const float BELOW_ONE = 0.99999994;     // largest float32 below 1 (1 - 2^-24)
+const float SMALLEST_NORMAL = 1.17549435e-38;
+const uint GOLDEN_RATIO_CONJUGATE_HIGH = 0x9E3779B9u;  // (sqrt(5) - 1) / 2 in 64-bit fixed point
+const uint GOLDEN_RATIO_CONJUGATE_LOW = 0x7F4A7C15u;
+
+// The 16 moment channels (planes 0-3) of one atlas level at a bilinear tap.
+void moments_bilinear(int level, BilinearTap tap, out vec4 m[4])
+{
+  for (int plane = 0; plane < 4; plane++) {
+    m[plane] = mip_atlas_bilinear_tap(rsm_size, level, plane, tap);
+  }
+}
+
+// x_i = ((i + 0.5) / N, frac(i / phi)) + rotation (mod 1) (reference `fibonacci_lattice`), in 32-bit
+// fixed point: (2i + 1) 2^31 / N and i (1/phi) are formed exactly (the latter with the 64-bit
+// constant), the shift wraps modulo 1 for free, and the 24 leading bits become the float32 point.
+vec2 fibonacci_lattice_point(int index)
+{
+  uint n = uint(vsgl_count);
+  uint a = 2u * uint(index) + 1u;
+  uint quotient = 0x80000000u / n;
+  uint remainder = 0x80000000u % n;
+  uint u_fixed = a * quotient + (a * remainder) / n;  // floor(a 2^31 / N), exact for N <= 2^15
+  uint carry, low;
+  umulExtended(uint(index), GOLDEN_RATIO_CONJUGATE_LOW, carry, low);
+  uint v_fixed = uint(index) * GOLDEN_RATIO_CONJUGATE_HIGH + carry;
+  u_fixed += uint(lattice_rotation_fixed.x);
+  v_fixed += uint(lattice_rotation_fixed.y);
+  return vec2(float(u_fixed >> 8u), float(v_fixed >> 8u)) * (1.0 / 16777216.0);
+}
+
+// The PDF weight (plane 4, not normalized) of a texel.
+float pdf_weight(int level, ivec2 texel)
+{
+  return mip_atlas_fetch(rsm_size, level, 4, texel).x;
+}
+
+// Hierarchical sample warping (reference `warp_hierarchical`): returns uv, sets the level-0 texel
+// (column, row). Top-down from the 1x1 level: column by the masses of the 2x2 children's columns,
+// then row inside the column; u and v are rescaled to [0, 1) at each step.
+vec2 warp_hierarchical(vec2 sample_point, int top, out ivec2 texel)
+{
+  float u = sample_point.x;
+  float v = sample_point.y;
+  texel = ivec2(0);
+  for (int level = top - 1; level >= 0; level--) {
+    ivec2 c0 = 2 * texel;
+    float m00 = pdf_weight(level, c0);
+    float m01 = pdf_weight(level, c0 + ivec2(1, 0));
+    float m10 = pdf_weight(level, c0 + ivec2(0, 1));
+    float m11 = pdf_weight(level, c0 + ivec2(1, 1));
+    precise float left = m00 + m10;
+    precise float total = (left + m01) + m11;
+    float p_left = total > 0.0 ? left / total : 0.5;
+    bool go_left = u < p_left;
+    u = go_left ? u / p_left : (u - p_left) / (1.0 - p_left);
+    u = clamp(u, 0.0, BELOW_ONE);
+    precise float right = m01 + m11;
+    float upper = go_left ? m00 : m01;
+    float column = go_left ? left : right;
+    float p_upper = column > 0.0 ? upper / column : 0.5;
+    bool go_upper = v < p_upper;
+    v = go_upper ? v / p_upper : (v - p_upper) / (1.0 - p_upper);
+    v = clamp(v, 0.0, BELOW_ONE);
+    texel = ivec2(go_left ? c0.x : c0.x + 1, go_upper ? c0.y : c0.y + 1);
+  }
+  vec2 uv = (vec2(texel) + vec2(u, v)) / float(rsm_size);
+  return min(uv, vec2(BELOW_ONE));
+}
+
+float interpolate_levels(float per_level[MIP_ATLAS_MAX_LEVELS], float level, int top)
+{
+  int lower, upper;
+  float fraction;
+  mip_level_split(level, top, lower, upper, fraction);
+  return (1.0 - fraction) * per_level[lower] + fraction * per_level[upper];
+}
+
+void write_vsgl(int column, vec4 totals[4], vec3 fallback_mean, float fallback_variance,
+                vec2 center, float level, ivec2 texel)
+{
+  vec3 diffuse_power = totals[0].xyz;
+  vec3 diffuse_direction = vec3(totals[0].w, totals[1].xy);
+  vec3 specular_power = vec3(totals[1].zw, totals[2].x);
+  vec3 specular_direction = totals[2].yzw;
+  vec3 diffuse_amplitude, diffuse_axis, specular_amplitude, specular_axis;
+  float diffuse_sharpness, specular_sharpness;
+  vsgl_lobe(diffuse_power, diffuse_direction, diffuse_amplitude, diffuse_axis, diffuse_sharpness);
+  vsgl_lobe(specular_power, specular_direction, specular_amplitude, specular_axis, specular_sharpness);
+  vec3 power = diffuse_power + specular_power;
+  vec3 mean;
+  float variance;
+  vsgl_position(luminance(power), totals[3].xyz, totals[3].w, fallback_mean, fallback_variance,
+                mean, variance);
+  imageStore(vsgl_table, ivec2(column, 0), vec4(mean, variance));
+  imageStore(vsgl_table, ivec2(column, 1), vec4(diffuse_amplitude, diffuse_sharpness));
+  imageStore(vsgl_table, ivec2(column, 2), vec4(diffuse_axis, level));
+  imageStore(vsgl_table, ivec2(column, 3), vec4(specular_amplitude, specular_sharpness));
+  imageStore(vsgl_table, ivec2(column, 4), vec4(specular_axis, center.x));
+  imageStore(vsgl_table, ivec2(column, 5), vec4(power, center.y));
+  imageStore(vsgl_table, ivec2(column, 6), vec4(float(texel.y), float(texel.x), 0.0, 0.0));
+}
+
+// Mean and variance of the whole RSM (reference `_rsm_fallback`) from top-level position moments.
+void rsm_fallback(vec4 top_position, vec3 top_power, out vec3 mean, out float variance)
+{
+  vsgl_position(luminance(top_power), top_position.xyz, top_position.w, vec3(0.0),
+                VARIANCE_FLOOR_ABSOLUTE, mean, variance);
+}
+
+void main()
+{
+  int index = int(gl_GlobalInvocationID.x);
+  int top = findMSB(rsm_size);
+  float texel_count = float(rsm_size) * float(rsm_size);
+  vec4 top_moments[5];
+  for (int plane = 0; plane < 5; plane++) {
+    top_moments[plane] = mip_atlas_fetch(rsm_size, top, plane, ivec2(0));
+  }
+  vec3 top_power = top_moments[0].xyz + vec3(top_moments[1].zw, top_moments[2].x);
+  if (index == 0) {
+    imageStore(vsgl_table, ivec2(0, 7), vec4(texel_count * top_power, 0.0));
+  }
+
+  if (kernel_mode == 2) {
+    // 003: row 0 the diffuse lobe, row 1 the specular lobe, from whole-RSM totals (sum = M mean).
+    if (index > 1) {
+      return;
+    }
+    vec3 fallback_mean;
+    float fallback_variance;
+    rsm_fallback(top_moments[3] + top_moments[4], top_power, fallback_mean, fallback_variance);
+    vec4 totals[4];
+    if (index == 0) {
+      totals[0] = texel_count * top_moments[0];
+      totals[1] = texel_count * vec4(top_moments[1].xy, 0.0, 0.0);
+      totals[2] = vec4(0.0);
+      totals[3] = texel_count * top_moments[3];
+    }
+    else {
+      totals[0] = vec4(0.0);
+      totals[1] = texel_count * vec4(0.0, 0.0, top_moments[1].zw);
+      totals[2] = texel_count * top_moments[2];
+      totals[3] = texel_count * top_moments[4];
+    }
+    write_vsgl(index, totals, fallback_mean, fallback_variance, vec2(0.5), float(top),
+               ivec2(rsm_size / 2));
+    return;
+  }
+  if (index >= vsgl_count) {
+    return;
+  }
+  vec3 fallback_mean;
+  float fallback_variance;
+  rsm_fallback(top_moments[3], top_power, fallback_mean, fallback_variance);
+
+  // Density p = M x texel probability = PDF weight / top-level mean; uniform for an all-zero PDF.
+  float pdf_top = top_moments[4].x;
+  bool uniform_pdf = !(pdf_top > 0.0);
+  float pdf_scale = uniform_pdf ? 0.0 : 1.0 / pdf_top;
+
+  ivec2 texel;
+  vec2 center = warp_hierarchical(fibonacci_lattice_point(index), top, texel);
+
+  float level;
+  float denominator;
+  float n = float(vsgl_count);
+  if (kernel_mode == 0) {
+    // 000 Eq. 3 by bisection (Algorithm 1): 4^l / M p_bar(x, l) = K / N, l in [0, top].
+    float per_level[MIP_ATLAS_MAX_LEVELS];
+    for (int l = 0; l <= top; l++) {
+      per_level[l] = uniform_pdf ? 1.0 : mip_atlas_bilinear(rsm_size, l, 4, center).x * pdf_scale;
+    }
+    float target = kernel_k / n;
+    float level_min = 0.0;
+    float level_max = float(top);
+    for (int iteration = 0; iteration < BISECTION_ITERATIONS; iteration++) {
+      float middle = 0.5 * (level_min + level_max);
+      float mass = exp2(2.0 * middle) / texel_count * interpolate_levels(per_level, middle, top);
+      if (mass < target) {
+        level_min = middle;
+      }
+      else {
+        level_max = middle;
+      }
+    }
+    level = 0.5 * (level_min + level_max);
+    // Eq. 5: the same kernel filters numerator and denominator.
+    denominator = n * interpolate_levels(per_level, level, top);
+  }
+  else {
+    // 000 Eq. 1: 4^l / M = min(K / (N p(x)), 1), p unfiltered at the centre's texel; Eq. 4.
+    float p = uniform_pdf ? 1.0 : pdf_weight(0, texel) * pdf_scale;
+    p = max(p, SMALLEST_NORMAL);
+    float area = min(kernel_k / (n * p), 1.0);
+    level = clamp(0.5 * log2(texel_count * area), 0.0, float(top));
+    denominator = max(n * p, 1.0);
+  }
+  denominator = max(denominator, SMALLEST_NORMAL);
+
+  // Cluster totals M F_bar(x, l) / denominator, F_bar trilinear in the moment planes.
+  int lower, upper;
+  float fraction;
+  mip_level_split(level, top, lower, upper, fraction);
+  vec4 a[4];
+  vec4 b[4];
+  moments_bilinear(lower, bilinear_tap(rsm_size >> lower, center), a);
+  moments_bilinear(upper, bilinear_tap(rsm_size >> upper, center), b);
+  vec4 totals[4];
+  for (int plane = 0; plane < 4; plane++) {
+    vec4 filtered = (1.0 - fraction) * a[plane] + fraction * b[plane];
+    totals[plane] = texel_count * filtered / denominator;
+  }
+  write_vsgl(index, totals, fallback_mean, fallback_variance, center, level, texel);
+}

@@ -1,0 +1,529 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""VSGL generation on the GPU: the twin of ``vsgl_addon/reference/vsgl.py`` (formulas.md §5).
+
+000 = Tokuyoshi, "Modified filtered importance sampling for virtual spherical Gaussian lights"
+(CVM 2016); 003 = the Square Enix SG talk (simplified 2-VSGL mode).
+
+Four shader stages (``glsl/vsgl_generation/``), compiled once per process and cached:
+
+1. ``texel_moments.frag.glsl``: one fragment per RSM texel writes level 0 of the five **planes**
+   (five render targets): the 16 per-texel VPL moment channels of 000 app. B.3 (planes 0-3, the
+   reference's channel order) and the PDF weight (plane 4; by default lum(Φ (Rd + Rs)), or a
+   custom PDF image).
+2. ``mip_reduce_level1.frag.glsl``: level 1 of each plane, one draw per plane into its region of
+   the **mip atlas**, each texel the mean of its 2x2 children (the reference's
+   ``build_mip_chain``, same order of additions).
+   Stages 1-2 are fragment passes because render targets are the fast write path everywhere; on
+   llvmpipe compute image stores were ~6x slower (512² atlas: 19 ms instead of 125 ms).
+2b. ``mip_reduce.comp.glsl``: levels 2..top, one compute dispatch per level, all five planes at
+   once (image load/store in the atlas: reading and writing one texture in a draw would be a
+   feedback loop; these levels hold 1/12 of the texels).
+3. ``vsgl_kernels.comp.glsl``: one invocation per VSGL: Fibonacci lattice point in exact fixed
+   point, hierarchical warp through the PDF plane, kernel level (modified: 000 Eq. 3 by bisection,
+   12 iterations; original: Eq. 1), cluster totals (Eq. 5 / Eq. 4) from float32 trilinear lookups
+   with exact weights (texel loads, no hardware filtering), VSGL parameters with the reference's
+   clamps (``glsl/lib/vsgl_parameters.glsl``). The 2-VSGL mode reads the atlas's top level (the
+   parallel sum comes with the mip chain).
+
+Python textures have no mip levels (shared/reference/blender-gpu.md). Level 0 of each plane is its
+own S x S texture; levels >= 1 of all planes share one RGBA32F texture, the mip atlas
+(``MipAtlasLayout``; ``glsl/lib/mip_atlas.glsl``): with H = S / 2, plane p holds rows
+[p H, (p + 1) H), level 1 at (0, p H) and level l >= 2 at (H, p H + H - 2H / 2^(l-1)); its size is
+(H + H/2) x 5 H. Five samplers and one image binding serve the later stages; lookups use texel
+loads with float32 weights computed in the shader (no hardware filtering, whose weights have
+8 bits).
+
+The PDF plane is not normalized: the density p = M · probability is the plane's value divided by
+its top-level mean (the same number, rounded differently); an all-zero PDF is uniform, as in the
+reference.
+
+Output table (``vsgl_table``, RGBA32F, N x 8, column i = VSGL i), kept on the GPU for shading and
+read back by :meth:`VSGLGeneration.read_table` into the reference's dict of arrays:
+row 0 (mean, variance), 1 (diffuse_amplitude, diffuse_sharpness), 2 (diffuse_axis, kernel_level),
+3 (specular_amplitude, specular_sharpness), 4 (specular_axis, kernel_center u),
+5 (power, kernel_center v), 6 (kernel_texel: the level-0 texel (row, column) the warp chose),
+7 (column 0: rsm_total_power).
+
+RSM input: an :class:`~vsgl_addon.reference.vsgl.RSM` (or mapping) of numpy arrays, uploaded with
+:func:`upload_rsm`, or :class:`RSMTextures` already on the GPU (RGBA32F, S x S):
+``position`` = (y, λs), ``normal`` = (n, -), ``flux_diffuse`` = (Φ Rd, -),
+``flux_specular`` = (Φ Rs, -), ``specular_axis`` = (ξs, -).
+
+Needs a GPU context (``vsgl_addon.gpu_context.ensure_gpu_context``), main thread.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..reference import vsgl as reference
+from ..shaders import ShaderInterface, create_shader
+
+KERNEL_MODES = reference.KERNEL_MODES  # ("modified", "original", "two-vsgl")
+_KERNEL_MODE_INDEX = {"modified": 0, "original": 1, "two-vsgl": 2}
+
+#: Planes of the mip atlas: 4 x 4 moment channels + the PDF (or, in the 2-VSGL layout, the
+#: diffuse- and specular-weighted position moments in planes 3 and 4).
+ATLAS_PLANES = 5
+#: Rows of the output table (see the module documentation).
+TABLE_ROWS = 8
+#: Largest VSGL count: the table is one texture row wide (and the lattice's fixed point is exact
+#: up to 2^15).
+MAX_VSGL_COUNT = 16384
+#: Largest RSM side: at 2048 the five level-0 textures and the atlas take ~430 MB of RGBA32F
+#: (the atlas, 5 S/2 rows, would fit a 16384-row texture up to S = 4096).
+MAX_RSM_SIZE = 2048
+
+_REDUCE_GROUP = (8, 8, 1)
+_KERNEL_GROUP = (64, 1, 1)
+
+_LEVEL0_SAMPLERS = [("FLOAT_2D", f"level0_plane{plane}") for plane in range(ATLAS_PLANES)]
+
+_shaders: dict[str, object] = {}
+_fullscreen_batch = None
+
+
+def _interfaces() -> dict[str, tuple[ShaderInterface, dict]]:
+    atlas = ("RGBA32F", "FLOAT_2D", "mip_atlas")
+    return {
+        "texel_moments": (ShaderInterface(
+            push_constants=[("INT", "rsm_size"), ("INT", "moment_layout"), ("INT", "use_custom_pdf")],
+            samplers=[("FLOAT_2D", "rsm_position"), ("FLOAT_2D", "rsm_normal"),
+                      ("FLOAT_2D", "rsm_flux_diffuse"), ("FLOAT_2D", "rsm_flux_specular"),
+                      ("FLOAT_2D", "rsm_specular_axis"), ("FLOAT_2D", "pdf_image")],
+            vertex_inputs=[("VEC2", "position")],
+            varyings=[("VEC2", "uv")],
+            fragment_outputs=[("VEC4", f"level0_out{plane}") for plane in range(ATLAS_PLANES)],
+        ), {"vertex": "fullscreen_triangle.vert.glsl",
+            "fragment": "vsgl_generation/texel_moments.frag.glsl"}),
+        "mip_reduce_level1": (ShaderInterface(
+            push_constants=[("IVEC2", "target_origin")],
+            samplers=[("FLOAT_2D", "level0_source")],
+            vertex_inputs=[("VEC2", "position")],
+            varyings=[("VEC2", "uv")],
+            fragment_outputs=[("VEC4", "level1_out")],
+        ), {"vertex": "fullscreen_triangle.vert.glsl",
+            "fragment": "vsgl_generation/mip_reduce_level1.frag.glsl"}),
+        "mip_reduce": (ShaderInterface(
+            push_constants=[("INT", "rsm_size"), ("INT", "level")],
+            samplers=_LEVEL0_SAMPLERS,  # declared for glsl/lib/mip_atlas.glsl, unused
+            images=[atlas],
+            local_group_size=_REDUCE_GROUP,
+        ), {"compute": "vsgl_generation/mip_reduce.comp.glsl"}),
+        "vsgl_kernels": (ShaderInterface(
+            push_constants=[("INT", "rsm_size"), ("INT", "vsgl_count"), ("INT", "kernel_mode"),
+                            ("FLOAT", "kernel_k"), ("IVEC2", "lattice_rotation_fixed")],
+            samplers=_LEVEL0_SAMPLERS,
+            images=[atlas, ("RGBA32F", "FLOAT_2D", "vsgl_table")],
+            local_group_size=_KERNEL_GROUP,
+        ), {"compute": "vsgl_generation/vsgl_kernels.comp.glsl"}),
+    }
+
+
+def shader(name: str):
+    """The compiled stage `name` (texel_moments, mip_reduce_level1, mip_reduce, vsgl_kernels),
+    compiled on first use and cached for the process."""
+    if name not in _shaders:
+        interface, stages = _interfaces()[name]
+        _shaders[name] = create_shader(f"vsgl_generation_{name}", interface, **stages)
+    return _shaders[name]
+
+
+def _fullscreen_triangle():
+    """The batch of one triangle covering the viewport (glsl/fullscreen_triangle.vert.glsl)."""
+    global _fullscreen_batch
+    if _fullscreen_batch is None:
+        from gpu_extras.batch import batch_for_shader
+
+        _fullscreen_batch = batch_for_shader(shader("texel_moments"), "TRIS",
+                                             {"position": [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]})
+    return _fullscreen_batch
+
+
+def compile_shaders() -> None:
+    """Compile every stage now (keeps the ~50 ms JIT per stage out of the first frame)."""
+    for name in _interfaces():
+        shader(name)
+
+
+def free_shaders() -> None:
+    """Drop the cached shaders and batch (Blender frees GPU objects with their last reference)."""
+    global _fullscreen_batch
+    _fullscreen_batch = None
+    _shaders.clear()
+
+
+def _set_int(program, name, value) -> None:
+    # The GLSL compiler drops unused uniforms; Blender then raises ValueError.
+    try:
+        program.uniform_int(name, value)
+    except ValueError:
+        pass
+
+
+def _set_float(program, name, value) -> None:
+    try:
+        program.uniform_float(name, value)
+    except ValueError:
+        pass
+
+
+def _groups(count: int, group: int) -> int:
+    return max(1, -(-int(count) // group))
+
+
+# --- Textures --------------------------------------------------------------------------------
+
+
+def _texture_from_array(array: np.ndarray):
+    """An RGBA32F texture from an (H, W, 4) array (row 0 first)."""
+    import gpu
+
+    data = np.ascontiguousarray(array, dtype=np.float32)
+    height, width = data.shape[:2]
+    return gpu.types.GPUTexture((width, height), format="RGBA32F",
+                                data=gpu.types.Buffer("FLOAT", data.shape, data))
+
+
+def read_texture(texture, width: int, height: int) -> np.ndarray:
+    """An RGBA32F texture as a float32 (height, width, 4) array (Blender's multi-dimensional
+    Buffers report wrong strides to numpy: flattened first)."""
+    buffer = texture.read()
+    buffer.dimensions = width * height * 4
+    return np.array(buffer, dtype=np.float32).reshape(height, width, 4)
+
+
+@dataclass
+class RSMTextures:
+    """An RSM on the GPU: RGBA32F textures of side ``size`` (a power of two).
+
+    position = (y, λs), normal = (n, -), flux_diffuse = (Φ Rd, -), flux_specular = (Φ Rs, -),
+    specular_axis = (ξs, -). Background texels (no flux) may hold anything.
+    """
+
+    size: int
+    position: object
+    normal: object
+    flux_diffuse: object
+    flux_specular: object
+    specular_axis: object
+
+
+def _pad4(array: np.ndarray, fourth=None) -> np.ndarray:
+    out = np.zeros(array.shape[:2] + (4,), dtype=np.float32)
+    out[..., :3] = array
+    if fourth is not None:
+        out[..., 3] = fourth
+    return out
+
+
+def upload_rsm(rsm) -> RSMTextures:
+    """Validate an RSM (as the reference does) and upload it as :class:`RSMTextures`."""
+    rsm = reference.RSM.coerce(rsm)
+    if rsm.size > MAX_RSM_SIZE:
+        raise ValueError(f"RSM side {rsm.size} exceeds {MAX_RSM_SIZE}")
+    lit_s = reference.luminance(rsm.flux_specular) > 0.0
+    sharpness = np.where(lit_s, rsm.specular_sharpness, 0.0)
+    if np.any(np.isnan(sharpness)) or np.any(sharpness < 0.0):
+        raise ValueError("specular_sharpness of lit texels must be >= 0 (inf allowed)")
+    lit = reference.luminance(rsm.flux_diffuse + rsm.flux_specular) > 0.0
+    if not np.all(np.isfinite(rsm.position[lit])):
+        raise ValueError("position of lit texels must be finite")
+    with np.errstate(over="ignore", invalid="ignore"):
+        return RSMTextures(
+            size=rsm.size,
+            position=_texture_from_array(_pad4(rsm.position, sharpness)),
+            normal=_texture_from_array(_pad4(rsm.normal)),
+            flux_diffuse=_texture_from_array(_pad4(rsm.flux_diffuse)),
+            flux_specular=_texture_from_array(_pad4(rsm.flux_specular)),
+            specular_axis=_texture_from_array(_pad4(rsm.specular_axis)),
+        )
+
+
+def upload_pdf(pdf, size: int):
+    """A custom PDF image (H, W), finite and non-negative (normalized on the GPU), as a texture."""
+    pdf = np.asarray(pdf, dtype=np.float64)
+    if pdf.shape != (size, size):
+        raise ValueError(f"pdf must have shape {(size, size)}, got {pdf.shape}")
+    if not np.all(np.isfinite(pdf)) or np.any(pdf < 0.0):
+        raise ValueError("a PDF image must be finite and non-negative")
+    data = np.zeros((size, size, 4), dtype=np.float32)
+    data[..., 0] = pdf
+    return _texture_from_array(data)
+
+
+# --- Mip atlas ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MipAtlasLayout:
+    """Where level l >= 1 of plane p of an RSM of side ``size`` lies in the atlas
+    (glsl/lib/mip_atlas.glsl); level 0 of each plane is a texture of its own."""
+
+    size: int
+    planes: int = ATLAS_PLANES
+
+    @property
+    def top_level(self) -> int:
+        return self.size.bit_length() - 1
+
+    @property
+    def width(self) -> int:
+        half = self.size // 2
+        return max(1, half + half // 2)
+
+    @property
+    def height(self) -> int:
+        return max(1, self.planes * (self.size // 2))
+
+    def origin(self, level: int, plane: int) -> tuple[int, int]:
+        """(x, y) of texel (0, 0) of level `level` >= 1."""
+        if level < 1:
+            raise ValueError("level 0 is not in the atlas")
+        half = self.size // 2
+        y = plane * half
+        if level == 1:
+            return 0, y
+        return half, y + half - ((2 * half) >> (level - 1))
+
+    def level(self, atlas: np.ndarray, level: int, plane: int) -> np.ndarray:
+        """Level `level` >= 1 of plane `plane`, (side, side, 4), from a read-back atlas."""
+        x, y = self.origin(level, plane)
+        side = self.size >> level
+        return atlas[y:y + side, x:x + side]
+
+
+def rotation_fixed_point(rotation) -> tuple[int, int]:
+    """A lattice shift in [0, 1)^2 as 32-bit fixed point (int32 bit patterns for push constants)."""
+    rotation = np.asarray(rotation, dtype=np.float64).reshape(2)
+    rotation = rotation - np.floor(rotation)
+    fixed = [int(np.floor(value * 2.0**32)) % 2**32 for value in rotation]
+    return tuple(value - 2**32 if value >= 2**31 else value for value in fixed)
+
+
+# --- The pass ----------------------------------------------------------------------------------
+
+
+def _check_arguments(vsgl_count, k, kernel) -> tuple[int, float]:
+    """(row count, K) after validation; 'two-vsgl' always has 2 rows."""
+    if kernel not in _KERNEL_MODE_INDEX:
+        raise ValueError(f"kernel must be one of {KERNEL_MODES}, got {kernel!r}")
+    count = 2 if kernel == "two-vsgl" else int(vsgl_count)
+    if not 1 <= count <= MAX_VSGL_COUNT:
+        raise ValueError(f"vsgl_count must be in [1, {MAX_VSGL_COUNT}], got {count}")
+    k = float(k)
+    if not (np.isfinite(k) and k > 0.0):
+        raise ValueError(f"k must be finite and positive, got {k}")
+    return count, k
+
+
+class VSGLGeneration:
+    """VSGL generation, keeping its GPU textures (mip atlas, output table) between frames.
+
+    Per frame: :meth:`build_mip_atlas` (stages 1, 2, 2b), then :meth:`generate` (stage 3); the table
+    stays on the GPU (:attr:`table`) and :meth:`read_table` reads it back. Textures are reallocated
+    only when the RSM side or the VSGL count changes. :meth:`free` drops them.
+    """
+
+    def __init__(self):
+        self.level0: list | None = None  # level 0 of each plane, S x S textures
+        self._framebuffer = None
+        self._atlas_framebuffer = None
+        self.atlas = None  # levels >= 1 of every plane
+        self.layout: MipAtlasLayout | None = None
+        self.table = None
+        self.table_width = 0
+        self.vsgl_count = 0
+        self._two_vsgl_layout = False
+
+    def free(self) -> None:
+        """Release the textures (Blender frees a GPUTexture with its last reference)."""
+        self._framebuffer = None
+        self._atlas_framebuffer = None
+        self.level0 = None
+        self.atlas = None
+        self.layout = None
+        self.table = None
+        self.table_width = 0
+        self.vsgl_count = 0
+
+    def build_mip_atlas(self, rsm_textures: RSMTextures, pdf_texture=None, two_vsgl=False) -> None:
+        """Stages 1, 2 and 2b: level 0 from the RSM, then the mip levels of every plane."""
+        import gpu
+
+        size = int(rsm_textures.size)
+        if size < 1 or size & (size - 1) or size > MAX_RSM_SIZE:
+            raise ValueError(f"RSM side must be a power of two <= {MAX_RSM_SIZE}, got {size}")
+        layout = MipAtlasLayout(size)
+        if self.layout != layout:
+            self._framebuffer = None
+            self.level0 = [gpu.types.GPUTexture((size, size), format="RGBA32F")
+                           for _ in range(ATLAS_PLANES)]
+            self._framebuffer = gpu.types.GPUFrameBuffer(color_slots=self.level0)
+            self.atlas = gpu.types.GPUTexture((layout.width, layout.height), format="RGBA32F")
+            self._atlas_framebuffer = gpu.types.GPUFrameBuffer(color_slots=[self.atlas])
+            self.layout = layout
+
+        moments = shader("texel_moments")
+        batch = _fullscreen_triangle()
+        saved = (gpu.state.blend_get(), gpu.state.depth_test_get(), gpu.state.depth_mask_get(),
+                 tuple(gpu.state.viewport_get()))
+        try:
+            with self._framebuffer.bind():
+                gpu.state.viewport_set(0, 0, size, size)
+                gpu.state.blend_set("NONE")
+                gpu.state.depth_test_set("NONE")
+                gpu.state.depth_mask_set(False)
+                moments.bind()
+                _set_int(moments, "rsm_size", size)
+                _set_int(moments, "moment_layout", 1 if two_vsgl else 0)
+                _set_int(moments, "use_custom_pdf", 0 if pdf_texture is None else 1)
+                moments.uniform_sampler("rsm_position", rsm_textures.position)
+                moments.uniform_sampler("rsm_normal", rsm_textures.normal)
+                moments.uniform_sampler("rsm_flux_diffuse", rsm_textures.flux_diffuse)
+                moments.uniform_sampler("rsm_flux_specular", rsm_textures.flux_specular)
+                moments.uniform_sampler("rsm_specular_axis", rsm_textures.specular_axis)
+                try:
+                    moments.uniform_sampler("pdf_image", pdf_texture if pdf_texture is not None
+                                            else rsm_textures.flux_diffuse)
+                except ValueError:
+                    pass
+                batch.draw(moments)
+            if layout.top_level >= 1:
+                # Level 1 of each plane: a draw into its region of the atlas.
+                first = shader("mip_reduce_level1")
+                side = size >> 1
+                with self._atlas_framebuffer.bind():
+                    first.bind()
+                    for plane, texture in enumerate(self.level0):
+                        x, y = layout.origin(1, plane)
+                        gpu.state.viewport_set(x, y, side, side)
+                        _set_int(first, "target_origin", (x, y))
+                        first.uniform_sampler("level0_source", texture)
+                        batch.draw(first)
+        finally:
+            gpu.state.blend_set(saved[0])
+            gpu.state.depth_test_set(saved[1])
+            gpu.state.depth_mask_set(saved[2])
+            gpu.state.viewport_set(*saved[3])
+
+        self._two_vsgl_layout = bool(two_vsgl)
+        if layout.top_level < 1:
+            return
+        reduce = shader("mip_reduce")
+        reduce.bind()
+        _set_int(reduce, "rsm_size", size)
+        reduce.image("mip_atlas", self.atlas)
+        for level in range(2, layout.top_level + 1):
+            side = size >> level
+            _set_int(reduce, "level", level)
+            gpu.compute.dispatch(reduce, _groups(side, _REDUCE_GROUP[0]), _groups(side, _REDUCE_GROUP[1]),
+                                 ATLAS_PLANES)
+
+    def _bind_levels(self, program) -> None:
+        """Bind the mip chains for reading (level-0 textures as samplers, the atlas as an image)."""
+        for plane, texture in enumerate(self.level0):
+            try:
+                program.uniform_sampler(f"level0_plane{plane}", texture)
+            except ValueError:  # unused by this shader variant
+                pass
+        program.image("mip_atlas", self.atlas)
+
+    def generate(self, vsgl_count: int, k: float = 1.0, kernel: str = "modified",
+                 rotation=(0.0, 0.0)):
+        """Stage 3 on the current mip atlas; returns the table texture (see the module doc)."""
+        import gpu
+
+        if self.atlas is None:
+            raise RuntimeError("build_mip_atlas() first")
+        count, k = _check_arguments(vsgl_count, k, kernel)
+        if (kernel == "two-vsgl") != self._two_vsgl_layout:
+            raise ValueError("the mip atlas was built for another kernel mode (two_vsgl flag)")
+        if self.table is None or self.table_width != count:
+            self.table = gpu.types.GPUTexture((count, TABLE_ROWS), format="RGBA32F")
+            self.table_width = count
+        self.vsgl_count = count
+        kernels = shader("vsgl_kernels")
+        kernels.bind()
+        _set_int(kernels, "rsm_size", self.layout.size)
+        _set_int(kernels, "vsgl_count", count)
+        _set_int(kernels, "kernel_mode", _KERNEL_MODE_INDEX[kernel])
+        _set_float(kernels, "kernel_k", k)
+        _set_int(kernels, "lattice_rotation_fixed", rotation_fixed_point(rotation))
+        self._bind_levels(kernels)
+        kernels.image("vsgl_table", self.table)
+        gpu.compute.dispatch(kernels, _groups(count, _KERNEL_GROUP[0]), 1, 1)
+        return self.table
+
+    def read_table(self) -> dict:
+        """The table as the reference's dict of float64 arrays (reading back finishes the GPU)."""
+        count = self.vsgl_count
+        table = read_texture(self.table, self.table_width, TABLE_ROWS).astype(np.float64)
+        rows = table[:, :count]
+        return {
+            "mean": rows[0, :, :3].copy(),
+            "variance": rows[0, :, 3].copy(),
+            "diffuse_amplitude": rows[1, :, :3].copy(),
+            "diffuse_axis": rows[2, :, :3].copy(),
+            "diffuse_sharpness": rows[1, :, 3].copy(),
+            "specular_amplitude": rows[3, :, :3].copy(),
+            "specular_axis": rows[4, :, :3].copy(),
+            "specular_sharpness": rows[3, :, 3].copy(),
+            "power": rows[5, :, :3].copy(),
+            "kernel_center": np.stack([rows[4, :, 3], rows[5, :, 3]], axis=-1),
+            "kernel_level": rows[2, :, 3].copy(),
+            "kernel_texel": rows[6, :, :2].astype(np.int64),
+            "rsm_total_power": table[7, 0, :3].copy(),
+        }
+
+    def read_mip_chains(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """The mip chains as the reference's ``RSMMipmaps`` holds them (float32 values):
+        ``moments`` (levels of (side, side, 16)) and ``pdf`` (levels of (side, side), the density:
+        the PDF plane divided by its top-level mean; 1 everywhere for an all-zero PDF)."""
+        layout = self.layout
+        size = layout.size
+        atlas = read_texture(self.atlas, layout.width, layout.height)
+        planes = [[read_texture(texture, size, size) for texture in self.level0]]
+        for level in range(1, layout.top_level + 1):
+            planes.append([layout.level(atlas, level, plane) for plane in range(ATLAS_PLANES)])
+        moments = [np.concatenate(level[:4], axis=-1) for level in planes]
+        pdf = [level[4][..., 0].astype(np.float64) for level in planes]
+        top = pdf[-1][0, 0]
+        pdf = [p / top if top > 0.0 else np.ones_like(p) for p in pdf]
+        return moments, pdf
+
+    def run(self, rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None, rotation=None):
+        """Upload (if numpy), build the atlas and generate; returns the table texture."""
+        _check_arguments(vsgl_count, k, kernel)
+        textures = rsm if isinstance(rsm, RSMTextures) else upload_rsm(rsm)
+        two_vsgl = kernel == "two-vsgl"
+        pdf_texture = None
+        if pdf is not None and not two_vsgl:
+            pdf_texture = pdf if not isinstance(pdf, np.ndarray) else upload_pdf(pdf, textures.size)
+        self.build_mip_atlas(textures, pdf_texture, two_vsgl=two_vsgl)
+        return self.generate(vsgl_count, k, kernel, reference.lattice_rotation(seed, rotation))
+
+
+def generate_vsgls_gpu(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None, rotation=None,
+                       generation: VSGLGeneration | None = None) -> dict:
+    """GPU twin of ``reference.vsgl.generate_vsgls`` (same arguments, same dict of arrays).
+
+    rsm         an RSM / mapping of numpy arrays, or :class:`RSMTextures` already on the GPU.
+    vsgl_count  N in [1, 16384] (ignored by 'two-vsgl', which returns 2 rows).
+    k           K > 0 (000 Eq. 1 and Eq. 3).
+    kernel      'modified' (default), 'original' or 'two-vsgl'.
+    seed, rotation  the lattice's Cranley-Patterson shift, as in the reference.
+    pdf         optional (H, W) numpy PDF image or a GPU texture (R channel).
+    generation  a :class:`VSGLGeneration` to reuse (its textures stay allocated); by default a
+                temporary one whose textures are released before returning.
+    """
+    own = generation is None
+    generation = VSGLGeneration() if own else generation
+    try:
+        generation.run(rsm, vsgl_count, k, kernel, seed, pdf, rotation)
+        return generation.read_table()
+    finally:
+        if own:
+            generation.free()
