@@ -80,7 +80,8 @@ class VSGLSceneSettings(PropertyGroup):
             "Width and height in texels of the reflective shadow map rendered for each light; "
             "every texel is a virtual point light. Time and memory grow with its square; more "
             "texels resolve smaller and thinner reflectors. The paper uses 512 (000 section 5); "
-            "64 to 128 is enough for the Two VSGLs mode (003). Powers of two mipmap evenly"
+            "64 to 128 is enough for the Two VSGLs mode (003). VSGL generation walks a square mip "
+            "chain, so the nearest power of two is used"
         ),
         default=128,
         min=16,

@@ -1,0 +1,47 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Scene description -> RSM views -> VSGLs of every light (vsgl_addon/pipeline.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import scene_builders as sb
+from vsgl_addon.pipeline import generate_scene_vsgls, share_vsgl_count
+from vsgl_addon.scene import extract_scene
+from vsgl_addon.settings import VSGLSettings
+
+
+def test_share_vsgl_count_is_proportional_and_sums_to_n():
+    assert share_vsgl_count(10, [1.0, 1.0]).tolist() == [5, 5]
+    assert share_vsgl_count(7, [3.0, 0.0, 1.0]).tolist() == [5, 0, 2]
+    assert share_vsgl_count(1, [0.2, 0.5, 0.3]).tolist() == [0, 1, 0]
+    assert share_vsgl_count(4096, np.arange(6.0)).sum() == 4096
+    assert share_vsgl_count(64, [0.0, 0.0]).tolist() == [0, 0]
+    assert share_vsgl_count(64, []).tolist() == []
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("kernel", ["modified", "original", "two-vsgl"])
+def test_a_light_that_hits_nothing_costs_nothing_and_the_other_is_whole(kernel):
+    scene = sb.reset()
+    sb.plane("Floor", size=6.0)
+    sb.spot_light(name="Away", power=500.0, location=(0, 0, 2), look_at_point=(0, 0, 10))
+    sb.point_light(name="Down", power=300.0, location=(0, 0, 1.5))
+    sb.camera()
+    description = extract_scene(sb.depsgraph(scene))
+    names = [light.name for light in description.lights]
+    away, down = names.index("Away"), names.index("Down")
+    table = generate_scene_vsgls(description, VSGLSettings(vsgl_count=64, rsm_size=64, kernel=kernel))
+    for name, values in table.items():
+        assert np.all(np.isfinite(values)), name
+    assert table["rsm_view_count"][away] == 0
+    assert not np.any(table["light_index"] == away)
+    assert np.all(table["rsm_total_power"][away] == 0)
+    rows = table["light_index"] == down
+    # A point light over a plane: only its downward cube faces see geometry; N is shared among them.
+    expected = 2 * table["rsm_view_count"][down] if kernel == "two-vsgl" else 64
+    assert rows.sum() == expected
+    np.testing.assert_allclose(table["power"][rows].sum(axis=0), table["rsm_total_power"][down], rtol=0.05)

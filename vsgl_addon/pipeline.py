@@ -1,0 +1,108 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Scene description -> VSGLs of every light: the RSM pass, then VSGL generation (000 §3-4).
+
+Never touches bpy.context. Needs a GPU context (gpu_context.ensure_gpu_context), main thread.
+
+A light may have several RSM views (a point or area light: cube faces; a wide spot: cube faces).
+VSGL count N is per light (000 generates N VSGLs from one RSM): a light with several views shares
+its N among them in proportion to each view's power lum(Σ Φ(Rd + Rs)), by largest remainders, so
+the VSGLs go where the light's bounce is. Views with no power get none. In 003's two-VSGL mode
+every view gives its two VSGLs (meant for one spot view, 003).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .passes.rsm import SceneGPU, render_rsm_views
+from .passes.vsgl_generation import VSGLGeneration
+from .reference.vsgl import LUMINANCE_WEIGHTS
+from .settings import VSGLSettings
+
+# Per-VSGL arrays of VSGL generation that the exported table keeps (one row per VSGL).
+VSGL_FIELDS = ("mean", "variance", "diffuse_amplitude", "diffuse_axis", "diffuse_sharpness",
+               "specular_amplitude", "specular_axis", "specular_sharpness", "power",
+               "kernel_center", "kernel_level")
+_FIELD_SHAPES = {"mean": (3,), "diffuse_amplitude": (3,), "diffuse_axis": (3,),
+                 "specular_amplitude": (3,), "specular_axis": (3,), "power": (3,), "kernel_center": (2,)}
+
+
+def share_vsgl_count(vsgl_count: int, view_powers) -> np.ndarray:
+    """Split N among views in proportion to their power (largest remainders, sums to N).
+
+    All views without power: none get any. N smaller than the number of lit views: the brightest get one.
+    """
+    powers = np.maximum(np.asarray(view_powers, np.float64), 0.0)
+    total = powers.sum()
+    if not np.isfinite(total) or total <= 0.0:
+        return np.zeros(len(powers), np.int64)
+    quota = vsgl_count * powers / total
+    counts = np.floor(quota).astype(np.int64)
+    order = np.argsort(-(quota - counts), kind="stable")
+    counts[order[: vsgl_count - counts.sum()]] += 1
+    return counts
+
+
+def _rotation(seed: int, light_index: int, view_index: int) -> np.ndarray:
+    """Independent lattice rotations per light and view, all fixed by the seed."""
+    return np.random.default_rng([seed, light_index, view_index]).random(2)
+
+
+def _empty_table() -> dict:
+    return {name: np.zeros((0, *_FIELD_SHAPES.get(name, ()))) for name in VSGL_FIELDS}
+
+
+def generate_scene_vsgls(scene, settings: VSGLSettings) -> dict[str, np.ndarray]:
+    """The VSGLs of every light of `scene` (a SceneDescription) as the export table.
+
+    One row per VSGL: VSGL_FIELDS plus `light_index` and `view_index`; one row per light:
+    `rsm_total_power` (L, 3) = Σ Φ(Rd + Rs) over all its RSM texels, `rsm_size` (L) and
+    `rsm_view_count` (L). A light that hits nothing has no RSM view and no VSGL.
+    """
+    light_count = len(scene.lights)
+    tables, light_rows, view_rows = [], [], []
+    rsm_total_power = np.zeros((light_count, 3))
+    rsm_view_count = np.zeros(light_count, np.int64)
+    scene_gpu = SceneGPU(scene)
+    try:
+        for light_index in range(light_count):
+            views = render_rsm_views(scene_gpu, light_index, settings.rsm_size)
+            generations = [VSGLGeneration() for _ in views]
+            try:
+                two_vsgl = settings.kernel == "two-vsgl"
+                totals = []
+                for view, generation in zip(views, generations):
+                    generation.build_mip_atlas(view.rsm_textures(), two_vsgl=two_vsgl)
+                    # One kernel is enough to read the view's total from the atlas's top level.
+                    generation.generate(1 if not two_vsgl else 2, settings.k, settings.kernel)
+                    totals.append(generation.read_table()["rsm_total_power"])
+                rsm_view_count[light_index] = len(views)
+                if totals:
+                    rsm_total_power[light_index] = np.sum(totals, axis=0)
+                if two_vsgl:
+                    counts = np.full(len(views), 2)
+                else:
+                    counts = share_vsgl_count(settings.vsgl_count, [t @ LUMINANCE_WEIGHTS for t in totals])
+                for view_index, (generation, count) in enumerate(zip(generations, counts)):
+                    if count == 0:
+                        continue
+                    generation.generate(int(count), settings.k, settings.kernel,
+                                        _rotation(settings.seed, light_index, view_index))
+                    table = generation.read_table()
+                    tables.append({name: table[name] for name in VSGL_FIELDS})
+                    light_rows.append(np.full(int(count), light_index))
+                    view_rows.append(np.full(int(count), view_index))
+            finally:
+                for generation in generations:
+                    generation.free()
+                for view in views:
+                    view.free()
+    finally:
+        scene_gpu.free()
+    merged = {name: np.concatenate([t[name] for t in tables]) for name in VSGL_FIELDS} if tables else _empty_table()
+    merged["light_index"] = np.concatenate(light_rows) if light_rows else np.zeros(0, np.int64)
+    merged["view_index"] = np.concatenate(view_rows) if view_rows else np.zeros(0, np.int64)
+    merged["rsm_total_power"] = rsm_total_power
+    merged["rsm_size"] = np.full(light_count, settings.rsm_size, np.int64)
+    merged["rsm_view_count"] = rsm_view_count
+    return merged
