@@ -123,7 +123,7 @@ def test_property_ranges_and_tooltips(entry, baseline):
     entry.register()
     props = bpy.types.Scene.bl_rna.properties["vsgl"].fixed_type.properties
     ranges = {name: (props[name].hard_min, props[name].hard_max) for name in ("vsgl_count", "k", "rsm_size")}
-    assert ranges == {"vsgl_count": (1, 4096), "k": (0.25, 16.0), "rsm_size": (16, 1024)}
+    assert ranges == {"vsgl_count": (1, 4096), "k": (0.25, 16.0), "rsm_size": (1, 2048)}
     assert props["seed"].hard_min == 0
     kernel = props["kernel"]
     assert [item.identifier for item in kernel.enum_items] == ["MODIFIED", "ORIGINAL", "TWO_VSGL"]

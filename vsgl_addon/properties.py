@@ -10,6 +10,8 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
 from bpy.types import PropertyGroup
 
+from .settings import K_RANGE, RSM_SIZE_RANGE, VSGL_COUNT_RANGE
+
 # Identifiers are stored in .blend files: rename the labels freely, never the identifiers.
 KERNEL_ITEMS = (
     (
@@ -51,8 +53,8 @@ class VSGLSceneSettings(PropertyGroup):
             "blur a larger K adds"
         ),
         default=256,
-        min=1,
-        max=4096,
+        min=VSGL_COUNT_RANGE[0],
+        max=VSGL_COUNT_RANGE[1],
     )
     k: FloatProperty(
         name="K",
@@ -62,8 +64,8 @@ class VSGLSceneSettings(PropertyGroup):
             "more and flickers less over time; it costs almost nothing. 1 is the paper's setting"
         ),
         default=1.0,
-        min=0.25,
-        max=16.0,
+        min=K_RANGE[0],
+        max=K_RANGE[1],
         soft_max=8.0,
         step=25,
         precision=2,
@@ -84,8 +86,10 @@ class VSGLSceneSettings(PropertyGroup):
             "chain, so the nearest power of two is used"
         ),
         default=128,
-        min=16,
-        max=1024,
+        min=RSM_SIZE_RANGE[0],
+        max=RSM_SIZE_RANGE[1],
+        soft_min=16,
+        soft_max=1024,
         subtype="PIXEL",
     )
     seed: IntProperty(
