@@ -1,0 +1,128 @@
+// @require direct_light/lights.glsl
+//
+// Direct light of one light, full screen over the camera G-buffer (vsgl_addon/passes/gbuffer.py
+// layout), added (blending ONE, ONE) into two RGBA32F targets: diffuse and glossy direct radiance
+// (W/(m^2 sr), RGB; alpha 0). Python side: vsgl_addon/passes/direct_light.py.
+//
+// light_constants (RGBA32F, 1 row): 0 (light position, view count), 1 (light axis, 0),
+// 2 light params (lights.glsl), 3 (light colour, 0), 4 (diffuse factor, specular factor, 0, 0),
+// 5-7 rows of world -> light local (mat3), then per RSM view k (k < 6) 5 texels from 8 + 5k: the
+// rows of its view-projection matrix, then (perspective 1 / ortho 0, P00, P22, P23).
+// camera: (position, 1) perspective or (direction towards the camera, 0) orthographic.
+// shadow_params: (RSM size, normal offset in texels, depth bias in texels, shadows on 1 / off 0).
+
+const int DIRECT_LIGHT_MAX_VIEWS = 6;
+
+vec4 light_constant(int index)
+{
+  return texelFetch(light_constants, ivec2(index, 0), 0);
+}
+
+float view_depth_texel(int k, ivec2 texel)
+{
+  // Samplers cannot be indexed dynamically in every GLSL version: a switch.
+  if (k == 0) return texelFetch(rsm_depth_0, texel, 0).r;
+  if (k == 1) return texelFetch(rsm_depth_1, texel, 0).r;
+  if (k == 2) return texelFetch(rsm_depth_2, texel, 0).r;
+  if (k == 3) return texelFetch(rsm_depth_3, texel, 0).r;
+  if (k == 4) return texelFetch(rsm_depth_4, texel, 0).r;
+  return texelFetch(rsm_depth_5, texel, 0).r;
+}
+
+// Linear depth along the view's axis from window depth (perspective or orthographic).
+float view_linear_depth(float window_depth, vec4 projection)
+{
+  float ndc = window_depth * 2.0 - 1.0;
+  if (projection.x > 0.5) {
+    return projection.w / (ndc + projection.z);  // d = P23 / (ndc + P22)
+  }
+  return (projection.w - ndc) / projection.z;  // d = -z = (P23 - ndc) / P22
+}
+
+// 1 when the RSM of the light sees `position` (or nothing in front of it), 0 in shadow; the first
+// view whose frustum contains the point decides. Normal offset and depth bias scale with the
+// view's texel footprint at the point. 0 when no view contains the point (outside a spot cone,
+// behind an area light).
+float direct_light_visibility(vec3 position, vec3 normal, vec3 incoming, int view_count)
+{
+  float size = shadow_params.x;
+  float cos_theta = clamp(dot(normal, incoming), 0.0, 1.0);
+  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
+  for (int k = 0; k < DIRECT_LIGHT_MAX_VIEWS; k++) {
+    if (k >= view_count) {
+      break;
+    }
+    int base = 8 + 5 * k;
+    mat4 view_projection = transpose(mat4(light_constant(base), light_constant(base + 1),
+                                          light_constant(base + 2), light_constant(base + 3)));
+    vec4 projection = light_constant(base + 4);
+    vec4 clip = view_projection * vec4(position, 1.0);
+    if (!(clip.w > 0.0)) {
+      continue;
+    }
+    vec3 ndc = clip.xyz / clip.w;
+    if (any(greaterThan(abs(ndc), vec3(1.0)))) {
+      continue;
+    }
+    float texel_world = 2.0 * clip.w / (projection.y * size);
+    vec3 offset_position = position + normal * (shadow_params.y * texel_world);
+    vec4 offset_clip = view_projection * vec4(offset_position, 1.0);
+    vec3 offset_ndc = offset_clip.xyz / max(offset_clip.w, 1e-30);
+    ivec2 texel = clamp(ivec2(floor((offset_ndc.xy * 0.5 + 0.5) * size)), ivec2(0), ivec2(int(size) - 1));
+    float stored = view_depth_texel(k, texel);
+    if (stored >= 1.0) {
+      return 1.0;  // the view saw nothing there: nothing occludes
+    }
+    float occluder = view_linear_depth(stored, projection);
+    float receiver = view_linear_depth(offset_ndc.z * 0.5 + 0.5, projection);
+    float bias = shadow_params.z * texel_world * (1.0 + min(tan_theta, 8.0));
+    return receiver <= occluder + bias ? 1.0 : 0.0;
+  }
+  return 0.0;
+}
+
+void main()
+{
+  ivec2 pixel = ivec2(gl_FragCoord.xy);
+  vec4 position = texelFetch(gbuffer_position, pixel, 0);
+  direct_diffuse = vec4(0.0);
+  direct_glossy = vec4(0.0);
+  if (position.w < 0.5) {
+    return;
+  }
+  vec4 normal_roughness = texelFetch(gbuffer_normal, pixel, 0);
+  vec4 base_metallic = texelFetch(gbuffer_base_color, pixel, 0);
+  vec4 material = texelFetch(gbuffer_material, pixel, 0);
+  vec3 normal = normal_roughness.xyz;
+  vec3 outgoing = camera.w > 0.5 ? camera.xyz - position.xyz : camera.xyz;
+  outgoing = safe_normalize(outgoing, normal);
+
+  vec4 light0 = light_constant(0);
+  vec3 light_position = light0.xyz;
+  int view_count = int(light0.w + 0.5);
+  vec3 light_axis = light_constant(1).xyz;
+  vec4 params = light_constant(2);
+  vec3 color = light_constant(3).rgb;
+  vec4 factors = light_constant(4);
+  mat3 light_to_local = transpose(mat3(light_constant(5).xyz, light_constant(6).xyz,
+                                       light_constant(7).xyz));
+
+  vec3 incoming;
+  float irradiance = direct_light_irradiance(params, light_position, light_axis, light_to_local,
+                                             position.xyz, normal, incoming);
+  if (!(irradiance > 0.0)) {
+    return;
+  }
+  if (shadow_params.w > 0.5) {
+    irradiance *= direct_light_visibility(position.xyz, normal, incoming, view_count);
+    if (!(irradiance > 0.0)) {
+      return;
+    }
+  }
+  PrincipledTerms terms = principled_terms(base_metallic.rgb, base_metallic.a, material.x,
+                                           material.y, normal_roughness.w, dot(normal, outgoing));
+  vec3 diffuse, glossy;
+  direct_light_radiance(terms, incoming, outgoing, normal, irradiance, diffuse, glossy);
+  direct_diffuse = vec4(diffuse * color * factors.x, 0.0);
+  direct_glossy = vec4(glossy * color * factors.y, 0.0);
+}

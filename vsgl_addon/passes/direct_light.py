@@ -1,0 +1,199 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Direct light on the GPU: spot, point, sun and area lights over the camera G-buffer, with shadows
+from the lights' RSM depth, Principled diffuse + GGX specular in Blender's units (issue 4 item 2).
+Never touches ``bpy.context``.
+
+    scene_gpu = SceneGPU(scene)
+    gbuffer = render_camera_gbuffer(scene_gpu)
+    views = {i: render_rsm_views(scene_gpu, i, size=256) for i in range(len(scene.lights))}
+    direct = render_direct_light(gbuffer, scene.lights, views)
+    diffuse, glossy = direct.to_numpy()        # (h, w, 3) float32 each, row 0 = bottom
+    direct.free()
+
+Output per pixel (two RGBA32F textures, alpha 0): **diffuse direct** and **glossy direct** radiance
+towards the camera, RGB, W/(m²·sr), summed over the lights — what Cycles' Diffuse Direct × Diffuse
+Color and Glossy Direct × Glossy Color hold. Background pixels are 0.
+
+Light model (formulas.md §4; float64 twin :mod:`vsgl_addon.reference.direct_light`, GLSL
+``glsl/direct_light/lights.glsl``): point and spot P/(4π) W/sr (spot: Blender's cone smoothstep),
+sun S W/m², area lights as Lambertian point emitters I(θ) = (P/π) cos θ from their centre; light
+radius / sun angle are not modelled (hard shadows). The light's colour and its diffuse/specular
+factors multiply the result. Material: :mod:`vsgl_addon.reference.principled` (Cycles' Principled
+BSDF base layer: Lambert under a dielectric GGX layer, metallic GGX, multiple scattering).
+
+Shadows: for each light, the first of its RSM views whose frustum contains the point decides (a
+point light's cube face by direction); the point, pushed along its normal by ``normal_offset``
+texels of that view's footprint, is lit when its linear depth is within ``depth_bias`` texels
+(× (1 + tan θ), θ the light's incidence, tan capped at 8) of the RSM's stored depth. Nearest texel,
+no filtering. A point inside no view (outside a spot's frustum, behind an area light) is unlit.
+Without views for a light (it hits nothing) the light is skipped; ``shadows=False`` ignores the
+views and lights every point in front of the light.
+
+One full-screen draw per light, added by blending; each draw re-derives the pixel's Principled
+terms (an 8×8 + 4×4×4 albedo quadrature, see principled.glsl). Shader compiled once per process.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..reference.direct_light import light_params
+from ..shaders import ShaderInterface, create_shader
+from .gbuffer import ATTACHMENTS as GBUFFER_ATTACHMENTS
+from .rsm import _texture, read_texture
+
+MAX_VIEWS = 6
+#: Defaults of the shadow test, in texels of the RSM view at the point.
+NORMAL_OFFSET = 1.0
+DEPTH_BIAS = 1.0
+
+_shaders: dict[str, object] = {}
+_batch = None
+_dummy_depth = None
+
+
+def _interface() -> ShaderInterface:
+    samplers = [("FLOAT_2D", f"gbuffer_{name}") for name in GBUFFER_ATTACHMENTS]
+    samplers.append(("FLOAT_2D", "light_constants"))
+    samplers += [("FLOAT_2D", f"rsm_depth_{k}") for k in range(MAX_VIEWS)]
+    return ShaderInterface(
+        push_constants=[("VEC4", "camera"), ("VEC4", "shadow_params")],
+        samplers=samplers,
+        vertex_inputs=[("VEC2", "position")],
+        varyings=[("VEC2", "uv")],
+        fragment_outputs=[("VEC4", "direct_diffuse"), ("VEC4", "direct_glossy")],
+    )
+
+
+def shader():
+    """The direct-light shader (glsl/direct_light/), compiled on first use and cached."""
+    if "direct_light" not in _shaders:
+        _shaders["direct_light"] = create_shader(
+            "direct_light", _interface(), vertex="fullscreen_triangle.vert.glsl",
+            fragment="direct_light/direct_light.frag.glsl")
+    return _shaders["direct_light"]
+
+
+def free_shaders() -> None:
+    global _batch, _dummy_depth
+    _shaders.clear()
+    _batch = None
+    _dummy_depth = None
+
+
+def _fullscreen_batch():
+    global _batch
+    if _batch is None:
+        from gpu_extras.batch import batch_for_shader
+
+        _batch = batch_for_shader(shader(), "TRIS", {"position": [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]})
+    return _batch
+
+
+def _dummy():
+    """A 1×1 depth texture for the unused view slots (never read)."""
+    global _dummy_depth
+    if _dummy_depth is None:
+        import gpu
+
+        _dummy_depth = gpu.types.GPUTexture((1, 1), format="DEPTH_COMPONENT32F")
+    return _dummy_depth
+
+
+def light_constants(light, views) -> np.ndarray:
+    """(1, 8 + 5·MAX_VIEWS, 4) float32: the per-light constants of direct_light.frag.glsl."""
+    constants = np.zeros((1, 8 + 5 * MAX_VIEWS, 4), np.float32)
+    constants[0, 0] = (*np.asarray(light.position, np.float64), float(len(views)))
+    axis = np.asarray(light.direction, np.float64)
+    constants[0, 1, :3] = axis / np.linalg.norm(axis)
+    constants[0, 2] = light_params(light)
+    constants[0, 3, :3] = np.asarray(light.color, np.float64)
+    constants[0, 4, :2] = (float(light.diffuse_factor), float(light.specular_factor))
+    constants[0, 5:8, :3] = np.linalg.inv(np.asarray(light.matrix_world, np.float64)[:3, :3])
+    for k, view in enumerate(views[:MAX_VIEWS]):
+        base = 8 + 5 * k
+        projection = np.asarray(view.projection_matrix, np.float64)
+        constants[0, base:base + 4] = projection @ np.asarray(view.view_matrix, np.float64)
+        perspective = abs(projection[3, 3]) < 0.5
+        constants[0, base + 4] = (1.0 if perspective else 0.0, projection[0, 0], projection[2, 2],
+                                  projection[2, 3])
+    return constants
+
+
+@dataclass
+class DirectLight:
+    """Diffuse and glossy direct radiance on the GPU (RGBA32F, alpha 0)."""
+
+    width: int
+    height: int
+    textures: dict = field(default_factory=dict)  # "diffuse", "glossy" -> GPUTexture
+    framebuffer: object = None
+    seconds: float = 0.0
+
+    def to_numpy(self) -> tuple[np.ndarray, np.ndarray]:
+        """(diffuse, glossy) as (h, w, 3) float32, row 0 = bottom."""
+        return tuple(read_texture(self.textures[name], self.width, self.height)[..., :3]
+                     for name in ("diffuse", "glossy"))
+
+    def free(self) -> None:
+        self.framebuffer = None
+        self.textures.clear()
+
+
+def render_direct_light(gbuffer, lights, views_by_light, *, shadows: bool = True,
+                        normal_offset: float = NORMAL_OFFSET, depth_bias: float = DEPTH_BIAS) -> DirectLight:
+    """Direct light of ``lights`` (a sequence of scene lights) on ``gbuffer``.
+
+    ``views_by_light``: a dict (or sequence) light index -> list of :class:`RSMView` of that light
+    (``render_rsm_views``); all views must share one RSM size. A light without views is skipped
+    when ``shadows`` (it hits nothing), lit unshadowed otherwise.
+    """
+    import time
+
+    import gpu
+
+    start = time.perf_counter()
+    width, height = gbuffer.width, gbuffer.height
+    textures = {name: gpu.types.GPUTexture((width, height), format="RGBA32F") for name in ("diffuse", "glossy")}
+    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[textures["diffuse"], textures["glossy"]])
+    program = shader()
+    batch = _fullscreen_batch()
+    keep_alive = []
+    with framebuffer.bind():
+        framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0))
+        gpu.state.viewport_set(0, 0, width, height)
+        gpu.state.depth_test_set("NONE")
+        gpu.state.depth_mask_set(False)
+        gpu.state.face_culling_set("NONE")
+        gpu.state.blend_set("ADDITIVE_PREMULT")
+        program.bind()
+        program.uniform_float("camera", tuple(float(v) for v in gbuffer.camera_vector))
+        for name in GBUFFER_ATTACHMENTS:
+            program.uniform_sampler(f"gbuffer_{name}", gbuffer.textures[name])
+        for index, light in enumerate(lights):
+            views = list(views_by_light.get(index, []) if isinstance(views_by_light, dict)
+                         else views_by_light[index])
+            if shadows and not views:
+                continue
+            if len(views) > MAX_VIEWS:
+                raise ValueError(f"light {light.name!r} has {len(views)} views, at most {MAX_VIEWS}")
+            sizes = {view.size for view in views}
+            if len(sizes) > 1:
+                raise ValueError(f"light {light.name!r}: RSM views of different sizes {sorted(sizes)}")
+            size = sizes.pop() if sizes else 1
+            constants = _texture(light_constants(light, views))
+            keep_alive.append(constants)
+            program.uniform_sampler("light_constants", constants)
+            for k in range(MAX_VIEWS):
+                depth = views[k].textures["depth"] if k < len(views) else _dummy()
+                program.uniform_sampler(f"rsm_depth_{k}", depth)
+            program.uniform_float("shadow_params", (float(size), float(normal_offset), float(depth_bias),
+                                                    1.0 if shadows else 0.0))
+            batch.draw(program)
+        gpu.state.blend_set("NONE")
+    result = DirectLight(width, height, textures, framebuffer)
+    result.seconds = time.perf_counter() - start
+    return result

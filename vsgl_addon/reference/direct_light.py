@@ -1,0 +1,102 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Float64 twin of ``glsl/direct_light/lights.glsl`` and of the direct-light pass's shading
+(:mod:`vsgl_addon.passes.direct_light`), without shadows (a visibility can be passed in).
+
+Blender's light units (formulas.md §4, checked against Cycles 5.0 in tests/test_direct_light.py):
+point and spot lights radiate P/(4π) W/sr (spot: times :func:`~vsgl_addon.reference.rsm.spot_attenuation`
+of the direction in the light's local frame), an area light is a Lambertian point emitter
+I(θ) = (P/π) cos θ about its −Z axis, a sun puts S W/m² on a surface facing it. The irradiance of a
+surface at distance d is E = I cos θ_surface / d² (sun: S cos θ_surface); the reflected radiance is
+f E with the Principled BRDF f of :mod:`vsgl_addon.reference.principled`, split into its diffuse
+and specular parts.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import principled
+from .rsm import spot_attenuation
+
+LIGHT_TYPE_CODES = {"POINT": 0, "SPOT": 1, "SUN": 2, "AREA": 3}
+MIN_DISTANCE2 = 1e-12
+
+
+def _f64(x):
+    return np.asarray(x, dtype=np.float64)
+
+
+def light_params(light) -> tuple[float, float, float, float]:
+    """(type code, cos half spot angle, 1 / ((1 − cos) spot_blend) or −1, intensity scale): the
+    ``params`` of lights.glsl (point/spot P/4π, area P/π, sun S)."""
+    code = LIGHT_TYPE_CODES[light.type]
+    cos_half, smooth = 0.0, 0.0
+    if light.type in ("POINT", "SPOT"):
+        scale = light.power / (4.0 * math.pi)
+    elif light.type == "AREA":
+        scale = light.power / math.pi
+    else:
+        scale = light.power
+    if light.type == "SPOT":
+        cos_half = math.cos(0.5 * light.spot_size)
+        denominator = (1.0 - cos_half) * light.spot_blend
+        smooth = 1.0 / denominator if denominator > 0.0 else -1.0
+    return float(code), float(cos_half), float(smooth), float(scale)
+
+
+def light_irradiance(light, positions, normals):
+    """(E, incoming): irradiance per unit light colour (W/m²) at ``positions`` (..., 3) with unit
+    ``normals``, and the unit directions towards the light."""
+    p, n = _f64(positions), _f64(normals)
+    axis = _f64(light.direction)
+    axis = axis / np.linalg.norm(axis)
+    _, _, _, scale = light_params(light)
+    if light.type == "SUN":
+        incoming = np.broadcast_to(-axis, p.shape).copy()
+        return scale * np.maximum(np.sum(n * incoming, axis=-1), 0.0), incoming
+    towards = _f64(light.position) - p
+    distance2 = np.maximum(np.sum(towards * towards, axis=-1), MIN_DISTANCE2)
+    length = np.linalg.norm(towards, axis=-1)
+    incoming = np.where(length[..., None] > 0.0, towards / np.where(length > 0.0, length, 1.0)[..., None], n)
+    intensity = np.full(p.shape[:-1], scale)
+    if light.type == "SPOT":
+        to_local = np.linalg.inv(_f64(light.matrix_world)[:3, :3])
+        local = (-incoming) @ to_local.T
+        local = local / np.linalg.norm(local, axis=-1, keepdims=True)
+        intensity = intensity * spot_attenuation(-local[..., 2], light.spot_size, light.spot_blend)
+    elif light.type == "AREA":
+        intensity = intensity * np.maximum(-np.sum(incoming * axis, axis=-1), 0.0)
+    return intensity * np.maximum(np.sum(n * incoming, axis=-1), 0.0) / distance2, incoming
+
+
+def shade(gbuffer: dict, camera_vector, lights, visibility=None):
+    """(diffuse, glossy) direct radiance (h, w, 3) from G-buffer arrays (``GBuffer.to_numpy``
+    layout) lit by ``lights``; ``visibility``: optional list of (h, w) arrays per light (1 lit)."""
+    position = _f64(gbuffer["position"])
+    covered = position[..., 3] > 0.5
+    p = position[..., :3]
+    n = _f64(gbuffer["normal"])[..., :3]
+    rough = _f64(gbuffer["normal"])[..., 3]
+    base = _f64(gbuffer["base_color"])[..., :3]
+    metallic = _f64(gbuffer["base_color"])[..., 3]
+    level = _f64(gbuffer["material"])[..., 0]
+    ior = np.where(covered, _f64(gbuffer["material"])[..., 1], 1.5)
+    camera = _f64(camera_vector)
+    outgoing = camera[:3] - p if camera[3] > 0.5 else np.broadcast_to(camera[:3], p.shape)
+    outgoing = outgoing / np.maximum(np.linalg.norm(outgoing, axis=-1, keepdims=True), 1e-300)
+    n_safe = np.where(covered[..., None], n, np.array([0.0, 0.0, 1.0]))
+    diffuse = np.zeros(p.shape)
+    glossy = np.zeros(p.shape)
+    for index, light in enumerate(lights):
+        e, incoming = light_irradiance(light, p, n_safe)
+        if visibility is not None:
+            e = e * visibility[index]
+        fd, fs = principled.principled_brdf(incoming, outgoing, n_safe, base, rough, metallic, level, ior)
+        color = _f64(light.color)
+        diffuse += fd * e[..., None] * color * light.diffuse_factor
+        glossy += fs * e[..., None] * color * light.specular_factor
+    diffuse[~covered] = 0.0
+    glossy[~covered] = 0.0
+    return diffuse, glossy
