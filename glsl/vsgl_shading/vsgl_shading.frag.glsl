@@ -1,0 +1,46 @@
+// @require lib/math.glsl
+// @require lib/vsgl_shading.glsl
+//
+// Indirect light from VSGLs (000 app. C), one fragment per pixel of the camera G-buffer
+// (vsgl_addon/passes/vsgl_shading.py documents the inputs). For each VSGL of the table (RGBA32F,
+// vsgl_count x 8, the layout of vsgl_addon/passes/vsgl_generation.py: row 0 = (mean, variance),
+// 1 = (diffuse amplitude, sharpness), 2 = (diffuse axis, -), 3 = (specular amplitude, sharpness),
+// 4 = (specular axis, -)) both lobes are added (glsl/lib/vsgl_shading.glsl). Outputs: indirect
+// diffuse = Rd * sum, indirect specular = F0 * sum_s + sum_f (Schlick is linear in F0); alpha =
+// coverage, or 0 when `accumulate` is set (later tables are added by blending).
+// VSGL_DIFFUSE_MODE is a compile-time define (0: cosine pulled out, 1: 003's SG convolution).
+
+void main()
+{
+  ivec2 pixel = ivec2(gl_FragCoord.xy);
+  vec4 position = texelFetch(gbuffer_position, pixel, 0);
+  float coverage = accumulate != 0 ? 0.0 : position.w;
+  if (!(position.w > 0.0)) {
+    indirect_diffuse = vec4(0.0, 0.0, 0.0, coverage);
+    indirect_specular = vec4(0.0, 0.0, 0.0, coverage);
+    return;
+  }
+  vec4 normal_roughness = texelFetch(gbuffer_normal, pixel, 0);
+  vec3 normal = safe_normalize(normal_roughness.xyz, vec3(0.0, 0.0, 1.0));
+  float roughness = roughness_is_perceptual != 0 ? normal_roughness.w * normal_roughness.w
+                                                 : normal_roughness.w;
+  // camera = (position, 1) for a perspective camera, (direction towards it, 0) for an orthographic one.
+  vec3 view = safe_normalize(camera.w > 0.0 ? camera.xyz - position.xyz : camera.xyz, normal);
+  VSGLReceiver rc = vsgl_receiver(position.xyz, normal, view, roughness);
+  vec3 diffuse = vec3(0.0);
+  vec3 specular = vec3(0.0);
+  vec3 fresnel = vec3(0.0);
+  for (int i = 0; i < vsgl_count; i++) {
+    vec4 row0 = texelFetch(vsgl_table, ivec2(i, 0), 0);
+    vec4 row1 = texelFetch(vsgl_table, ivec2(i, 1), 0);
+    vec4 row2 = texelFetch(vsgl_table, ivec2(i, 2), 0);
+    vec4 row3 = texelFetch(vsgl_table, ivec2(i, 3), 0);
+    vec4 row4 = texelFetch(vsgl_table, ivec2(i, 4), 0);
+    vsgl_accumulate(rc, row0.xyz, row0.w, row1.xyz, row2.xyz, row1.w, row3.xyz, row4.xyz, row3.w,
+                    VSGL_DIFFUSE_MODE, diffuse, specular, fresnel);
+  }
+  vec3 rd = texelFetch(gbuffer_diffuse, pixel, 0).rgb;
+  vec3 f0 = texelFetch(gbuffer_specular, pixel, 0).rgb;
+  indirect_diffuse = vec4(rd * diffuse, coverage);
+  indirect_specular = vec4(f0 * specular + fresnel, coverage);
+}

@@ -1,0 +1,304 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""VSGL shading on the GPU: indirect diffuse and specular radiance of every camera pixel from the
+VSGLs of every light (000 app. C; formulas.md §6). Twin of ``vsgl_addon/reference/vsgl_shading.py``
+(whose module documentation defines the formulas, C(ξin) included).
+
+    shading = VSGLShading()
+    diffuse_tex, specular_tex = shading.run(gbuffer, camera, [VSGLTable.from_generation(gen), ...])
+    diffuse, specular = shading.read()     # (h, w, 4) float32, row 0 = bottom
+    shading.free()
+
+**Input G-buffer** (:class:`ShadingGBuffer`, RGBA32F textures of one size, row 0 = bottom):
+
+=======================  ===================================  =================================
+texture                  .rgb                                 .a
+=======================  ===================================  =================================
+``position``             world position                       coverage (> 0: geometry)
+``normal``               world shading normal (renormalized)  GGX α, or the perceptual roughness
+                                                              (α = r²) if ``roughness_is_perceptual``
+``diffuse_reflectance``  Rd (RGB)                             —
+``specular_f0``          F0 (RGB, Schlick)                    —
+=======================  ===================================  =================================
+
+The ``position`` and ``normal`` textures of :mod:`vsgl_addon.passes.gbuffer` fit as they are
+(``roughness_is_perceptual=True``); Rd and F0 are the material model's.
+
+**Camera**: (x, y, z) or (x, y, z, 1) = camera position (perspective: view = normalize(camera −
+position)), (x, y, z, 0) = unit direction towards the camera (orthographic), as
+``GBuffer.camera_vector``.
+
+**VSGLs**: one or more :class:`VSGLTable` (the RGBA32F N x 8 table texture of
+:class:`~vsgl_addon.passes.vsgl_generation.VSGLGeneration` and its count, read directly on the GPU;
+:func:`upload_vsgl_table` makes one from a numpy dict). Tables are drawn one after the other and
+added by blending (float32 adds).
+
+**Outputs**: two RGBA32F textures of the G-buffer's size, ``indirect_diffuse`` (Rd × Σ) and
+``indirect_specular`` (F0 × Σs + Σf), alpha = coverage; background pixels 0. Radiance in the units
+of the VSGL amplitudes (Blender's W/(m² sr) when the RSM carries Blender's light units).
+
+``diffuse_mode``: "cosine" (000 app. C, cosine pulled out) or "sg-convolution" (003's 2-VSGL mode;
+``reference.vsgl_shading.diffuse_mode_for_kernel``). One shader per mode, compiled once per
+process. :class:`VSGLShading` keeps its output textures between frames (reallocated when the size
+changes); :meth:`VSGLShading.free` drops them.
+
+Cost: linear in pixels × VSGLs (two lobes each). Needs a GPU context, main thread.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..reference.vsgl_shading import DIFFUSE_MODES
+from ..shaders import ShaderInterface, create_shader
+from .vsgl_generation import MAX_VSGL_COUNT, TABLE_ROWS, read_texture
+
+_MODE_INDEX = {"cosine": 0, "sg-convolution": 1}
+_shaders: dict[str, object] = {}
+_batch = None
+
+
+def _interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("VEC4", "camera"), ("INT", "vsgl_count"), ("INT", "accumulate"),
+                        ("INT", "roughness_is_perceptual")],
+        samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal"),
+                  ("FLOAT_2D", "gbuffer_diffuse"), ("FLOAT_2D", "gbuffer_specular"),
+                  ("FLOAT_2D", "vsgl_table")],
+        vertex_inputs=[("VEC2", "position")],
+        varyings=[("VEC2", "uv")],
+        fragment_outputs=[("VEC4", "indirect_diffuse"), ("VEC4", "indirect_specular")],
+    )
+
+
+def shader(diffuse_mode: str = "cosine"):
+    """The shading shader for `diffuse_mode`, compiled on first use and cached for the process."""
+    if diffuse_mode not in _MODE_INDEX:
+        raise ValueError(f"diffuse_mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
+    if diffuse_mode not in _shaders:
+        _shaders[diffuse_mode] = create_shader(
+            f"vsgl_shading_{diffuse_mode.replace('-', '_')}", _interface(),
+            vertex="fullscreen_triangle.vert.glsl", fragment="vsgl_shading/vsgl_shading.frag.glsl",
+            defines={"VSGL_DIFFUSE_MODE": _MODE_INDEX[diffuse_mode]})
+    return _shaders[diffuse_mode]
+
+
+def compile_shaders() -> None:
+    for mode in _MODE_INDEX:
+        shader(mode)
+
+
+def free_shaders() -> None:
+    global _batch
+    _batch = None
+    _shaders.clear()
+
+
+def _uniform(setter, name, value) -> None:
+    # The GLSL compiler drops uniforms a variant does not use; Blender then raises ValueError.
+    try:
+        setter(name, value)
+    except ValueError:
+        pass
+
+
+def _fullscreen_triangle():
+    global _batch
+    if _batch is None:
+        from gpu_extras.batch import batch_for_shader
+
+        _batch = batch_for_shader(shader("cosine"), "TRIS",
+                                  {"position": [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]})
+    return _batch
+
+
+def _texture(array: np.ndarray):
+    import gpu
+
+    data = np.ascontiguousarray(array, dtype=np.float32)
+    height, width = data.shape[:2]
+    return gpu.types.GPUTexture((width, height), format="RGBA32F",
+                                data=gpu.types.Buffer("FLOAT", data.shape, data))
+
+
+def _rgba(array, fourth=None) -> np.ndarray:
+    array = np.asarray(array, dtype=np.float64)
+    out = np.zeros(array.shape[:2] + (4,), dtype=np.float32)
+    out[..., : min(array.shape[-1], 4)] = array[..., :4]
+    if fourth is not None:
+        out[..., 3] = fourth
+    return out
+
+
+@dataclass
+class ShadingGBuffer:
+    """The camera G-buffer shading reads (see the module documentation)."""
+
+    position: object
+    normal: object
+    diffuse_reflectance: object
+    specular_f0: object
+    width: int
+    height: int
+    roughness_is_perceptual: bool = False
+
+
+def upload_gbuffer(position, coverage, normal, roughness, diffuse_reflectance, specular_f0,
+                   roughness_is_perceptual=False) -> ShadingGBuffer:
+    """A :class:`ShadingGBuffer` from numpy arrays (h, w, 3) and (h, w) (row 0 = bottom).
+    Its textures are freed with the object (Blender frees a GPUTexture with its last reference)."""
+    position = np.asarray(position)
+    height, width = position.shape[:2]
+    return ShadingGBuffer(
+        position=_texture(_rgba(position, coverage)), normal=_texture(_rgba(normal, roughness)),
+        diffuse_reflectance=_texture(_rgba(diffuse_reflectance)),
+        specular_f0=_texture(_rgba(specular_f0)), width=width, height=height,
+        roughness_is_perceptual=roughness_is_perceptual)
+
+
+@dataclass
+class VSGLTable:
+    """A VSGL table texture (RGBA32F, at least ``count`` x 8, vsgl_generation's layout)."""
+
+    texture: object
+    count: int
+
+    @classmethod
+    def from_generation(cls, generation) -> "VSGLTable":
+        """The current table of a :class:`~vsgl_addon.passes.vsgl_generation.VSGLGeneration`."""
+        if generation.table is None:
+            raise RuntimeError("the VSGL generation has no table: generate() first")
+        return cls(generation.table, int(generation.vsgl_count))
+
+
+def table_array(vsgls) -> np.ndarray:
+    """The (8, N, 4) float32 table of a numpy VSGL dict (rows 0-4 as vsgl_generation writes them)."""
+    count = len(np.asarray(vsgls["variance"]).reshape(-1))
+    table = np.zeros((TABLE_ROWS, max(count, 1), 4), dtype=np.float32)
+    if count == 0:
+        return table
+    table[0, :count, :3] = vsgls["mean"]
+    table[0, :count, 3] = vsgls["variance"]
+    table[1, :count, :3] = vsgls["diffuse_amplitude"]
+    table[1, :count, 3] = vsgls["diffuse_sharpness"]
+    table[2, :count, :3] = vsgls["diffuse_axis"]
+    table[3, :count, :3] = vsgls["specular_amplitude"]
+    table[3, :count, 3] = vsgls["specular_sharpness"]
+    table[4, :count, :3] = vsgls["specular_axis"]
+    return table
+
+
+def upload_vsgl_table(vsgls) -> VSGLTable:
+    """A :class:`VSGLTable` from a numpy dict (``reference.vsgl.generate_vsgls`` or ``read_table``)."""
+    count = len(np.asarray(vsgls["variance"]).reshape(-1))
+    if count > MAX_VSGL_COUNT:
+        raise ValueError(f"at most {MAX_VSGL_COUNT} VSGLs per table, got {count}")
+    return VSGLTable(_texture(table_array(vsgls)), count)
+
+
+def camera_uniform(camera) -> tuple[float, float, float, float]:
+    camera = np.asarray(camera, dtype=np.float64).reshape(-1)
+    if camera.shape == (3,):
+        camera = np.append(camera, 1.0)
+    if camera.shape != (4,) or not np.all(np.isfinite(camera)):
+        raise ValueError("camera must be a finite (x, y, z) position or (x, y, z, w) vector")
+    return tuple(float(value) for value in camera)
+
+
+class VSGLShading:
+    """The shading pass, keeping its two output textures (and framebuffer) between frames."""
+
+    def __init__(self):
+        self.diffuse = None
+        self.specular = None
+        self._framebuffer = None
+        self._size = None
+        self._empty_table = None
+
+    def free(self) -> None:
+        self._framebuffer = None
+        self.diffuse = None
+        self.specular = None
+        self._size = None
+        self._empty_table = None
+
+    def _targets(self, width: int, height: int) -> None:
+        import gpu
+
+        if self._size != (width, height):
+            self._framebuffer = None
+            self.diffuse = gpu.types.GPUTexture((width, height), format="RGBA32F")
+            self.specular = gpu.types.GPUTexture((width, height), format="RGBA32F")
+            self._framebuffer = gpu.types.GPUFrameBuffer(color_slots=[self.diffuse, self.specular])
+            self._size = (width, height)
+
+    def run(self, gbuffer: ShadingGBuffer, camera, tables, diffuse_mode: str = "cosine"):
+        """Shade every pixel of `gbuffer` with every VSGL of `tables` (a VSGLTable or a list);
+        returns the (indirect_diffuse, indirect_specular) textures."""
+        import gpu
+
+        if isinstance(tables, VSGLTable):
+            tables = [tables]
+        tables = [table for table in tables if table.count > 0]
+        for table in tables:
+            if table.count > MAX_VSGL_COUNT:
+                raise ValueError(f"at most {MAX_VSGL_COUNT} VSGLs per table, got {table.count}")
+        program = shader(diffuse_mode)
+        batch = _fullscreen_triangle()
+        width, height = int(gbuffer.width), int(gbuffer.height)
+        self._targets(width, height)
+        if not tables:  # still one draw: coverage in alpha, zero radiance
+            if self._empty_table is None:
+                self._empty_table = _texture(np.zeros((TABLE_ROWS, 1, 4), np.float32))
+            tables = [VSGLTable(self._empty_table, 0)]
+        saved = (gpu.state.blend_get(), gpu.state.depth_test_get(), gpu.state.depth_mask_get(),
+                 tuple(gpu.state.viewport_get()))
+        try:
+            with self._framebuffer.bind():
+                gpu.state.viewport_set(0, 0, width, height)
+                gpu.state.depth_test_set("NONE")
+                gpu.state.depth_mask_set(False)
+                program.bind()
+                _uniform(program.uniform_float, "camera", camera_uniform(camera))
+                _uniform(program.uniform_int, "roughness_is_perceptual",
+                         1 if gbuffer.roughness_is_perceptual else 0)
+                program.uniform_sampler("gbuffer_position", gbuffer.position)
+                program.uniform_sampler("gbuffer_normal", gbuffer.normal)
+                program.uniform_sampler("gbuffer_diffuse", gbuffer.diffuse_reflectance)
+                program.uniform_sampler("gbuffer_specular", gbuffer.specular_f0)
+                for index, table in enumerate(tables):
+                    # The first table writes, the others add (ONE, ONE), alpha 0.
+                    gpu.state.blend_set("NONE" if index == 0 else "ADDITIVE_PREMULT")
+                    _uniform(program.uniform_int, "accumulate", 0 if index == 0 else 1)
+                    _uniform(program.uniform_int, "vsgl_count", int(table.count))
+                    program.uniform_sampler("vsgl_table", table.texture)
+                    batch.draw(program)
+        finally:
+            gpu.state.blend_set(saved[0])
+            gpu.state.depth_test_set(saved[1])
+            gpu.state.depth_mask_set(saved[2])
+            gpu.state.viewport_set(*saved[3])
+        return self.diffuse, self.specular
+
+    def read(self) -> tuple[np.ndarray, np.ndarray]:
+        """The outputs as float32 (h, w, 4) arrays (reading back waits for the GPU)."""
+        width, height = self._size
+        return read_texture(self.diffuse, width, height), read_texture(self.specular, width, height)
+
+
+def shade_gpu(gbuffer: ShadingGBuffer, camera, tables, diffuse_mode: str = "cosine",
+              shading: VSGLShading | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Run the pass and read it back: (indirect_diffuse, indirect_specular), (h, w, 4) float32.
+    `tables`: VSGLTable(s) or numpy VSGL dict(s) (uploaded for this call)."""
+    if isinstance(tables, (VSGLTable, dict)):
+        tables = [tables]
+    tables = [upload_vsgl_table(table) if isinstance(table, dict) else table for table in tables]
+    own = shading is None
+    shading = VSGLShading() if own else shading
+    try:
+        shading.run(gbuffer, camera, tables, diffuse_mode)
+        return shading.read()
+    finally:
+        if own:
+            shading.free()

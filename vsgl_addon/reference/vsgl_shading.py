@@ -1,0 +1,298 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Shading with virtual spherical Gaussian lights (VSGLs), float64 ground truth (formulas.md §6).
+
+000 = Tokuyoshi, "Modified filtered importance sampling for virtual spherical Gaussian lights"
+(CVM 2016), app. C; 003 = the Square Enix SG talk (2015). Twin: ``glsl/lib/vsgl_shading.glsl``.
+
+For a shading point y_p with normal n_p, view direction ω_o (towards the eye) and a material
+(diffuse reflectance Rd RGB, specular F0 RGB, GGX roughness α), each VSGL lobe (the diffuse and
+the specular SG of every VSGL both illuminate) gives one incoming-radiance SG (000 Eq. 12):
+
+    ξµ = (µv − y_p)/|µv − y_p|,  λσ = |µv − y_p|²/σv²,
+    Lin(ω) ≈ cv/(2πσv²) G(ω; −ξv, λv) G(ω; ξµ, λσ) = cin G(ω; ξin, λin),
+
+the product taken with ``sg.sg_product`` (stable exponent |ξm| − λ1 − λ2). Then, per lobe:
+
+* **Diffuse** (000 app. C, cosine pulled out of the integral), mode ``"cosine"``:
+  ``Ld = cin Rd/π · A(λin) ⟨ξin, n_p⟩`` with the exact A(λ) (``sg.sg_integral``), not its
+  large-λ form 2π/λ. Mode ``"sg-convolution"`` (003's simplified 2-VSGL mode, formulas §6):
+  ``Ld = cin Rd ∫ G(ω; ξin, λin) G(ω; n_p, λd)/A(λd) dω`` (``sg.sg_product_integral``, λd = 2).
+* **Specular** (000 app. C): the receiver's GGX lobe ρs⟨ω,n⟩ ≈ C(ω) Ǵ(ω) with the ASG of 003 at
+  the shading point (``asg.asg_specular_lobe``: bandwidths ηx = λh/(8 cos²θo), ηy = λh/8,
+  λh = 2/α², i.e. D(ω_h) ≈ D(1) · exp(−ηx (ω·ξx)² − ηy (ω·ξy)²)), and
+
+      Ls ≈ cin C(ξin) ∫ G(ω; ξin, λin) Ǵ(ω) dω
+         ≈ cin C(ξin) · π/sqrt((ηx+ν)(ηy+ν)) · Ǵ(ξin; ηxν/(ηx+ν), ηyν/(ηy+ν)),  ν = λin/2
+      (``asg.sg_asg_convolution``).
+
+  **C exactly**: with ωi = ξin, h = (ωi + ωo)/|ωi + ωo|, ci = ⟨ωi, n⟩, co = ⟨ωo, n⟩,
+  s = sqrt((1 − α²)c² + α²) (GGX Smith, separable G2 = G1(ci) G1(co) as in ``ggx.microfacet_brdf``):
+
+      C(ωi) Ǵ(ωi) := F(ωi·h) G2 D(1) exp(−ηx(ωi·ξx)² − ηy(ωi·ξy)²) ci / (4 ci co)
+                   = F(ωi·h) D(1) · ci / ((ci + si)(co + so)) · exp(...),    D(1) = 1/(πα²),
+
+  i.e. C = Fresnel × masking × 1/(4 cos cos) × D's normalization × ⟨ωi,n⟩/⟨ωi,ξz⟩: the ASG's own
+  smooth factor ⟨ω, ξz⟩ (ξz = mirror direction) is replaced by the rendering equation's cosine
+  ⟨ω, n⟩, which ρs⟨ω,n⟩ really has. In code that is ``sg_asg_convolution`` with z = n_p
+  (``specular_cosine="normal"``, the default). Keeping the ASG's ⟨ω, ξz⟩ instead
+  (``specular_cosine="lobe-axis"``, C = F G2 D(1)/(4 ci co) literally) overestimates by up to
+  1/cos θo (×2 at 60°); against brute force (tests/test_reference_vsgl_shading.py) its specular
+  error is 40-59 % where the default's is 24-38 %.
+  Zero when co ≤ 0 (view below the shading normal: χ+). The receiver's α is clamped to
+  ``ALPHA_MIN`` (λh = 2/α² ≤ 2e6, the range the SG/ASG float32 libraries are built for).
+
+Guards (finite everywhere): |µv − y_p| → 0 (λσ → 0, ξµ irrelevant, −ξv used), σv² floored at
+``VARIANCE_FLOOR`` (the generator's absolute floor: 1/(2πσv²) ≤ 1.6e11), λ's up to ~1e20
+(products and A(λ) stay in range), grazing views (ASG floors), back-facing VSGLs (⟨ξin,n⟩ = 0),
+zero-power VSGLs (amplitude 0).
+
+Brute force (``brute_force_shading``): every RSM texel a VPL (000 §4, formulas §4):
+I(ω) = Φ ρ(y, ω', ω) ⟨ω, n⟩ with ρ = Rd/π + GGX(F0 = Rs, α), summed exactly at the shading point
+with the receiver's exact Lambert + GGX BRDF; ``vpl_lobes="sg"`` replaces the VPL's BRDF lobes by
+000 Eqs. 6-7 (the SGs the VSGLs are built from) to separate the approximation errors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .asg import asg_specular_lobe, sg_asg_convolution
+from .ggx import microfacet_brdf
+from .sg import (DIFFUSE_SHARPNESS, _dot, _f64, sg_evaluate, sg_integral, sg_product,
+                 sg_product_integral, specular_lobe_warp)
+from .vsgl import RSM, VARIANCE_FLOOR_ABSOLUTE
+
+#: Floor on σv² (same as the generator's absolute floor, 000 app. B.2).
+VARIANCE_FLOOR = VARIANCE_FLOOR_ABSOLUTE
+#: Smallest receiver GGX α (λh = 2/α² = 2e6).
+ALPHA_MIN = 1e-3
+DIFFUSE_MODES = ("cosine", "sg-convolution")
+SPECULAR_COSINES = ("normal", "lobe-axis")
+
+#: VSGL fields read by shading (a dict from ``vsgl.generate_vsgls`` or ``read_table``).
+VSGL_KEYS = ("mean", "variance", "diffuse_amplitude", "diffuse_axis", "diffuse_sharpness",
+             "specular_amplitude", "specular_axis", "specular_sharpness")
+
+
+def diffuse_mode_for_kernel(kernel: str) -> str:
+    """003's 2-VSGL mode shades with the diffuse SG convolution, the others pull the cosine out."""
+    return "sg-convolution" if kernel == "two-vsgl" else "cosine"
+
+
+def incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
+    """Incoming radiance SG of one VSGL lobe at shading points (000 Eq. 12), without cv.
+
+    Returns ``(axis_in, sharpness_in, scale)`` with cin = cv · scale,
+    scale = e^(λin − λv − λσ) / (2π σv²). Broadcasts (vectors in a trailing axis of 3).
+    """
+    r = _f64(mean) - _f64(position)
+    d2 = _dot(r, r)
+    dist = np.sqrt(d2)
+    lobe_axis = _f64(lobe_axis)
+    r, lobe_axis = np.broadcast_arrays(r, lobe_axis)
+    ok = (dist > 0.0)[..., None]
+    # At y_p = µv λσ = 0 and the axis is irrelevant; −ξv keeps it a unit vector.
+    xi_mu = np.where(ok, r / np.where(ok, dist[..., None], 1.0), -lobe_axis)
+    var = np.maximum(_f64(variance), VARIANCE_FLOOR)
+    lam_sigma = d2 / var
+    axis_in, lam_in, scale = sg_product(-lobe_axis, _f64(lobe_sharpness), xi_mu, lam_sigma)
+    return axis_in, lam_in, scale / (2.0 * np.pi * var)
+
+
+def diffuse_factor(axis_in, sharpness_in, normal, mode="cosine"):
+    """Ld / (cin Rd): A(λin)/π ⟨ξin, n⟩ ("cosine", 000 app. C) or
+    ∫ G(ξin, λin) G(n, λd) dω / A(λd) ("sg-convolution", 003)."""
+    if mode == "cosine":
+        return sg_integral(sharpness_in) / np.pi * np.maximum(_dot(_f64(axis_in), _f64(normal)), 0.0)
+    if mode == "sg-convolution":
+        return (sg_product_integral(axis_in, sharpness_in, normal, DIFFUSE_SHARPNESS)
+                / sg_integral(DIFFUSE_SHARPNESS))
+    raise ValueError(f"diffuse mode must be one of {DIFFUSE_MODES}, got {mode!r}")
+
+
+def _g1_denominator(c, a2):
+    return c + np.sqrt((1.0 - a2) * c * c + a2)
+
+
+def specular_factor(axis_in, sharpness_in, view, normal, roughness, f0, specular_cosine="normal"):
+    """Ls / cin, RGB (..., 3): C(ξin) · SG × ASG convolution (see the module documentation)."""
+    axis_in = _f64(axis_in)
+    view = _f64(view)
+    normal = _f64(normal)
+    alpha = np.maximum(_f64(roughness), ALPHA_MIN)
+    a2 = alpha * alpha
+    x_axis, y_axis, z_axis, eta_x, eta_y = asg_specular_lobe(view, normal, alpha)
+    cos_axis = normal if specular_cosine == "normal" else z_axis
+    if specular_cosine not in SPECULAR_COSINES:
+        raise ValueError(f"specular_cosine must be one of {SPECULAR_COSINES}")
+    conv = sg_asg_convolution(axis_in, sharpness_in, x_axis, y_axis, cos_axis, eta_x, eta_y)
+    ci = np.maximum(_dot(axis_in, normal), 0.0)
+    co_raw = _dot(view, normal)
+    co = np.maximum(co_raw, 0.0)
+    half = axis_in + view
+    half_len = np.sqrt(_dot(half, half))
+    ok = half_len > 0.0
+    half = np.where(ok[..., None], half / np.where(ok, half_len, 1.0)[..., None], normal)
+    m = 1.0 - np.clip(_dot(axis_in, half), 0.0, 1.0)
+    m5 = m ** 5
+    d1 = 1.0 / (np.pi * a2)
+    k = np.where(co_raw > 0.0, conv * d1 / (_g1_denominator(ci, a2) * _g1_denominator(co, a2)), 0.0)
+    f0 = _f64(f0)
+    fresnel = f0 + (1.0 - f0) * m5[..., None]
+    return k[..., None] * fresnel
+
+
+def _chunks(count, per_chunk):
+    for start in range(0, count, per_chunk):
+        yield slice(start, min(count, start + per_chunk))
+
+
+def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, roughness,
+          diffuse_mode="cosine", specular_cosine="normal", per_term=False):
+    """Indirect radiance (diffuse, specular), each (P, 3), at P shading points from N VSGLs.
+
+    vsgls     dict with ``VSGL_KEYS`` (rows = VSGLs), e.g. from ``vsgl.generate_vsgls``.
+    position, normal, view (P, 3) (view = unit vector from the point to the eye);
+    diffuse_reflectance, specular_f0 (P, 3); roughness (P,) GGX α (clamped to ``ALPHA_MIN``).
+    The sum over VSGLs of both lobes (diffuse SG and specular SG of each VSGL).
+    ``per_term=True`` also returns the (P, N, 2, 3) contributions (lobe 0 = VSGL diffuse SG).
+    """
+    if diffuse_mode not in DIFFUSE_MODES:
+        raise ValueError(f"diffuse mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
+    position = _f64(position).reshape(-1, 3)
+    normal = _f64(normal).reshape(-1, 3)
+    view = _f64(view).reshape(-1, 3)
+    rd = _f64(diffuse_reflectance).reshape(-1, 3)
+    f0 = _f64(specular_f0).reshape(-1, 3)
+    alpha = _f64(roughness).reshape(-1)
+    count = len(_f64(vsgls["variance"]).reshape(-1))
+    diffuse = np.zeros((len(position), 3))
+    specular = np.zeros((len(position), 3))
+    terms = []
+    chunk = max(1, 400_000 // max(len(position), 1))
+    lobes = (("diffuse_amplitude", "diffuse_axis", "diffuse_sharpness"),
+             ("specular_amplitude", "specular_axis", "specular_sharpness"))
+    for rows in _chunks(count, chunk):
+        mean = _f64(vsgls["mean"]).reshape(-1, 3)[rows][None]
+        variance = _f64(vsgls["variance"]).reshape(-1)[rows][None]
+        part = []
+        for amp_key, axis_key, sharp_key in lobes:
+            amplitude = _f64(vsgls[amp_key]).reshape(-1, 3)[rows][None]
+            axis_in, lam_in, scale = incoming_sg(
+                position[:, None], mean, variance,
+                _f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
+                _f64(vsgls[sharp_key]).reshape(-1)[rows][None])
+            c_in = amplitude * scale[..., None]
+            ld = c_in * diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
+                * rd[:, None]
+            ls = c_in * specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
+                                        alpha[:, None], f0[:, None], specular_cosine)
+            diffuse += ld.sum(axis=1)
+            specular += ls.sum(axis=1)
+            if per_term:
+                part.append(np.stack((ld, ls), axis=-2))
+        if per_term:
+            terms.append(np.stack(part, axis=2))
+    if per_term:
+        return diffuse, specular, np.concatenate(terms, axis=1)
+    return diffuse, specular
+
+
+# --- Brute force: every RSM texel a VPL ----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class VPLs:
+    """Virtual point lights (000 §4): one per RSM texel, arrays (M, ...) or (H, W, ...).
+
+    position (y), normal (n), flux Φ (RGB), diffuse_reflectance Rd (RGB), specular_f0 Rs (RGB,
+    GGX Schlick F0), roughness α (GGX), incoming ω' (unit, from y towards the light).
+    """
+
+    position: np.ndarray
+    normal: np.ndarray
+    flux: np.ndarray
+    diffuse_reflectance: np.ndarray
+    specular_f0: np.ndarray
+    roughness: np.ndarray
+    incoming: np.ndarray
+
+    def flat(self) -> "VPLs":
+        return VPLs(*(_f64(getattr(self, name)).reshape((-1, 3) if name != "roughness" else (-1,))
+                      for name in self.__dataclass_fields__))
+
+    def rsm(self) -> RSM:
+        """The RSM of these VPLs as VSGL generation takes it (000 Eqs. 6-7 lobes)."""
+        axis, sharpness = specular_lobe_warp(self.incoming, self.normal, self.roughness)
+        return RSM(position=_f64(self.position), normal=_f64(self.normal),
+                   flux_diffuse=_f64(self.flux) * _f64(self.diffuse_reflectance),
+                   flux_specular=_f64(self.flux) * _f64(self.specular_f0),
+                   specular_axis=axis, specular_sharpness=sharpness)
+
+
+def _ggx_rgb(incoming, outgoing, normal, alpha, f0):
+    """GGX BRDF for RGB F0 (Schlick is linear in F0): b0 + F0 (b1 - b0)."""
+    b0 = microfacet_brdf(incoming, outgoing, normal, alpha, 0.0)
+    b1 = microfacet_brdf(incoming, outgoing, normal, alpha, 1.0)
+    return b0[..., None] + _f64(f0) * (b1 - b0)[..., None]
+
+
+def vpl_intensity(vpls: VPLs, directions, lobes="ggx"):
+    """(diffuse, specular) radiant intensity (..., M, 3) of the VPLs towards unit `directions`
+    (..., M, 3): Φ Rd/π ⟨ω,n⟩ and Φ f_GGX(ω', ω) ⟨ω,n⟩ ("ggx"), or the SG lobes of 000 Eqs. 6-7,
+    Φ Rd G(ω; n, λd)/A(λd) and Φ Rs G(ω; ξs, λs)/A(λs) ("sg")."""
+    v = vpls.flat()
+    cos = np.maximum(_dot(directions, v.normal), 0.0)
+    if lobes == "ggx":
+        diffuse = v.flux * v.diffuse_reflectance / np.pi * cos[..., None]
+        spec = v.flux * _ggx_rgb(v.incoming, directions, v.normal, v.roughness, v.specular_f0) \
+            * cos[..., None]
+        return diffuse, spec
+    if lobes == "sg":
+        diffuse = (v.flux * v.diffuse_reflectance
+                   * (sg_evaluate(directions, v.normal, DIFFUSE_SHARPNESS)
+                      / sg_integral(DIFFUSE_SHARPNESS))[..., None])
+        axis, sharpness = specular_lobe_warp(v.incoming, v.normal, v.roughness)
+        spec = (v.flux * v.specular_f0
+                * (sg_evaluate(directions, axis, sharpness) / sg_integral(sharpness))[..., None])
+        return diffuse, spec
+    raise ValueError(f"lobes must be 'ggx' or 'sg', got {lobes!r}")
+
+
+def brute_force_shading(vpls: VPLs, position, normal, view, diffuse_reflectance, specular_f0,
+                        roughness, vpl_lobes="ggx"):
+    """Exact one-bounce radiance (diffuse, specular), each (P, 3), from every VPL as a point light:
+    L = Σ_j I_j(ω_j→p)/|y_j − y_p|² · ρ_p(ω, ω_o) ⟨ω, n_p⟩ with the receiver's Lambert + GGX BRDF
+    (α clamped to ``ALPHA_MIN`` as in shading). No visibility (VSGL shading has none either).
+    VPLs at the shading point are skipped."""
+    v = vpls.flat()
+    position = _f64(position).reshape(-1, 3)
+    normal = _f64(normal).reshape(-1, 3)
+    view = _f64(view).reshape(-1, 3)
+    rd = _f64(diffuse_reflectance).reshape(-1, 3)
+    f0 = _f64(specular_f0).reshape(-1, 3)
+    alpha = np.maximum(_f64(roughness).reshape(-1), ALPHA_MIN)
+    diffuse = np.zeros((len(position), 3))
+    specular = np.zeros((len(position), 3))
+    for p in range(len(position)):
+        r = v.position - position[p]
+        d2 = _dot(r, r)
+        ok = d2 > 0.0
+        omega = r / np.sqrt(np.where(ok, d2, 1.0))[:, None]
+        i_d, i_s = vpl_intensity(v, -omega, vpl_lobes)
+        irradiance = (i_d + i_s) * np.where(ok, 1.0 / np.where(ok, d2, 1.0), 0.0)[:, None] \
+            * np.maximum(_dot(omega, normal[p]), 0.0)[:, None]
+        diffuse[p] = (irradiance * rd[p] / np.pi).sum(axis=0)
+        brdf = _ggx_rgb(omega, view[p], normal[p], alpha[p], f0[p])
+        specular[p] = (irradiance * brdf).sum(axis=0)
+    return diffuse, specular
+
+
+def per_texel_vsgls(rsm) -> dict:
+    """Every RSM texel its own VSGL (the N = M limit, 000 app. B with one VPL per cluster)."""
+    from .vsgl import texel_moments, vsgl_parameters
+
+    rsm = RSM.coerce(rsm)
+    return vsgl_parameters(texel_moments(rsm).reshape(-1, 16))
