@@ -568,3 +568,16 @@ def test_100k_triangles_extract_in_well_under_a_second():
     assert desc.geometry.triangle_count == 100_352 + 24_000
     print(f"\nextraction of {desc.geometry.triangle_count} triangles (2000 instances): {min(timings) * 1000:.0f} ms")
     assert min(timings) < 0.5
+
+
+def test_light_node_trees_warn_only_when_they_change_the_light():
+    scene = sb.reset()
+    sb.plane("Floor", size=4.0)
+    plain = sb.spot_light(name="Plain", power=100.0, location=(0, 0, 3))
+    plain.data.use_nodes = True  # Blender 5.2 gives new lights this tree: Emission (1, white) -> output
+    dimmed = sb.point_light(name="Dimmed", power=100.0, location=(1, 0, 3))
+    dimmed.data.use_nodes = True
+    next(n for n in dimmed.data.node_tree.nodes if n.type == "EMISSION").inputs["Strength"].default_value = 0.5
+    description = extract_scene(sb.depsgraph(scene))
+    lines = [line for line in description.warnings if "light node trees" in line]
+    assert len(lines) == 1 and "Dimmed" in lines[0] and "Plain" not in lines[0], description.warnings

@@ -93,7 +93,7 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
                 skipped.append(SkippedLight(obj.name, reason))
             else:
                 lights.append(light)
-                if obj.data.use_nodes and obj.data.node_tree is not None:
+                if obj.data.use_nodes and not _plain_light_tree(obj.data.node_tree):
                     light_node_trees.append(obj.name)
             continue
         if not shown:
@@ -137,6 +137,20 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
         skipped_lights=tuple(skipped),
         warnings=tuple(warnings),
     )
+
+
+def _plain_light_tree(tree) -> bool:
+    """A light node tree that changes nothing: Emission (white, strength 1, nothing linked into it)
+    into Light Output, as Blender 5.2 gives new lights. Anything else is worth a warning."""
+    if tree is None:
+        return True
+    kinds = sorted(node.type for node in tree.nodes)
+    if kinds != ["EMISSION", "OUTPUT_LIGHT"]:
+        return False
+    emission = next(node for node in tree.nodes if node.type == "EMISSION")
+    color, strength = emission.inputs["Color"], emission.inputs["Strength"]
+    return (not color.is_linked and not strength.is_linked
+            and tuple(color.default_value)[:3] == (1.0, 1.0, 1.0) and strength.default_value == 1.0)
 
 
 def _instance_name(inst: bpy.types.DepsgraphObjectInstance, obj: bpy.types.Object) -> str:
