@@ -35,10 +35,10 @@ class Registry(NamedTuple):
 
 def _registry() -> Registry:
     """Everything register() adds, built on demand (it imports bpy-dependent submodules)."""
-    from . import properties
+    from . import engine, properties
 
     return Registry(
-        classes=(*properties.CLASSES,),
+        classes=(*properties.CLASSES, *engine.CLASSES),
         properties=(*properties.TYPE_PROPERTIES,),
         handlers=(),
         timers=(),

@@ -12,6 +12,7 @@ import tomllib
 from pathlib import Path
 
 from .gpu_context import GPUContextError
+from .settings import KERNEL_FROM_PROPERTY
 
 MANIFEST = Path(__file__).resolve().parent.parent / "blender_manifest.toml"
 
@@ -32,24 +33,19 @@ def addon_version() -> str:
         raise UsageError(f"cannot read the add-on version from {MANIFEST}: {error}") from None
 
 
+DEMO_BLEND = Path(__file__).resolve().parent.parent / "demo.blend"
+DEMO_OUTPUT = Path.cwd() / "out" / "demo.exr"
+
+
 def _command_demo(arguments) -> int:
-    import bpy
-
-    from .gpu_context import ensure_gpu_context
-    from .reference import accuracy
-
-    started = time.perf_counter()
-    renderer = ensure_gpu_context()
-    context_seconds = time.perf_counter() - started
-    print(f"VSGL add-on {addon_version()} on Blender {bpy.app.version_string}")
-    print(f"GPU renderer: {renderer} (context in {context_seconds:.2f} s)")
-    print()
-    started = time.perf_counter()
-    rows = accuracy.measure()
-    print(accuracy.to_markdown(rows, header=False))
-    print(f"{len(rows)} math checks against numerical quadrature in {time.perf_counter() - started:.1f} s "
-          "(how each is measured: docs/accuracy.md)")
-    return 0
+    """The main job: render demo.blend with its saved settings, print the figures and where the images are."""
+    out = Path(arguments.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    arguments = argparse.Namespace(scene=str(DEMO_BLEND), out=str(out), report=str(out.with_suffix(".json")),
+                                   resolution=arguments.resolution, vsgl_count=None, k=None, kernel=None,
+                                   rsm_size=None, seed=None, frame=None)
+    print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
+    return _command_render(arguments)
 
 
 BLEND_MAGICS = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")  # plain, zstd- and gzip-compressed
@@ -125,6 +121,98 @@ def _command_vsgl(arguments) -> int:
     return 0
 
 
+def _resolution(text):
+    try:
+        width, height = (int(part) for part in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not WIDTHxHEIGHT: {text!r}") from None
+    if not (1 <= width <= 16384 and 1 <= height <= 16384):
+        raise argparse.ArgumentTypeError(f"each side must be in [1, 16384]: {text!r}")
+    return width, height
+
+
+def _save_render(scene, path: Path, multilayer: bool) -> None:
+    """Blender's own writer: multilayer EXR (linear, every pass, 32-bit float) or a PNG preview
+    (through the scene's colour management, like F12 → Save)."""
+    import bpy
+
+    settings = scene.render.image_settings
+    saved = (settings.media_type, settings.file_format, settings.color_depth)
+    try:
+        if multilayer:
+            settings.media_type = "MULTI_LAYER_IMAGE"
+            settings.color_depth = "32"
+            settings.exr_codec = "ZIP"
+        else:
+            settings.media_type = "IMAGE"
+            settings.file_format = "PNG"
+            settings.color_mode = "RGBA"
+            settings.color_depth = "8"
+        bpy.data.images["Render Result"].save_render(str(path), scene=scene)
+    finally:
+        settings.media_type = saved[0]
+        if saved[0] == "IMAGE":
+            settings.file_format = saved[1]
+        settings.color_depth = saved[2]
+
+
+def _command_render(arguments) -> int:
+    import json
+
+    import bpy
+
+    from . import register, unregister
+    from .engine import ENGINE_ID, RENDER_PASSES, last_frame_statistics
+    from .gpu_context import ensure_gpu_context
+
+    out = _output_path(arguments.out, ".exr")
+    report = _output_path(arguments.report, ".json") if arguments.report else None
+    register()
+    try:
+        scene = _open_blend(Path(arguments.scene))
+        settings = _settings(scene, arguments)
+        if scene.camera is None:
+            raise UsageError(f"{arguments.scene}: the scene has no camera")
+        renderer = ensure_gpu_context()
+        # The loaded file is never saved: these changes last for this run only.
+        scene.vsgl.vsgl_count, scene.vsgl.k, scene.vsgl.rsm_size, scene.vsgl.seed = (
+            settings.vsgl_count, settings.k, settings.rsm_size, settings.seed)
+        scene.vsgl.kernel = {v: k for k, v in KERNEL_FROM_PROPERTY.items()}[settings.kernel]
+        scene.render.engine = ENGINE_ID
+        if arguments.resolution:
+            scene.render.resolution_x, scene.render.resolution_y = arguments.resolution
+            scene.render.resolution_percentage = 100
+        if arguments.frame is not None:
+            scene.frame_set(arguments.frame)
+        started = time.perf_counter()
+        bpy.ops.render.render(scene=scene.name)
+        seconds = time.perf_counter() - started
+        if not last_frame_statistics:
+            raise UsageError(f"{arguments.scene}: the VSGL engine rendered nothing (see the messages above)")
+        _save_render(scene, out, multilayer=True)
+        preview = out.with_suffix(".png")
+        _save_render(scene, preview, multilayer=False)
+        statistics = dict(last_frame_statistics)
+    finally:
+        unregister()
+    statistics.update(scene=str(arguments.scene), output=str(out), preview=str(preview),
+                      frame=scene.frame_current, render_seconds=seconds, gpu_renderer=renderer,
+                      addon_version=addon_version(), blender_version=bpy.app.version_string)
+    if report:
+        report.write_text(json.dumps(statistics, indent=2, sort_keys=True), encoding="utf-8")
+    width, height = statistics["resolution"]
+    settings_line = ", ".join(f"{name} {value}" for name, value in statistics["settings"].items())
+    print(f"Blender {statistics['blender_version']}, GPU {renderer}")
+    print(f"{width}x{height}, frame {statistics['frame']}, {statistics['counts'].get('vsgls', 0)} VSGLs from "
+          f"{statistics['counts'].get('lights', 0)} lights ({settings_line}): {seconds:.2f} s in all")
+    for name, value in statistics["timings"].items():
+        print(f"  {name:>24}: {value * 1000:9.1f} ms")
+    print(f"images: {out} (layers {', '.join(('Combined',) + tuple(RENDER_PASSES))}), {preview}")
+    if report:
+        print(f"report: {report}")
+    return 0
+
+
 def _positive_int(text):
     try:
         return int(text)
@@ -143,7 +231,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="python -m vsgl_addon", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     demo = commands.add_parser(
-        "demo", help="the main job: version, GPU renderer and the measured accuracy of the SG/ASG/GGX math")
+        "demo", help="the main job: render demo.blend to out/demo.exr (+ .png, .json) and print the timings")
+    demo.add_argument("--out", default=str(DEMO_OUTPUT), metavar="OUT.exr")
+    demo.add_argument("--resolution", type=_resolution, metavar="WxH", help="default: the scene's (480x360)")
     demo.set_defaults(run=_command_demo)
 
     from .settings import KERNEL_MODES
@@ -160,6 +250,23 @@ def build_parser() -> argparse.ArgumentParser:
     vsgl.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
     vsgl.add_argument("--seed", type=_positive_int, metavar="S")
     vsgl.set_defaults(run=_command_vsgl)
+
+    render = commands.add_parser(
+        "render", help="render a .blend's frame with the VSGL engine to a multilayer EXR (+ PNG preview)",
+        description="Render SCENE.blend with the VSGL engine: a multilayer EXR with Combined, Direct, Indirect, "
+                    "Indirect Diffuse and Indirect Specular (linear, Blender's units) and a PNG preview beside "
+                    "it. Parameters default to the scene's own (scene.vsgl); flags override them for this run.")
+    render.add_argument("scene", metavar="SCENE.blend")
+    render.add_argument("--out", required=True, metavar="OUT.exr")
+    render.add_argument("--resolution", type=_resolution, metavar="WxH")
+    render.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per light, 1 to 4096")
+    render.add_argument("--k", type=_float, metavar="K", help="kernel size factor K, 0.25 to 16 (000 Eq. 3)")
+    render.add_argument("--kernel", choices=KERNEL_MODES)
+    render.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
+    render.add_argument("--seed", type=_positive_int, metavar="S")
+    render.add_argument("--frame", type=int, metavar="F")
+    render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")
+    render.set_defaults(run=_command_render)
     return parser
 
 

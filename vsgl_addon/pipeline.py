@@ -12,6 +12,8 @@ every view gives its two VSGLs (meant for one spot view, 003).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .passes.rsm import SceneGPU, render_rsm_views
@@ -52,6 +54,92 @@ def _empty_table() -> dict:
     return {name: np.zeros((0, *_FIELD_SHAPES.get(name, ()))) for name in VSGL_FIELDS}
 
 
+@dataclass
+class SceneVSGLs:
+    """The RSM views of every light and the VSGL tables made from them, still on the GPU.
+
+    The render keeps the views for the direct light's shadows and hands the tables to VSGL shading;
+    the export reads the tables back. `free()` releases every texture.
+    """
+
+    views_by_light: dict[int, list]
+    generations: list[tuple[int, int, VSGLGeneration]]  # (light index, view index, its table)
+    rsm_total_power: np.ndarray  # (L, 3)
+    rsm_size: int
+
+    @property
+    def vsgl_count(self) -> int:
+        return sum(generation.vsgl_count for _, _, generation in self.generations)
+
+    def tables(self) -> list:
+        from .passes.vsgl_shading import VSGLTable
+
+        return [VSGLTable.from_generation(generation) for _, _, generation in self.generations]
+
+    def read(self) -> dict[str, np.ndarray]:
+        """The export table (see generate_scene_vsgls), read back from the GPU."""
+        tables, light_rows, view_rows = [], [], []
+        for light_index, view_index, generation in self.generations:
+            table = generation.read_table()
+            tables.append({name: table[name] for name in VSGL_FIELDS})
+            light_rows.append(np.full(generation.vsgl_count, light_index))
+            view_rows.append(np.full(generation.vsgl_count, view_index))
+        merged = ({name: np.concatenate([t[name] for t in tables]) for name in VSGL_FIELDS}
+                  if tables else _empty_table())
+        merged["light_index"] = np.concatenate(light_rows) if light_rows else np.zeros(0, np.int64)
+        merged["view_index"] = np.concatenate(view_rows) if view_rows else np.zeros(0, np.int64)
+        light_count = len(self.rsm_total_power)
+        merged["rsm_total_power"] = self.rsm_total_power.copy()
+        merged["rsm_size"] = np.full(light_count, self.rsm_size, np.int64)
+        merged["rsm_view_count"] = np.array([len(self.views_by_light.get(i, [])) for i in range(light_count)],
+                                            np.int64)
+        return merged
+
+    def free(self) -> None:
+        for _, _, generation in self.generations:
+            generation.free()
+        self.generations.clear()
+        for views in self.views_by_light.values():
+            for view in views:
+                view.free()
+        self.views_by_light.clear()
+
+
+def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings) -> SceneVSGLs:
+    """RSM views of every light of the uploaded scene, then their VSGLs (tables stay on the GPU)."""
+    light_count = len(scene_gpu.scene.lights)
+    result = SceneVSGLs({}, [], np.zeros((light_count, 3)), settings.rsm_size)
+    two_vsgl = settings.kernel == "two-vsgl"
+    try:
+        for light_index in range(light_count):
+            views = render_rsm_views(scene_gpu, light_index, settings.rsm_size)
+            result.views_by_light[light_index] = views
+            generations = [VSGLGeneration() for _ in views]
+            totals = []
+            for view, generation in zip(views, generations):
+                generation.build_mip_atlas(view.rsm_textures(), two_vsgl=two_vsgl)
+                # One kernel is enough to read the view's total from the atlas's top level.
+                generation.generate(1 if not two_vsgl else 2, settings.k, settings.kernel)
+                totals.append(generation.read_table()["rsm_total_power"])
+            if totals:
+                result.rsm_total_power[light_index] = np.sum(totals, axis=0)
+            if two_vsgl:
+                counts = np.full(len(views), 2)
+            else:
+                counts = share_vsgl_count(settings.vsgl_count, [t @ LUMINANCE_WEIGHTS for t in totals])
+            for view_index, (generation, count) in enumerate(zip(generations, counts)):
+                if count == 0:
+                    generation.free()
+                    continue
+                generation.generate(int(count), settings.k, settings.kernel,
+                                    _rotation(settings.seed, light_index, view_index))
+                result.generations.append((light_index, view_index, generation))
+    except BaseException:
+        result.free()
+        raise
+    return result
+
+
 def generate_scene_vsgls(scene, settings: VSGLSettings) -> dict[str, np.ndarray]:
     """The VSGLs of every light of `scene` (a SceneDescription) as the export table.
 
@@ -59,50 +147,12 @@ def generate_scene_vsgls(scene, settings: VSGLSettings) -> dict[str, np.ndarray]
     `rsm_total_power` (L, 3) = Σ Φ(Rd + Rs) over all its RSM texels, `rsm_size` (L) and
     `rsm_view_count` (L). A light that hits nothing has no RSM view and no VSGL.
     """
-    light_count = len(scene.lights)
-    tables, light_rows, view_rows = [], [], []
-    rsm_total_power = np.zeros((light_count, 3))
-    rsm_view_count = np.zeros(light_count, np.int64)
     scene_gpu = SceneGPU(scene)
     try:
-        for light_index in range(light_count):
-            views = render_rsm_views(scene_gpu, light_index, settings.rsm_size)
-            generations = [VSGLGeneration() for _ in views]
-            try:
-                two_vsgl = settings.kernel == "two-vsgl"
-                totals = []
-                for view, generation in zip(views, generations):
-                    generation.build_mip_atlas(view.rsm_textures(), two_vsgl=two_vsgl)
-                    # One kernel is enough to read the view's total from the atlas's top level.
-                    generation.generate(1 if not two_vsgl else 2, settings.k, settings.kernel)
-                    totals.append(generation.read_table()["rsm_total_power"])
-                rsm_view_count[light_index] = len(views)
-                if totals:
-                    rsm_total_power[light_index] = np.sum(totals, axis=0)
-                if two_vsgl:
-                    counts = np.full(len(views), 2)
-                else:
-                    counts = share_vsgl_count(settings.vsgl_count, [t @ LUMINANCE_WEIGHTS for t in totals])
-                for view_index, (generation, count) in enumerate(zip(generations, counts)):
-                    if count == 0:
-                        continue
-                    generation.generate(int(count), settings.k, settings.kernel,
-                                        _rotation(settings.seed, light_index, view_index))
-                    table = generation.read_table()
-                    tables.append({name: table[name] for name in VSGL_FIELDS})
-                    light_rows.append(np.full(int(count), light_index))
-                    view_rows.append(np.full(int(count), view_index))
-            finally:
-                for generation in generations:
-                    generation.free()
-                for view in views:
-                    view.free()
+        vsgls = render_scene_vsgls(scene_gpu, settings)
+        try:
+            return vsgls.read()
+        finally:
+            vsgls.free()
     finally:
         scene_gpu.free()
-    merged = {name: np.concatenate([t[name] for t in tables]) for name in VSGL_FIELDS} if tables else _empty_table()
-    merged["light_index"] = np.concatenate(light_rows) if light_rows else np.zeros(0, np.int64)
-    merged["view_index"] = np.concatenate(view_rows) if view_rows else np.zeros(0, np.int64)
-    merged["rsm_total_power"] = rsm_total_power
-    merged["rsm_size"] = np.full(light_count, settings.rsm_size, np.int64)
-    merged["rsm_view_count"] = rsm_view_count
-    return merged

@@ -1,0 +1,129 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""One frame from a scene description: the GPU passes in order, and the images they make.
+
+    scene description -> SceneGPU (triangles uploaded once)
+                      -> RSM views of every light -> VSGL tables       (pipeline.py; 000 §3-4)
+                      -> camera G-buffer -> direct light (RSM-depth shadows)
+                                         -> shading inputs -> VSGL shading (000 app. C)
+                      -> FrameImages (numpy, linear, Blender's units)
+
+Never touches bpy.context (the engine and the command line do). Needs a GPU context, main thread.
+Every GPU resource a frame makes is released before render() returns, or by free().
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .passes.direct_light import render_direct_light
+from .passes.gbuffer import render_gbuffer
+from .passes.rsm import SceneGPU
+from .passes.shading_inputs import shading_gbuffer
+from .passes.vsgl_shading import VSGLShading
+from .pipeline import render_scene_vsgls
+from .reference.vsgl_shading import diffuse_mode_for_kernel
+from .settings import VSGLSettings
+
+
+@dataclass
+class FrameImages:
+    """(H, W, 3) float32 radiance images, W/(m² sr), row 0 at the bottom; coverage (H, W) in [0, 1]."""
+
+    direct_diffuse: np.ndarray
+    direct_specular: np.ndarray
+    indirect_diffuse: np.ndarray
+    indirect_specular: np.ndarray
+    coverage: np.ndarray
+    timings: dict[str, float] = field(default_factory=dict)  # seconds per pass, GPU finished
+    counts: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def direct(self) -> np.ndarray:
+        return self.direct_diffuse + self.direct_specular
+
+    @property
+    def indirect(self) -> np.ndarray:
+        return self.indirect_diffuse + self.indirect_specular
+
+    @property
+    def combined(self) -> np.ndarray:
+        return self.direct + self.indirect
+
+
+def _finish(texture) -> None:
+    """Wait for the GPU to finish writing `texture` (reading one texel back), so the pass's time
+    is its own: GL calls return before the work is done."""
+    import gpu
+
+    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[texture])
+    with framebuffer.bind():
+        framebuffer.read_color(0, 0, 1, 1, 4, 0, "FLOAT")
+
+
+def _rgb(image: np.ndarray) -> np.ndarray:
+    # No NaN or Inf may reach a pixel: a non-finite value is a bug upstream, but the image must stay usable.
+    return np.nan_to_num(np.asarray(image[..., :3], np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+
+
+class FrameRenderer:
+    """Renders frames; holds the shading pass's textures between frames (free() releases them)."""
+
+    def __init__(self):
+        self._shading = VSGLShading()
+
+    def free(self) -> None:
+        self._shading.free()
+
+    def render(self, scene, settings: VSGLSettings, width: int, height: int) -> FrameImages:
+        """The frame of `scene` (a SceneDescription with a camera) at width × height pixels."""
+        if scene.camera is None:
+            raise ValueError("the scene has no camera")
+        timings: dict[str, float] = {}
+        clock = time.perf_counter()
+
+        def lap(name):
+            nonlocal clock
+            now = time.perf_counter()
+            timings[name] = now - clock
+            clock = now
+
+        scene_gpu = SceneGPU(scene)
+        vsgls = gbuffer = direct = inputs = None
+        try:
+            lap("upload")
+            vsgls = render_scene_vsgls(scene_gpu, settings)
+            if vsgls.generations:
+                _finish(vsgls.generations[-1][2].table)
+            lap("rsm_and_vsgl_generation")
+            gbuffer = render_gbuffer(scene_gpu, scene.camera.view_matrix(), scene.camera.projection_matrix(),
+                                     (width, height))
+            _finish(gbuffer.textures["position"])
+            lap("gbuffer")
+            direct = render_direct_light(gbuffer, scene.lights, vsgls.views_by_light)
+            _finish(direct.textures["diffuse"])
+            lap("direct_light")
+            inputs = shading_gbuffer(gbuffer)
+            diffuse, specular = self._shading.run(inputs, gbuffer.camera_vector, vsgls.tables(),
+                                                  diffuse_mode_for_kernel(settings.kernel))
+            _finish(diffuse)
+            lap("vsgl_shading")
+            indirect_diffuse, indirect_specular = self._shading.read()
+            direct_diffuse, direct_specular = direct.to_numpy()
+            coverage = gbuffer.to_numpy()["position"][..., 3]
+            lap("read_back")
+            counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in vsgls.views_by_light.values()),
+                      "vsgls": vsgls.vsgl_count, "triangles": int(len(scene.geometry.positions))}
+        finally:
+            if direct is not None:
+                direct.free()
+            if gbuffer is not None:
+                gbuffer.free()
+            if vsgls is not None:
+                vsgls.free()
+            scene_gpu.free()
+        return FrameImages(_rgb(direct_diffuse), _rgb(direct_specular), _rgb(indirect_diffuse),
+                           _rgb(indirect_specular), np.clip(np.nan_to_num(coverage), 0.0, 1.0).astype(np.float32),
+                           timings, counts)
