@@ -16,6 +16,8 @@ means ``result = (expression);``. ``outputs`` is the number of floats of the sin
 ``result`` (1 → shape (n,), k → (n, k)), or a dict ``{name: k}`` of several outputs, returned as a
 dict of arrays. Outputs start at 0. ``declarations`` is GLSL placed before ``main()`` (helpers);
 ``libraries`` are ``@require``d (``lib/sg.glsl``), looked up in ``roots`` first, then in ``glsl/``.
+``images`` (name → (H, W, 4) array, row 0 = texture row 0) are RGBA32F textures bound to samplers
+of those names, for functions that read an image (``lib/image.glsl``).
 
 A compiled probe is cached by its source, so evaluating the same body again (other inputs, other n)
 costs no shader compile (40–60 ms of JIT each on llvmpipe). Needs a GPU context (main thread).
@@ -76,7 +78,7 @@ class GLSLProbe:
 
     def __init__(self, body: str, input_sizes: Mapping[str, int], outputs: int | Mapping[str, int] = 1,
                  *, libraries: Sequence[str] = (), declarations: str = "",
-                 roots: Sequence[Path] = ()):
+                 roots: Sequence[Path] = (), image_names: Sequence[str] = ()):
         import gpu
         from gpu_extras.batch import batch_for_shader
 
@@ -98,7 +100,8 @@ class GLSLProbe:
         (_stage_dir() / stage).write_text(self.source, encoding="utf-8")
         interface = ShaderInterface(
             push_constants=[("INT", "probe_rows")],
-            samplers=[("FLOAT_2D", "probe_inputs")] if self.input_sizes else [],
+            samplers=([("FLOAT_2D", "probe_inputs")] if self.input_sizes else [])
+            + [("FLOAT_2D", name) for name in image_names],
             vertex_inputs=[("VEC2", "position")],
             varyings=[("VEC2", "uv")],
             fragment_outputs=[("VEC4", f"probe_out_{name}") for name in self.outputs],
@@ -115,6 +118,7 @@ class GLSLProbe:
         self.batch = batch_for_shader(self.shader, "TRIS",
                                       {"position": [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]})
         self._gpu = gpu
+        self.image_names = tuple(image_names)
 
     def _stage_source(self, body: str, libraries: Sequence[str], declarations: str) -> str:
         lines = [f"// @require {library}" for library in libraries]
@@ -135,10 +139,21 @@ class GLSLProbe:
         lines.append("}")
         return "\n".join(lines) + "\n"
 
-    def __call__(self, inputs: Mapping[str, np.ndarray]) -> np.ndarray | dict[str, np.ndarray]:
+    def __call__(self, inputs: Mapping[str, np.ndarray],
+                 images: Mapping[str, np.ndarray] | None = None) -> np.ndarray | dict[str, np.ndarray]:
         gpu = self._gpu
         if set(inputs) != set(self.input_sizes):
             raise ValueError(f"inputs {sorted(inputs)} differ from the probe's {sorted(self.input_sizes)}")
+        images = dict(images or {})
+        if set(images) != set(self.image_names):
+            raise ValueError(f"images {sorted(images)} differ from the probe's {sorted(self.image_names)}")
+        image_textures = {}
+        for name, image in images.items():
+            data = np.ascontiguousarray(image, dtype=np.float32)
+            if data.ndim != 3 or data.shape[2] != 4:
+                raise ValueError(f"image '{name}' must have shape (H, W, 4), not {data.shape}")
+            image_textures[name] = gpu.types.GPUTexture((data.shape[1], data.shape[0]), format="RGBA32F",
+                                                        data=gpu.types.Buffer("FLOAT", data.shape, data))
         arrays = {}
         counts = set()
         for name, size in self.input_sizes.items():
@@ -183,6 +198,8 @@ class GLSLProbe:
                 pass
             if texture is not None:
                 self.shader.uniform_sampler("probe_inputs", texture)
+            for name, image_texture in image_textures.items():
+                self.shader.uniform_sampler(name, image_texture)
             self.batch.draw(self.shader)
 
         results = {}
@@ -197,25 +214,29 @@ class GLSLProbe:
 
 
 def probe(body: str, input_sizes: Mapping[str, int], outputs: int | Mapping[str, int] = 1, *,
-          libraries: Sequence[str] = (), declarations: str = "", roots: Sequence[Path] = ()) -> GLSLProbe:
-    """The compiled probe for this body and interface (cached by its source)."""
+          libraries: Sequence[str] = (), declarations: str = "", roots: Sequence[Path] = (),
+          image_names: Sequence[str] = ()) -> GLSLProbe:
+    """The compiled probe for this body and interface (cached by its source and samplers)."""
     key = repr((body, list(input_sizes.items()),
                 outputs if not isinstance(outputs, Mapping) else list(outputs.items()),
-                list(libraries), declarations, [str(root) for root in roots]))
+                list(libraries), declarations, [str(root) for root in roots], list(image_names)))
     if key not in _probes:
         _probes[key] = GLSLProbe(body, input_sizes, outputs, libraries=libraries,
-                                 declarations=declarations, roots=roots)
+                                 declarations=declarations, roots=roots, image_names=image_names)
     return _probes[key]
 
 
 def evaluate_glsl(body: str, inputs: Mapping[str, np.ndarray], outputs: int | Mapping[str, int] = 1, *,
                   libraries: Sequence[str] = (), declarations: str = "",
-                  roots: Sequence[Path] = ()) -> np.ndarray | dict[str, np.ndarray]:
+                  roots: Sequence[Path] = (),
+                  images: Mapping[str, np.ndarray] | None = None) -> np.ndarray | dict[str, np.ndarray]:
     """Evaluate `body` at every point of `inputs` on the GPU; float64 results (see the module doc)."""
     sizes = {}
     for name, values in inputs.items():
         sizes[name] = _components(np.shape(values), name)
-    return probe(body, sizes, outputs, libraries=libraries, declarations=declarations, roots=roots)(inputs)
+    images = dict(images or {})
+    return probe(body, sizes, outputs, libraries=libraries, declarations=declarations, roots=roots,
+                 image_names=sorted(images))(inputs, images)
 
 
 # --- Comparison with a float64 reference -------------------------------------------------------

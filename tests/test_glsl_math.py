@@ -431,6 +431,15 @@ GGX_CASES = [
          [Output("result", 1, lambda g: ggx.g1_distant(g["cos_theta"], g["roughness"]))]),
     Case("fresnel_schlick", "lib/ggx.glsl", "fresnel_schlick(cos_theta, f0)", _fresnel_grid,
          [Output("result", 1, lambda g: ggx.fresnel_schlick(g["cos_theta"], g["f0"]))]),
+    # D of the half vector of directions above the surface (0 below, as microfacet_brdf uses it):
+    # up to 3e5; one slice per lobe.
+    Case("ggx_half_vector_ndf", "lib/ggx.glsl",
+         "ggx_cosine(incoming, normal) > 0.0 && ggx_cosine(outgoing, normal) > 0.0 ? "
+         "ggx_half_vector_ndf(incoming, outgoing, normal, roughness) : 0.0", _brdf_grid,
+         [Output("result", 1, lambda g: np.where(
+             (np.sum(g["incoming"] * g["normal"], -1) > 0.0) & (np.sum(g["outgoing"] * g["normal"], -1) > 0.0),
+             ggx.ggx_half_vector_ndf(g["incoming"], g["outgoing"], g["normal"], g["roughness"]), 0.0),
+             lambda g: g["_slice"])]),
     # Peaks at F D(1) / ((c_i + s_i)(c_o + s_o)), up to ~3e11 at alpha = 1e-3 and grazing incidence:
     # one slice per lobe (normal, incoming direction, roughness, f0).
     Case("microfacet_brdf", "lib/ggx.glsl", "microfacet_brdf(incoming, outgoing, normal, roughness, f0)", _brdf_grid,

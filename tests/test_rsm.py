@@ -9,6 +9,14 @@ midpoint rule per texel (relative error ~ texel size² / 24, below 1e-5 at 256²
 errors have zero mean along a straight edge and are bounded by the flux of one texel row along it:
 at 256² per face the planes below put under 0.2 % of their flux in silhouette texels, so the 1 %
 bound holds with a wide margin (measured errors are printed with -s and listed in the report).
+
+Reflectances. The RSM's Rd and Rs are the Principled model of the direct light for each texel's
+incidence (reference/rsm.py principled_reflectances); the flux calibration scenes use a Specular
+IOR Level of 0 (no dielectric layer), whose Rd is the base colour exactly in that model
+(test_calibration_material_rd_is_its_base_colour), so Σ Φ·Rd / Rd measures the flux alone. The
+incidence dependence is tested texel by texel against the numpy model
+(test_reflectances_follow_the_incidence) and against Cycles' colour passes seen from the light
+(test_reflectances_are_cycles_colour_passes_seen_from_the_light).
 """
 
 from __future__ import annotations
@@ -20,7 +28,9 @@ import numpy as np
 import pytest
 
 from vsgl_addon.passes import rsm as R
+from vsgl_addon.reference import lights
 from vsgl_addon.reference import rsm as ref
+from vsgl_addon.reference.image import image_sample_linear_repeat
 from vsgl_addon.reference.vsgl import RSM, luminance
 from vsgl_addon.scene_description import (
     DEFAULT_MATERIAL,
@@ -170,8 +180,22 @@ def test_closed_forms_match_quadrature():
 GREY = (0.5, 0.25, 0.75)  # Rd per channel: the total Φ·Rd / Rd must be the same in all three
 
 
+def calibration_material(name="Calibration", base_color=GREY):
+    """A dielectric with Specular IOR Level 0: no specular layer, so Rd = base colour (Rs = 0) at
+    every incidence in the Principled model."""
+    return material(name, base_color=base_color, metallic=0.0, specular_ior_level=0.0)
+
+
+def test_calibration_material_rd_is_its_base_colour():
+    cosines = np.linspace(0.0, 1.0, 11)
+    for roughness in (0.0, 0.5, 1.0):
+        rd, rs = ref.principled_reflectances(np.tile(GREY, (11, 1)), 0.0, 0.0, 1.5, roughness, cosines)
+        np.testing.assert_allclose(rd, np.tile(GREY, (11, 1)), rtol=1e-12)
+        np.testing.assert_allclose(rs, 0.0, atol=1e-12)
+
+
 def calibration_scene(light, half=3.0, camera=None):
-    grey = material("Calibration", base_color=GREY, metallic=0.0)
+    grey = calibration_material()
     return make_scene([rectangle(half)], [light], [grey], material_of_set=[1], camera=camera)
 
 
@@ -202,7 +226,7 @@ def test_flux_spot_light(spot_size, spot_blend):
     half = 20.0 if spot_size > math.radians(120) else 3.0  # wider than the cone's footprint
     assert half > h * math.tan(0.5 * spot_size)
     light = make_light("SPOT", power, (0.0, 0.0, h), spot_size=spot_size, spot_blend=spot_blend)
-    expected = power / (4.0 * math.pi) * ref.spot_cone_solid_angle(spot_size, spot_blend)
+    expected = power / (4.0 * math.pi) * lights.spot_cone_solid_angle(spot_size, spot_blend)
     check_power(calibration_scene(light, half), expected, f"spot {math.degrees(spot_size):.0f}° blend {spot_blend}")
 
 
@@ -247,7 +271,7 @@ def test_flux_point_light_tilted_plane_and_colour():
     tilt = math.radians(40.0)
     rotation = np.array([[1, 0, 0], [0, math.cos(tilt), -math.sin(tilt)], [0, math.sin(tilt), math.cos(tilt)]])
     tris = rectangle(1.5) @ rotation.T + np.array([0.7, 0.2, -1.2])
-    grey = material("Calibration", base_color=GREY)
+    grey = calibration_material()
     scene = make_scene([tris], [make_light("POINT", power, (0.0, 0.0, 0.0), color=color)], [grey], [1])
     # Solid angle of the tilted square by quadrature over its surface.
     n = 1500
@@ -265,6 +289,29 @@ def test_flux_point_light_tilted_plane_and_colour():
 
 
 # --- Texel values --------------------------------------------------------------------------------
+
+#: Φ·Rd and Φ·Rs of the GPU against the float64 model at the read-back position and normal: the
+#: GPU's Principled terms are the same quadratures in float32 (test_principled.py bounds them by
+#: 5e-3 over extreme directions); measured here within 2.1e-6 (point light, 5 materials).
+REFLECTANCE_RTOL = 2e-5
+
+
+def model_fluxes(light, a, lit, base, metallic, level, ior, roughness):
+    """(Φ·Rd, Φ·Rs) of the texels ``lit`` of RSMArrays ``a`` by the float64 model
+    (reference/rsm.py principled_reflectances) at each texel's incidence ω' from the read-back
+    position and normal."""
+    incoming = ref.incoming_directions(light, a.rsm.position[lit])
+    cos_incidence = np.sum(incoming * a.rsm.normal[lit], axis=-1)
+    rd, rs = ref.principled_reflectances(base, metallic, level, ior, roughness, cos_incidence)
+    flux = a.flux[lit]
+    return flux * rd, flux * rs
+
+
+def assert_reflected_flux(a, lit, expected_diffuse, expected_specular, rtol=REFLECTANCE_RTOL):
+    scale = a.flux[lit].max()
+    np.testing.assert_allclose(a.rsm.flux_diffuse[lit], expected_diffuse, rtol=rtol, atol=1e-6 * scale)
+    np.testing.assert_allclose(a.rsm.flux_specular[lit], expected_specular, rtol=rtol, atol=1e-6 * scale)
+
 
 
 @pytest.mark.gpu
@@ -284,22 +331,35 @@ def test_spot_centre_texel_hits_the_known_point_and_red_plane():
     np.testing.assert_allclose(a.roughness[lit], 0.3, atol=1e-7)
     assert a.rsm.flux_diffuse[..., 0].max() > 0.0
     assert np.all(a.rsm.flux_diffuse[..., 1:] == 0.0)
-    # Rs of a dielectric: F0 of IOR 1.5 (0.04) in every channel, red or not.
-    flux = a.flux[..., 0]
-    np.testing.assert_allclose(a.rsm.flux_specular, flux[..., None] * 0.04 * np.ones(3), rtol=1e-5, atol=1e-12)
+    # Rs of a dielectric: the dielectric lobe's albedo (F0 of IOR 1.5 = 0.04, Fresnel rising
+    # towards grazing, multiple scattering) in every channel, red or not; Rd = 0.8 (1 − Rs).
+    diffuse, specular = model_fluxes(light, a, lit, red.base_color, 0.0, 0.5, 1.5, 0.3)
+    assert_reflected_flux(a, lit, diffuse, specular)
+    np.testing.assert_array_equal(a.rsm.flux_specular[..., 0], a.rsm.flux_specular[..., 2])
+    inside = lit & (a.flux_white > 0.0)  # in the cone
+    rs = a.rsm.flux_specular[inside][:, 0] / a.flux[inside][:, 0]
+    assert 0.04 < rs.min() < rs.max() < 0.06
+    np.testing.assert_allclose(a.rsm.flux_diffuse[inside][:, 0], 0.8 * a.flux[inside][:, 0] * (1.0 - rs),
+                               rtol=1e-5)
     # Depth of the centre texel: the plane's distance along the axis through the projection.
     clip = view.spec.projection_matrix @ np.array([0.0, 0.0, -2.5, 1.0])
     assert a.depth[32, 32] == pytest.approx(0.5 * clip[2] / clip[3] + 0.5, abs=1e-5)
 
 
 @pytest.mark.gpu
-def test_metallic_plane_has_no_diffuse_and_specular_is_base_colour():
+def test_metallic_plane_has_no_diffuse_and_specular_is_the_metal_albedo():
+    """Metallic 1: no diffuse; Rs is the metallic lobe's albedo for the incidence (Schlick from the
+    base colour, multiple scattering), at least the base colour (F0) per channel."""
     gold = material("Gold", base_color=(1.0, 0.8, 0.3), roughness=0.2, metallic=1.0)
-    scene = make_scene([rectangle(3.0)], [make_light("SPOT", 100.0, (0.0, 0.0, 1.0), spot_size=1.0,
-                                                     spot_blend=0.1)], [gold], [1])
+    light = make_light("SPOT", 100.0, (0.0, 0.0, 1.0), spot_size=1.0, spot_blend=0.1)
+    scene = make_scene([rectangle(3.0)], [light], [gold], [1])
     _, (a,) = render(scene, size=32)
     assert np.all(a.rsm.flux_diffuse == 0.0)
-    np.testing.assert_allclose(a.rsm.flux_specular, a.flux * np.array([1.0, 0.8, 0.3]), rtol=1e-6, atol=1e-12)
+    lit = a.coverage & (a.flux_white > 0.0)
+    diffuse, specular = model_fluxes(light, a, lit, gold.base_color, 1.0, 0.5, 1.5, 0.2)
+    assert_reflected_flux(a, lit, diffuse, specular)
+    rs = a.rsm.flux_specular[lit] / a.flux[lit]
+    assert np.all(rs >= np.array([1.0, 0.8, 0.3]) * (1.0 - 1e-4)) and np.all(rs <= 1.0 + 1e-6)
     assert a.rsm.flux_specular.sum() > 0.0
 
 
@@ -331,7 +391,7 @@ def test_texel_quantities_match_the_numpy_reference():
             rays = ref.texel_rays(64, spec.half_extent, spec.view_to_world)
             measure = ref.texel_solid_angles(64, spec.half_extent)
             np.testing.assert_allclose(a.texel_measure[lit], measure[lit], rtol=2e-6)
-            flux_white = ref.radiant_intensity(light, rays) * measure
+            flux_white = lights.radiant_intensity(light, rays) * measure
             np.testing.assert_allclose(a.flux_white[lit], flux_white[lit], rtol=1e-4,
                                        atol=1e-5 * flux_white.max())
             position = a.rsm.position[lit]
@@ -339,22 +399,13 @@ def test_texel_quantities_match_the_numpy_reference():
             base = np.where(on_right[:, None], rough.base_color, 0.0)
             # The image sampled bilinearly with repeat at the UV of the texel (UV from x, y).
             uv = np.stack([(position[:, 0] + 3.0) / 6.0, (position[:, 1] + 1.5) / 3.0], -1)
-            x = uv * 4 - 0.5
-            i0 = np.floor(x).astype(int)
-            f = x - i0
-            def texel(dx, dy):
-                return image[(i0[:, 1] + dy) % 4, (i0[:, 0] + dx) % 4, :3]
-            sampled = ((1 - f[:, :1]) * (1 - f[:, 1:]) * texel(0, 0) + f[:, :1] * (1 - f[:, 1:]) * texel(1, 0)
-                       + (1 - f[:, :1]) * f[:, 1:] * texel(0, 1) + f[:, :1] * f[:, 1:] * texel(1, 1))
-            base = np.where(on_right[:, None], base, sampled)
+            base = np.where(on_right[:, None], base, image_sample_linear_repeat(image, uv))
             metallic = np.where(on_right, rough.metallic, textured.metallic)
             level = np.where(on_right, rough.specular_ior_level, textured.specular_ior_level)
             ior = np.where(on_right, rough.ior, textured.ior)
-            rd, rs = ref.principled_reflectances(base, metallic, level, ior)
-            flux = a.flux[lit]
-            np.testing.assert_allclose(a.rsm.flux_diffuse[lit], flux * rd, rtol=2e-4, atol=1e-6 * flux.max())
-            np.testing.assert_allclose(a.rsm.flux_specular[lit], flux * rs, rtol=2e-4, atol=1e-6 * flux.max())
             roughness = np.where(on_right, 1.0, 0.6)
+            diffuse, specular = model_fluxes(light, a, lit, base, metallic, level, ior, roughness)
+            assert_reflected_flux(a, lit, diffuse, specular)
             np.testing.assert_allclose(a.roughness[lit], roughness, atol=1e-7)
             incoming = ref.incoming_directions(light, position)
             axis, sharpness = ref.specular_lobes(incoming, a.rsm.normal[lit], roughness)
@@ -363,6 +414,114 @@ def test_texel_quantities_match_the_numpy_reference():
             # Normals face the light (both planes face +Z, the lights are above).
             np.testing.assert_allclose(a.rsm.normal[lit], np.tile([0, 0, 1.0], (lit.sum(), 1)), atol=1e-6)
             assert np.all(a.rsm.flux_diffuse[~lit] == 0.0) and np.all(a.flux[~lit] == 0.0)
+
+
+REFLECTANCE_MATERIALS = {
+    "dielectric": material("Dielectric", base_color=(0.8, 0.5, 0.2), roughness=0.3),
+    "smooth": material("Smooth", base_color=(0.2, 0.6, 0.9), roughness=0.05, specular_ior_level=1.0,
+                       ior=1.8),
+    "rough": material("Rough", base_color=(0.9, 0.9, 0.9), roughness=1.0, ior=1.33),
+    "metal": material("Metal", base_color=(0.9, 0.6, 0.3), roughness=0.4, metallic=1.0),
+    "half_metal": material("HalfMetal", base_color=(0.7, 0.7, 0.2), roughness=0.2, metallic=0.5,
+                           specular_ior_level=0.8, ior=1.6),
+}
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("kind", ["POINT", "SUN"])
+@pytest.mark.parametrize("name", list(REFLECTANCE_MATERIALS))
+def test_reflectances_follow_the_incidence(kind, name):
+    """Φ·Rd and Φ·Rs of every texel are the Principled model (the direct light's, calibrated against
+    Cycles) for that texel's incidence ω': a point light 0.5 m above a 12 m plane lights it from
+    normal incidence to 85°, a sun at 70° from the normal at one oblique angle. Rd falls and Rs
+    rises towards grazing for a dielectric; the totals Σ Φ·Rd, Σ Φ·Rs equal the model's."""
+    m = REFLECTANCE_MATERIALS[name]
+    if kind == "POINT":
+        light = make_light("POINT", 500.0, (0.3, -0.2, 0.5), color=(1.0, 0.9, 0.7))
+    else:
+        theta = math.radians(70.0)
+        light = make_light("SUN", 4.0, (0.0, 0.0, 5.0), direction=(math.sin(theta), 0.0, -math.cos(theta)),
+                           color=(1.0, 0.9, 0.7))
+    scene = make_scene([rectangle(6.0)], [light], [m], [1])
+    _, arrays = render(scene, size=64)
+    totals = np.zeros((2, 2, 3))  # (GPU, model) x (diffuse, specular)
+    cosines = []
+    for a in arrays:
+        lit = a.coverage & (a.flux_white > 0.0)
+        if not lit.any():
+            continue
+        diffuse, specular = model_fluxes(light, a, lit, m.base_color, m.metallic, m.specular_ior_level,
+                                         m.ior, m.roughness)
+        assert_reflected_flux(a, lit, diffuse, specular)
+        totals[0] += a.rsm.flux_diffuse[lit].sum(0), a.rsm.flux_specular[lit].sum(0)
+        totals[1] += diffuse.sum(0), specular.sum(0)
+        cosines.append(np.sum(ref.incoming_directions(light, a.rsm.position[lit]) * a.rsm.normal[lit], -1))
+        if m.metallic == 0.0:
+            # The diffuse base gets what the dielectric layer does not reflect (its albedo is Rs).
+            rs = a.rsm.flux_specular[lit][:, 0] / a.flux[lit][:, 0]
+            np.testing.assert_allclose(a.rsm.flux_diffuse[lit], a.flux[lit] * m.base_color
+                                       * (1.0 - rs)[:, None], rtol=1e-5, atol=1e-7 * a.flux[lit].max())
+    cosines = np.concatenate(cosines)
+    print(f"\n{kind} {name}: cos ω' {cosines.min():.3f}..{cosines.max():.3f}; GPU/model totals "
+          f"diffuse {totals[0, 0] / np.maximum(totals[1, 0], 1e-30)}, "
+          f"specular {totals[0, 1] / totals[1, 1]}")
+    np.testing.assert_allclose(totals[0], totals[1], rtol=1e-3, atol=1e-9 * totals.max())
+    if kind == "POINT":
+        assert cosines.min() < 0.1 and cosines.max() > 0.999
+        if m.metallic == 0.0:
+            # The incidence matters: Rs at grazing well above Rs at normal incidence.
+            rs_normal, rs_grazing = ref.principled_reflectances(m.base_color, 0.0, m.specular_ior_level, m.ior,
+                                                                m.roughness, np.array([1.0, 0.1]))[1][:, 0]
+            assert rs_grazing > 1.5 * rs_normal
+
+
+@pytest.mark.gpu
+def test_reflectances_are_cycles_colour_passes_seen_from_the_light():
+    """Cycles' Diffuse Color and Glossy Color passes of a camera placed at a spot light and sharing
+    its frustum hold the Principled reflectances for the view direction, here ω' of each texel: the
+    RSM's Φ·Rd/Φ and Φ·Rs/Φ must be them (a plane lit at 20° to 80° from its normal). Bounds as
+    test_principled.py's test_colour_passes_match_cycles (mean 1 % / max 3 % diffuse, mean 5 %
+    glossy, which Cycles' tabulated albedos and 4 samples leave)."""
+    import scene_builders as sb
+    from cycles_truth import render_cycles
+    from vsgl_addon.scene import extract_scene
+
+    sb.reset()
+    sb.plane(size=20.0, material=sb.principled("M", base_color=(0.8, 0.5, 0.2), roughness=0.3, metallic=0.3,
+                                               specular_ior_level=0.5, ior=1.5))
+    location, target = (0.0, -2.5, 1.2), (0.0, 0.6, 0.0)
+    # A 36 mm sensor behind an 18 mm lens: a 90° square field, the spot's cone of 90°.
+    sb.spot_light(power=300.0, location=location, look_at_point=target, spot_size=math.radians(90),
+                  spot_blend=0.0)
+    sb.camera(location=location, look_at_point=target, lens=18.0, resolution=(48, 48))
+    scene = extract_scene(sb.depsgraph())
+    index = next(i for i, light in enumerate(scene.lights) if light.type == "SPOT")
+    (view,), (a,) = render(scene, index, size=48)
+    passes = render_cycles(samples=4, filter_width=0.01)
+    lit = a.coverage & (a.flux_white > 0.0)
+    # The camera pixel of each texel's position (the frustums coincide: texel centre = pixel centre).
+    camera = scene.camera
+    clip = np.c_[a.rsm.position[lit], np.ones(lit.sum())] @ (camera.projection_matrix() @ camera.view_matrix()).T
+    pixel = np.floor((clip[:, :2] / clip[:, 3:] * 0.5 + 0.5) * 48).astype(int)
+    rows, columns = np.nonzero(lit)
+    np.testing.assert_array_equal(pixel, np.c_[columns, rows])
+    diffuse_colour = passes["DiffCol"][::-1][lit]
+    glossy_colour = passes["GlossCol"][::-1][lit]
+    rd = a.rsm.flux_diffuse[lit] / a.flux[lit]
+    rs = a.rsm.flux_specular[lit] / a.flux[lit]
+    cosines = np.sum(ref.incoming_directions(scene.lights[index], a.rsm.position[lit]) * a.rsm.normal[lit], -1)
+    rel_d = np.abs(rd - diffuse_colour) / diffuse_colour
+    rel_s = np.abs(rs - glossy_colour) / glossy_colour
+    # For comparison, the reflectances at normal incidence without layering: base (1 − m), F0 mix.
+    base, metallic = np.array([0.8, 0.5, 0.2]), 0.3
+    plain_d = np.mean(np.abs(base * (1 - metallic) - diffuse_colour) / diffuse_colour)
+    plain_s = np.mean(np.abs(0.04 * (1 - metallic) + base * metallic - glossy_colour) / glossy_colour)
+    print(f"\ncos ω' {cosines.min():.2f}..{cosines.max():.2f}, {lit.sum()} texels: Diffuse Color mean rel err "
+          f"{rel_d.mean():.4f}, max {rel_d.max():.4f}; Glossy Color mean {rel_s.mean():.4f}, max {rel_s.max():.4f} "
+          f"(base (1 - m) and the F0 mix: {plain_d:.4f}, {plain_s:.4f})")
+    assert cosines.min() < 0.3 and cosines.max() > 0.9
+    assert rel_d.mean() < 0.01 and rel_d.max() < 0.03
+    assert rel_s.mean() < 0.05
 
 
 @pytest.mark.gpu
@@ -439,7 +598,7 @@ def test_sizes(size):
     views, arrays = render(scene, size=size)
     assert arrays[0].rsm.position.shape == (size, size, 3)
     assert_finite(arrays)
-    expected = 1000.0 / (4 * math.pi) * ref.spot_cone_solid_angle(math.radians(60), 0.3)
+    expected = 1000.0 / (4 * math.pi) * lights.spot_cone_solid_angle(math.radians(60), 0.3)
     measured = total_diffuse(arrays)[0] / GREY[0]
     if size >= 64:
         assert measured == pytest.approx(expected, rel=0.01)
@@ -534,7 +693,8 @@ def test_extracted_blender_scene_spot_flux():
     from vsgl_addon.scene import extract_scene
 
     sb.reset()
-    sb.plane(size=8.0, material=sb.principled("Floor", base_color=(0.5, 0.5, 0.5), roughness=0.4))
+    sb.plane(size=8.0, material=sb.principled("Floor", base_color=(0.5, 0.5, 0.5), roughness=0.4,
+                                              specular_ior_level=0.0))
     spot_size, blend = math.radians(50), 0.25
     sb.spot_light(power=250.0, location=(0.0, 0.0, 1.5), spot_size=spot_size, spot_blend=blend,
                   color=(1.0, 0.8, 0.6))
@@ -542,7 +702,7 @@ def test_extracted_blender_scene_spot_flux():
     scene = extract_scene(sb.depsgraph())
     index = next(i for i, light in enumerate(scene.lights) if light.type == "SPOT")
     _, arrays = render(scene, index)
-    expected = 250.0 / (4 * math.pi) * ref.spot_cone_solid_angle(spot_size, blend) * np.array([1.0, 0.8, 0.6])
+    expected = 250.0 / (4 * math.pi) * lights.spot_cone_solid_angle(spot_size, blend) * np.array([1.0, 0.8, 0.6])
     np.testing.assert_allclose(total_diffuse(arrays) / 0.5, expected, rtol=0.01)
 
 
@@ -579,7 +739,7 @@ def test_flux_spot_with_non_uniform_scale():
     gx, gy = np.meshgrid(s, s)
     offsets = np.stack([gx, gy, -np.full_like(gx, h)], -1)
     r = np.linalg.norm(offsets, axis=-1)
-    intensity = ref.radiant_intensity(light, offsets / r[..., None])
+    intensity = lights.radiant_intensity(light, offsets / r[..., None])
     expected = np.sum(intensity * h / r**3) * (2 * half / n) ** 2
     check_power(scene, expected, "spot, non-uniform scale")
 
@@ -589,8 +749,8 @@ def test_occluder_takes_the_flux_of_its_shadow():
     """A red square 1 m under a point light shadows a grey plane 2 m under it: the RSM holds each
     texel's first hit only (depth test), so the plane's channel loses exactly the occluder's flux."""
     power = 1000.0
-    grey = material("Grey", base_color=(0.5, 0.5, 0.5))
-    red = material("Red", base_color=(1.0, 0.0, 0.0))
+    grey = calibration_material("Grey", base_color=(0.5, 0.5, 0.5))
+    red = calibration_material("Red", base_color=(1.0, 0.0, 0.0))
     scene = make_scene([rectangle(3.0, z=0.0), rectangle(0.5, z=1.0)],
                        [make_light("POINT", power, (0.0, 0.0, 2.0))], [grey, red], [1, 2])
     _, arrays = render(scene)

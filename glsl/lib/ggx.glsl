@@ -88,13 +88,35 @@ float ggx_half_sine_squared(vec3 incoming, vec3 outgoing, vec3 normal, float hal
   return max(dot(scaled, scaled) + one_minus_n2, 0.0);
 }
 
+// D(wh.n) (004 Eq. 6) for the half vector of unit `incoming` and `outgoing` above the surface, 0
+// for wi = -wo (no half vector). wh.n is taken as H.n / |H| with H = wi + wo: at grazing incidence
+// |H| is small and exact (its components cancel, Sterbenz), whereas (c_i + c_o) / |H| would divide
+// the cosines' rounding by |H|; it is > 0 whenever both cosines are (up to rounding, so D's chi+ is
+// not applied). Near the peak of a sharp lobe (denominator below GGX_ACCURATE_DENOMINATOR),
+// sin^2 of the half vector is taken in twice the precision (ggx_half_sine_squared). Shared by
+// microfacet_brdf and lib/principled.glsl's principled_brdf.
+float ggx_half_vector_ndf(vec3 incoming, vec3 outgoing, vec3 normal, float roughness)
+{
+  vec3 half_sum = incoming + outgoing;
+  float half_length = safe_length(half_sum);
+  if (!(half_length > 0.0)) {
+    return 0.0;
+  }
+  float a2 = roughness * roughness;
+  float cos_h = dot(half_sum, normal) / half_length;
+  float sin2_h = max((1.0 - cos_h) * (1.0 + cos_h), 0.0);
+  float denominator = a2 * cos_h * cos_h + sin2_h;
+  if (denominator < GGX_ACCURATE_DENOMINATOR) {
+    sin2_h = ggx_half_sine_squared(incoming, outgoing, normal, half_length);
+    denominator = a2 * cos_h * cos_h + sin2_h;
+  }
+  return a2 / (PI * denominator * denominator);
+}
+
 // f = F(wi.wh) G1dist(wi) G1dist(wo) D(wh.n) / (4 |wi.n| |wo.n|) (004 Eqs. 7-8), evaluated as
 // F D / ((c_i + s_i)(c_o + s_o)) with s = sqrt((1 - alpha^2) c^2 + alpha^2): the masking numerators
 // 2 c_i 2 c_o cancel the denominator analytically, so the grazing limit stays finite. 0 below the
-// horizon (chi+) and for wi = -wo (no half vector). wh.n is taken as H.n / |H| with H = wi + wo:
-// at grazing incidence |H| is small and exact (its components cancel, Sterbenz), whereas
-// (c_i + c_o) / |H| would divide the cosines' rounding by |H|. It is > 0 whenever both cosines are
-// (up to rounding, so D's chi+ is not applied again).
+// horizon (chi+) and for wi = -wo (no half vector); D of the half vector: ggx_half_vector_ndf.
 float microfacet_brdf(vec3 incoming, vec3 outgoing, vec3 normal, float roughness, float f0)
 {
   float a2 = roughness * roughness;
@@ -105,14 +127,7 @@ float microfacet_brdf(vec3 incoming, vec3 outgoing, vec3 normal, float roughness
   if (!(cos_i > 0.0 && cos_o > 0.0 && half_length > 0.0)) {
     return 0.0;
   }
-  float cos_h = dot(half_sum, normal) / half_length;
-  float sin2_h = max((1.0 - cos_h) * (1.0 + cos_h), 0.0);
-  float denominator = a2 * cos_h * cos_h + sin2_h;
-  if (denominator < GGX_ACCURATE_DENOMINATOR) {
-    sin2_h = ggx_half_sine_squared(incoming, outgoing, normal, half_length);
-    denominator = a2 * cos_h * cos_h + sin2_h;
-  }
-  float d = a2 / (PI * denominator * denominator);
+  float d = ggx_half_vector_ndf(incoming, outgoing, normal, roughness);
   float f = fresnel_schlick(dot(incoming, half_sum) / half_length, f0);
   return f * d / (ggx_g1_denominator(cos_i, a2) * ggx_g1_denominator(cos_o, a2));
 }

@@ -177,8 +177,9 @@ float principled_ggx_correlated(float ci, float co, float d, float a2)
 }
 
 // Diffuse and specular BRDFs (RGB, no cosine) for the terms of a pixel; 0 below either horizon.
-// The half vector as microfacet_brdf (lib/ggx.glsl) computes it: accurate cosines near grazing and
-// sin^2 of the half vector in twice the precision near the peak of a sharp lobe.
+// D of the half vector as microfacet_brdf (lib/ggx.glsl) takes it, ggx_half_vector_ndf: accurate
+// cosines near grazing and sin^2 of the half vector in twice the precision near the peak of a
+// sharp lobe.
 void principled_brdf(PrincipledTerms t, vec3 incoming, vec3 outgoing, vec3 normal,
                      out vec3 diffuse, out vec3 specular)
 {
@@ -196,14 +197,7 @@ void principled_brdf(PrincipledTerms t, vec3 incoming, vec3 outgoing, vec3 norma
   if (!(half_length > 0.0)) {
     return;
   }
-  float cos_h = dot(half_sum, normal) / half_length;
-  float sin2_h = max((1.0 - cos_h) * (1.0 + cos_h), 0.0);
-  float denominator = a2 * cos_h * cos_h + sin2_h;
-  if (denominator < GGX_ACCURATE_DENOMINATOR) {
-    sin2_h = ggx_half_sine_squared(incoming, outgoing, normal, half_length);
-    denominator = a2 * cos_h * cos_h + sin2_h;
-  }
-  float d = a2 / (PI * denominator * denominator);
+  float d = ggx_half_vector_ndf(incoming, outgoing, normal, t.alpha);
   float lobe = principled_ggx_correlated(cos_i, cos_o, d, a2);
   float cos_ih = clamp(dot(incoming, half_sum) / half_length, 0.0, 1.0);
   vec3 f_metal = fresnel_schlick_rgb(cos_ih, t.f0_metal) * t.ms_metal;

@@ -1,3 +1,6 @@
+// @require lib/image.glsl
+// @require lib/lights.glsl
+// @require lib/principled.glsl
 // @require lib/sg.glsl
 //
 // Reflective shadow map (RSM) pass, fragment stage: one virtual point light (VPL) per texel
@@ -15,46 +18,8 @@
 // Per-view constants come in the 10x1 RGBA32F texture `view_constants` (push constants stay within
 // the 128 bytes every backend guarantees): texels 0-2 the rows of mat3 view -> world, 3-5 the rows
 // of mat3 world -> light local (inverse of the light's 3x3 world matrix, scale included),
-// 6 light_position, 7 light_axis (unit, where the light points), 8 light_params
-// (type code, cos half spot angle, 1 / ((1 - cos) spot_blend) or -1, intensity scale),
-// 9 light_color.
-
-// Light types (light_params.x); the numbering of rsm.py's LIGHT_TYPE_CODES.
-const int LIGHT_POINT = 0;
-const int LIGHT_SPOT = 1;
-const int LIGHT_SUN = 2;
-const int LIGHT_AREA = 3;
-
-// Smallest GGX alpha = roughness^2: roughness 1e-3, the smallest the project models; keeps
-// lam_h = 2 / alpha^2 <= 2e12 finite (lam_s <= 5e15 at the cosine floor) for a roughness of 0.
-const float ALPHA_MIN = 1e-6;
-
-// Cycles' smoothstepf (intern/cycles/util/math_float.h): 0 below 0, 1 above 1, 3x^2 - 2x^3 between.
-float cycles_smoothstep(float x)
-{
-  if (x <= 0.0) {
-    return 0.0;
-  }
-  if (x >= 1.0) {
-    return 1.0;
-  }
-  return x * x * (3.0 - 2.0 * x);
-}
-
-// Blender's spot cone (Cycles, kernel/light/spot.h spot_light_attenuation): the ray in the light's
-// local frame with the object scale divided out, z along the spot axis;
-// smoothstep((cos - cos_half_spot) / ((1 - cos_half_spot) spot_blend)). light_params.z holds
-// 1 / ((1 - cos_half_spot) spot_blend), or a negative value for spot_blend = 0 (a hard edge).
-float spot_attenuation(vec3 direction_world, mat3 light_to_local, vec4 light_params)
-{
-  vec3 local = safe_normalize(light_to_local * direction_world, vec3(0.0, 0.0, 1.0));
-  float cos_axis = -local.z;  // lights point down their local -Z
-  float cos_half = light_params.y;
-  if (light_params.z < 0.0) {
-    return cos_axis > cos_half ? 1.0 : 0.0;
-  }
-  return cycles_smoothstep((cos_axis - cos_half) * light_params.z);
-}
+// 6 light_position, 7 light_axis (unit, where the light points), 8 light_params (the light
+// parameters of lib/lights.glsl), 9 light_color.
 
 // Largest RSM side whose texel solid angles use the exact formula; larger sizes integrate cos^3
 // by 3x3 Gauss-Legendre (see texel_solid_angle).
@@ -105,24 +70,6 @@ mat3 rows_to_mat3(vec3 r0, vec3 r1, vec3 r2)
   return transpose(mat3(r0, r1, r2));
 }
 
-// Base colour image: bilinear, repeat extension, texel centres at (i + 0.5) / W (Blender's Linear
-// interpolation). Texel loads: Python textures cannot set their sampler's wrap mode.
-vec3 base_color_sample(vec2 uv)
-{
-  ivec2 size = textureSize(base_color_image, 0);
-  vec2 x = uv * vec2(size) - 0.5;
-  vec2 base = floor(x);
-  vec2 f = x - base;
-  ivec2 i0 = ivec2(base);
-  vec3 c[4];
-  for (int k = 0; k < 4; k++) {
-    ivec2 p = i0 + ivec2(k & 1, k >> 1);
-    p = ((p % size) + size) % size;
-    c[k] = texelFetch(base_color_image, p, 0).rgb;
-  }
-  return mix(mix(c[0], c[1], f.x), mix(c[2], c[3], f.x), f.y);
-}
-
 void main()
 {
   mat3 view_to_world = rows_to_mat3(view_constant(0).xyz, view_constant(1).xyz, view_constant(2).xyz);
@@ -147,16 +94,10 @@ void main()
     ray = light_axis;
   }
 
-  // Radiant intensity towards the texel per unit light colour (formulas.md sec. 4): point and spot
-  // P / 4 pi (spot: times the cone), area (P / pi) cos theta, sun S (irradiance, W/m^2).
-  float intensity = light_params.w;
-  if (light_type == LIGHT_SPOT) {
-    intensity *= spot_attenuation(ray, light_to_local, light_params);
-  }
-  else if (light_type == LIGHT_AREA) {
-    intensity *= max(dot(ray, light_axis), 0.0);
-  }
-  float flux_white = intensity * texel_measure;
+  // Phi_1 = I(ray) d_omega: the light's radiant intensity towards the texel per unit light colour
+  // (formulas.md sec. 4, lib/lights.glsl) times the texel's solid angle; a sun's S (W/m^2) times
+  // the texel's area.
+  float flux_white = light_intensity(light_params, ray, light_axis, light_to_local) * texel_measure;
 
   // Incoming direction w' (from the surface towards the light).
   vec3 incoming = light_type == LIGHT_SUN ?
@@ -166,25 +107,30 @@ void main()
   float side = dot(geometric, incoming) < 0.0 ? -1.0 : 1.0;  // two-sided: face the light
   vec3 normal = side * safe_normalize(corner_normal, side * geometric);
 
-  // Principled BSDF base layer (vsgl_addon/reference/rsm.py principled_reflectances).
+  // Rd and Rs of the Principled BSDF base layer (lib/principled.glsl, calibrated against Cycles;
+  // the direct light's model) for the incidence w': the texel is lit from the light, and
+  // Phi Rd, Phi Rs are the fluxes its diffuse and specular lobes reflect (formulas.md sec. 4;
+  // reference/rsm.py principled_reflectances): Rd = base (1 - metallic)(1 - E_spec(mu')), Rs the
+  // specular lobes' directional albedo (real dielectric Fresnel, multiple scattering), so the
+  // normalized lobes of 000 Eqs. 6-7 (Rd G/A(lam_d), Rs G/A(lam_s)) re-emit exactly these.
   // Clamped at 0: a float image may hold negative values, and the RSM's flux must not.
-  vec3 base_color = max(material_base_color.w > 0.5 ? base_color_sample(texcoord) :
-                                                      material_base_color.rgb, vec3(0.0));
+  vec3 base_color = max(material_base_color.w > 0.5 ?
+                            image_sample_linear_repeat(base_color_image, texcoord) :
+                            material_base_color.rgb,
+                        vec3(0.0));
   float roughness = clamp(material_params.x, 0.0, 1.0);
-  float metallic = clamp(material_params.y, 0.0, 1.0);
-  float ior_ratio = (material_params.w - 1.0) / (material_params.w + 1.0);
-  float f0 = clamp(ior_ratio * ior_ratio * 2.0 * max(material_params.z, 0.0), 0.0, 1.0);
-  vec3 diffuse_reflectance = base_color * (1.0 - metallic);
-  vec3 specular_reflectance = mix(vec3(f0), base_color, metallic);
+  PrincipledTerms terms = principled_terms(base_color, material_params.y, material_params.z,
+                                           material_params.w, roughness, dot(normal, incoming));
 
+  // The specular lobe: 000 Eq. 7's spherical warp of the GGX NDF for the incidence w'.
   vec3 axis;
   float sharpness;
-  specular_lobe_warp(incoming, normal, max(roughness * roughness, ALPHA_MIN), axis, sharpness);
+  specular_lobe_warp(incoming, normal, terms.alpha, axis, sharpness);
 
   vec3 flux = flux_white * light_color;
   rsm_position = vec4(world_position, sharpness);
   rsm_normal = vec4(normal, roughness);
-  rsm_flux_diffuse = vec4(flux * diffuse_reflectance, flux_white);
-  rsm_flux_specular = vec4(flux * specular_reflectance, texel_measure);
+  rsm_flux_diffuse = vec4(flux * terms.diffuse, flux_white);
+  rsm_flux_specular = vec4(flux * terms.specular_albedo, texel_measure);
   rsm_specular_axis = vec4(axis, 1.0);
 }

@@ -3,4 +3,8 @@
 touches ``bpy.context``; its float64 twin lives in ``vsgl_addon.reference``.
 
 * :mod:`.vsgl_generation`: VSGLs from a reflective shadow map (000 §3-4, app. B and D; 003).
+
+Shared by the passes (not passes themselves): :mod:`.scene_gpu` (the scene's triangles on the GPU,
+their vertex stage and per-material inputs, drawn by :mod:`.rsm` and :mod:`.gbuffer`) and
+:mod:`.gpu_util` (numpy arrays to and from textures, matrices for uniforms).
 """

@@ -14,10 +14,11 @@ Output per pixel (two RGBA32F textures, alpha 0): **diffuse direct** and **gloss
 towards the camera, RGB, W/(m²·sr), summed over the lights — what Cycles' Diffuse Direct × Diffuse
 Color and Glossy Direct × Glossy Color hold. Background pixels are 0.
 
-Light model (formulas.md §4; float64 twin :mod:`vsgl_addon.reference.direct_light`, GLSL
-``glsl/direct_light/lights.glsl``): point and spot P/(4π) W/sr (spot: Blender's cone smoothstep),
-sun S W/m², area lights as Lambertian point emitters I(θ) = (P/π) cos θ from their centre; light
-radius / sun angle are not modelled (hard shadows). The light's colour and its diffuse/specular
+Light model (formulas.md §4; float64 twins :mod:`vsgl_addon.reference.direct_light` and
+:mod:`vsgl_addon.reference.lights`, GLSL ``glsl/direct_light/lights.glsl`` on the emission model
+``glsl/lib/lights.glsl`` the RSM shares): point and spot P/(4π) W/sr (spot: Blender's cone
+smoothstep), sun S W/m², area lights as Lambertian point emitters I(θ) = (P/π) cos θ from their
+centre; light radius / sun angle are not modelled (hard shadows). The light's colour and its diffuse/specular
 factors multiply the result. Material: :mod:`vsgl_addon.reference.principled` (Cycles' Principled
 BSDF base layer: Lambert under a dielectric GGX layer, metallic GGX, multiple scattering).
 
@@ -35,15 +36,14 @@ terms (an 8×8 + 4×4×4 albedo quadrature, see principled.glsl). Shader compile
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..reference.direct_light import light_params
+from ..reference.lights import light_params
 from ..shaders import ShaderInterface, create_shader
 from .gbuffer import ATTACHMENTS as GBUFFER_ATTACHMENTS
-from .rsm import _texture, read_texture
+from .gpu_util import fullscreen_triangle_batch, read_texture, texture_from_array
 
 MAX_VIEWS = 6
 #: Defaults of the shadow test, in texels of the RSM view at the point.
@@ -87,9 +87,7 @@ def free_shaders() -> None:
 def _fullscreen_batch():
     global _batch
     if _batch is None:
-        from gpu_extras.batch import batch_for_shader
-
-        _batch = batch_for_shader(shader(), "TRIS", {"position": [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]})
+        _batch = fullscreen_triangle_batch(shader())
     return _batch
 
 
@@ -184,7 +182,7 @@ def render_direct_light(gbuffer, lights, views_by_light, *, shadows: bool = True
             if len(sizes) > 1:
                 raise ValueError(f"light {light.name!r}: RSM views of different sizes {sorted(sizes)}")
             size = sizes.pop() if sizes else 1
-            constants = _texture(light_constants(light, views))
+            constants = texture_from_array(light_constants(light, views))
             keep_alive.append(constants)
             program.uniform_sampler("light_constants", constants)
             for k in range(MAX_VIEWS):

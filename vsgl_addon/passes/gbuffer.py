@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Camera G-buffer on the GPU: what the camera sees, per pixel, for direct light and VSGL shading
-(issue 4 item 1). Never touches ``bpy.context``: takes a :class:`~vsgl_addon.passes.rsm.SceneGPU`
+(issue 4 item 1). Never touches ``bpy.context``: takes a :class:`~vsgl_addon.passes.scene_gpu.SceneGPU`
 (the scene's triangles, uploaded once and shared with the RSM pass), the camera's view and
 projection matrices and a resolution.
 
@@ -41,8 +41,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..shaders import ShaderInterface, create_shader
-from .rsm import SceneGPU, _matrix, read_texture
+from ..shaders import create_shader
+from .gpu_util import matrix, read_texture
+from .scene_gpu import VERTEX_STAGE, SceneGPU, scene_shader_interface
 
 ATTACHMENTS = ("position", "normal", "base_color", "material")
 
@@ -52,28 +53,22 @@ MAX_SIDE = 16384
 _shaders: dict[str, object] = {}
 
 
-def _interface() -> ShaderInterface:
-    return ShaderInterface(
+def _interface():
+    return scene_shader_interface(
         push_constants=[
-            ("MAT4", "view_projection"),
             ("VEC4", "camera"),  # (position, 1) perspective or (towards the camera, 0) ortho
-            ("VEC4", "material_base_color"),  # (rgb, 1 when the image is used)
-            ("VEC4", "material_params"),  # (roughness, metallic, specular IOR level, IOR)
             ("FLOAT", "material_index"),
         ],
-        samplers=[("FLOAT_2D", "base_color_image")],
-        vertex_inputs=[("VEC3", "position"), ("VEC3", "normal"), ("VEC3", "face_normal"),
-                       ("VEC2", "uv")],
-        varyings=[("VEC3", "world_position"), ("VEC3", "corner_normal"), ("VEC2", "texcoord")],
-        flat_varyings=[("VEC3", "face_normal_flat")],
+        samplers=[],
         fragment_outputs=[("VEC4", f"gbuffer_{name}") for name in ATTACHMENTS],
     )
 
 
 def shader():
-    """The G-buffer shader (glsl/gbuffer/), compiled on first use and cached for the process."""
+    """The G-buffer shader (glsl/gbuffer/gbuffer.frag.glsl after the scene's vertex stage),
+    compiled on first use and cached for the process."""
     if "gbuffer" not in _shaders:
-        _shaders["gbuffer"] = create_shader("gbuffer", _interface(), vertex="gbuffer/gbuffer.vert.glsl",
+        _shaders["gbuffer"] = create_shader("gbuffer", _interface(), vertex=VERTEX_STAGE,
                                             fragment="gbuffer/gbuffer.frag.glsl")
     return _shaders["gbuffer"]
 
@@ -142,19 +137,10 @@ def render_gbuffer(scene_gpu: SceneGPU, view_matrix, projection_matrix, resoluti
             gpu.state.depth_mask_set(True)
             gpu.state.face_culling_set("NONE")
             program.bind()
-            program.uniform_float("view_projection", _matrix(projection @ view))
+            program.uniform_float("view_projection", matrix(projection @ view))
             program.uniform_float("camera", tuple(float(v) for v in camera_vector(view, projection)))
-            for material_index, first, count in scene_gpu.ranges:
-                material = scene_gpu.scene.materials[material_index]
-                use_image = material.base_color_image is not None
-                program.uniform_float("material_base_color",
-                                      (*np.asarray(material.base_color, float)[:3], 1.0 if use_image else 0.0))
-                program.uniform_float("material_params",
-                                      (float(material.roughness), float(material.metallic),
-                                       float(material.specular_ior_level), float(material.ior)))
-                program.uniform_float("material_index", float(material_index))
-                program.uniform_sampler("base_color_image", scene_gpu.material_image(material_index))
-                scene_gpu.batch.draw_range(program, elem_start=first, elem_count=count)
+            scene_gpu.draw(program, lambda program, index: program.uniform_float("material_index",
+                                                                                 float(index)))
             gpu.state.depth_test_set("NONE")
             gpu.state.depth_mask_set(False)
     return GBuffer(width, height, view, projection, textures, framebuffer)

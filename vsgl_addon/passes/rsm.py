@@ -30,9 +30,19 @@ directly): ``position`` (y, λs), ``normal`` (n facing the light, Principled rou
 ``flux_diffuse`` (Φ·Rd, Φ₁), ``flux_specular`` (Φ·Rs, dω), ``specular_axis`` (ξs, coverage), and a
 32-bit float depth attachment (for shadows later). Φ₁ is the texel flux of a white light, Φ = Φ₁ ×
 light colour; dω is the texel's solid angle (sr), or its area on the sun's plane (m²) for a sun.
-Texels that see nothing are all zero. The light model and reflectances are documented in (and tested
-against) :mod:`vsgl_addon.reference.rsm`. Texture rows start at the bottom of the view (row 0 =
+Texels that see nothing are all zero. Texture rows start at the bottom of the view (row 0 =
 NDC y = −1), as ``GPUTexture.read`` returns them; ``to_numpy`` keeps that order.
+
+**Model** (documented in, and tested against, :mod:`vsgl_addon.reference.rsm`). The lights are
+Blender's emission model shared with the direct light (``glsl/lib/lights.glsl``,
+:mod:`vsgl_addon.reference.lights`). The reflectances are the Principled BSDF base layer the
+direct light uses (``glsl/lib/principled.glsl``, :mod:`vsgl_addon.reference.principled`, calibrated
+against Cycles) for the texel's incidence ω' (towards the light): Rd = base × (1 − metallic) ×
+(1 − E_spec(n·ω')), the flux the dielectric layer lets through to the diffuse base, and Rs the
+specular lobes' directional albedo for ω' (real dielectric Fresnel, metallic Schlick, multiple
+scattering), so Φ·Rd and Φ·Rs are the powers the texel's diffuse and (normalized, 000 Eq. 7)
+specular lobes reflect. The base colour image is sampled as Blender's Linear/Repeat Image Texture
+(``glsl/lib/image.glsl``), as in the G-buffer.
 
 Accuracy. A texel's flux is exact up to float32 (the texel solid angle is integrated, not the
 midpoint cos³ rule: see ``glsl/rsm/rsm.frag.glsl``); a total over a surface errs only by coverage
@@ -59,10 +69,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..reference.lights import light_params
 from ..reference.vsgl import RSM
-from ..shaders import ShaderInterface, create_shader
-
-LIGHT_TYPE_CODES = {"POINT": 0, "SPOT": 1, "SUN": 2, "AREA": 3}
+from ..shaders import create_shader
+from .gpu_util import matrix, read_texture, texture_from_array
+from .scene_gpu import VERTEX_STAGE, SceneGPU, scene_shader_interface
 
 #: Largest spot half angle covered by one perspective view; wider cones use cube faces (a single
 #: view's corner texels would shrink to cos³ of the field of view, wasting resolution).
@@ -83,129 +94,27 @@ _shaders: dict[str, object] = {}
 # --- Shader ------------------------------------------------------------------------------------
 
 
-def _interface() -> ShaderInterface:
-    return ShaderInterface(
-        push_constants=[
-            ("MAT4", "view_projection"),
-            ("VEC4", "view_params"),  # (perspective 1 / ortho 0, half extent x, y, size)
-            ("VEC4", "material_base_color"),  # (rgb, 1 when the image is used)
-            ("VEC4", "material_params"),  # (roughness, metallic, specular IOR level, IOR)
-        ],
+def _interface():
+    return scene_shader_interface(
+        # (perspective 1 / ortho 0, half extent x, y, size)
+        push_constants=[("VEC4", "view_params")],
         # view_constants: 10x1 RGBA32F, see glsl/rsm/rsm.frag.glsl (_view_constants).
-        samplers=[("FLOAT_2D", "base_color_image"), ("FLOAT_2D", "view_constants")],
-        vertex_inputs=[("VEC3", "position"), ("VEC3", "normal"), ("VEC3", "face_normal"),
-                       ("VEC2", "uv")],
-        varyings=[("VEC3", "world_position"), ("VEC3", "corner_normal"), ("VEC2", "texcoord")],
-        flat_varyings=[("VEC3", "face_normal_flat")],
+        samplers=[("FLOAT_2D", "view_constants")],
         fragment_outputs=[("VEC4", f"rsm_{name}") for name in ATTACHMENTS],
     )
 
 
 def shader():
-    """The RSM shader (glsl/rsm/), compiled on first use and cached for the process."""
+    """The RSM shader (glsl/rsm/rsm.frag.glsl after the scene's vertex stage), compiled on first use
+    and cached for the process."""
     if "rsm" not in _shaders:
-        _shaders["rsm"] = create_shader("rsm", _interface(), vertex="rsm/rsm.vert.glsl",
+        _shaders["rsm"] = create_shader("rsm", _interface(), vertex=VERTEX_STAGE,
                                         fragment="rsm/rsm.frag.glsl")
     return _shaders["rsm"]
 
 
 def free_shaders() -> None:
     _shaders.clear()
-
-
-def _matrix(array):
-    from mathutils import Matrix
-
-    return Matrix(np.asarray(array, dtype=np.float64).tolist())
-
-
-def _texture(array: np.ndarray):
-    import gpu
-
-    data = np.ascontiguousarray(array, dtype=np.float32)
-    height, width = data.shape[:2]
-    return gpu.types.GPUTexture((width, height), format="RGBA32F",
-                                data=gpu.types.Buffer("FLOAT", data.shape, data))
-
-
-def read_texture(texture, width: int, height: int, channels: int = 4) -> np.ndarray:
-    """A float texture as a float32 (height, width, channels) array (flattened first: Blender's
-    multi-dimensional Buffers report wrong strides to numpy)."""
-    buffer = texture.read()
-    buffer.dimensions = width * height * channels
-    return np.array(buffer, dtype=np.float32).reshape(height, width, channels)
-
-
-# --- Scene on the GPU --------------------------------------------------------------------------
-
-
-class SceneGPU:
-    """The scene's triangles on the GPU, uploaded once and shared by every light and view.
-
-    One vertex per triangle corner (position, shading normal, face normal, UV), sorted by material
-    so each material is one ``draw_range``; base colour images as RGBA32F textures.
-    """
-
-    def __init__(self, scene):
-        import gpu
-
-        self.scene = scene
-        geometry = scene.geometry
-        count = geometry.triangle_count
-        self.triangle_count = count
-        order = np.argsort(geometry.material_index, kind="stable")
-        positions = np.asarray(geometry.positions, np.float64)[order]
-        self.positions = positions  # (T, 3, 3) float64, material order (CPU frustum tests)
-        self.bounds = (positions.reshape(-1, 3).min(axis=0), positions.reshape(-1, 3).max(axis=0)) \
-            if count else None
-        materials = np.asarray(geometry.material_index)[order]
-        self.ranges: list[tuple[int, int, int]] = []  # (material index, first vertex, vertex count)
-        if count:
-            starts = np.flatnonzero(np.r_[True, materials[1:] != materials[:-1]])
-            ends = np.r_[starts[1:], count]
-            self.ranges = [(int(materials[s]), 3 * int(s), 3 * int(e - s)) for s, e in zip(starts, ends)]
-        self.batch = None
-        self.vertex_buffer = None
-        if count:
-            face = np.cross(positions[:, 1] - positions[:, 0], positions[:, 2] - positions[:, 0])
-            face_normals = np.repeat(face[:, None, :], 3, axis=1)
-            fmt = gpu.types.GPUVertFormat()
-            fmt.attr_add(id="position", comp_type="F32", len=3, fetch_mode="FLOAT")
-            fmt.attr_add(id="normal", comp_type="F32", len=3, fetch_mode="FLOAT")
-            fmt.attr_add(id="face_normal", comp_type="F32", len=3, fetch_mode="FLOAT")
-            fmt.attr_add(id="uv", comp_type="F32", len=2, fetch_mode="FLOAT")
-            vbo = gpu.types.GPUVertBuf(fmt, 3 * count)
-
-            def fill(name, array, width):
-                vbo.attr_fill(id=name, data=np.ascontiguousarray(
-                    np.asarray(array, np.float32).reshape(3 * count, width)))
-
-            fill("position", positions, 3)
-            fill("normal", np.asarray(geometry.normals)[order], 3)
-            fill("face_normal", face_normals, 3)
-            fill("uv", np.asarray(geometry.uvs)[order], 2)
-            self.vertex_buffer = vbo
-            self.batch = gpu.types.GPUBatch(type="TRIS", buf=vbo)
-        self._images: dict[int, object] = {}
-        self._white = None
-
-    def material_image(self, material_index: int):
-        """The base colour texture of a material, or a 1x1 white one (uploaded once)."""
-        material = self.scene.materials[material_index]
-        if material.base_color_image is None:
-            if self._white is None:
-                self._white = _texture(np.ones((1, 1, 4), np.float32))
-            return self._white
-        if material_index not in self._images:
-            self._images[material_index] = _texture(np.asarray(material.base_color_image, np.float32))
-        return self._images[material_index]
-
-    def free(self) -> None:
-        """Drop the GPU objects (Blender frees them with their last reference)."""
-        self.batch = None
-        self.vertex_buffer = None
-        self._images.clear()
-        self._white = None
 
 
 # --- Views (pure numpy) ------------------------------------------------------------------------
@@ -545,22 +454,6 @@ class RSMView:
         self.textures.clear()
 
 
-def _light_params(light) -> tuple[float, float, float, float]:
-    code = LIGHT_TYPE_CODES[light.type]
-    cos_half, smooth = 0.0, 0.0
-    if light.type in ("POINT", "SPOT"):
-        scale = light.power / (4.0 * math.pi)
-    elif light.type == "AREA":
-        scale = light.power / math.pi
-    else:
-        scale = light.power
-    if light.type == "SPOT":
-        cos_half = math.cos(0.5 * light.spot_size)
-        denominator = (1.0 - cos_half) * light.spot_blend
-        smooth = 1.0 / denominator if denominator > 0.0 else -1.0
-    return float(code), float(cos_half), float(smooth), float(scale)
-
-
 def _view_constants(light, spec: RSMViewSpec) -> np.ndarray:
     """(1, 10, 4) float32: the per-view constants of glsl/rsm/rsm.frag.glsl."""
     constants = np.zeros((1, 10, 4), np.float32)
@@ -569,7 +462,7 @@ def _view_constants(light, spec: RSMViewSpec) -> np.ndarray:
     axis = np.asarray(light.direction, np.float64)
     constants[0, 6, :3] = np.asarray(light.position, np.float64)
     constants[0, 7, :3] = axis / np.linalg.norm(axis)
-    constants[0, 8] = _light_params(light)
+    constants[0, 8] = light_params(light)
     constants[0, 9, :3] = np.asarray(light.color, np.float64)
     return constants
 
@@ -580,7 +473,7 @@ def _render(scene_gpu: SceneGPU, light, spec: RSMViewSpec, size: int, textures: 
     program = shader()
     targets = [textures[name] for name in ATTACHMENTS]
     framebuffer = gpu.types.GPUFrameBuffer(depth_slot=textures["depth"], color_slots=targets)
-    constants = _texture(_view_constants(light, spec))
+    constants = texture_from_array(_view_constants(light, spec))
     with framebuffer.bind():
         framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
         gpu.state.viewport_set(0, 0, size, size)
@@ -589,19 +482,11 @@ def _render(scene_gpu: SceneGPU, light, spec: RSMViewSpec, size: int, textures: 
         gpu.state.depth_mask_set(True)
         gpu.state.face_culling_set("NONE")
         program.bind()
-        program.uniform_float("view_projection", _matrix(spec.view_projection))
+        program.uniform_float("view_projection", matrix(spec.view_projection))
         program.uniform_sampler("view_constants", constants)
         program.uniform_float("view_params", (1.0 if spec.perspective else 0.0, spec.half_extent[0],
                                               spec.half_extent[1], float(size)))
-        for material_index, first, count in scene_gpu.ranges:
-            material = scene_gpu.scene.materials[material_index]
-            use_image = material.base_color_image is not None
-            program.uniform_float("material_base_color",
-                                  (*np.asarray(material.base_color, float)[:3], 1.0 if use_image else 0.0))
-            program.uniform_float("material_params", (float(material.roughness), float(material.metallic),
-                                                      float(material.specular_ior_level), float(material.ior)))
-            program.uniform_sampler("base_color_image", scene_gpu.material_image(material_index))
-            scene_gpu.batch.draw_range(program, elem_start=first, elem_count=count)
+        scene_gpu.draw(program)
         gpu.state.depth_test_set("NONE")
         gpu.state.depth_mask_set(False)
     return framebuffer, constants

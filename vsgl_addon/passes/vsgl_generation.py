@@ -60,6 +60,7 @@ import numpy as np
 
 from ..reference import vsgl as reference
 from ..shaders import ShaderInterface, create_shader
+from .gpu_util import fullscreen_triangle_batch, read_texture, texture_from_array
 
 KERNEL_MODES = reference.KERNEL_MODES  # ("modified", "original", "two-vsgl")
 _KERNEL_MODE_INDEX = {"modified": 0, "original": 1, "two-vsgl": 2}
@@ -135,10 +136,7 @@ def _fullscreen_triangle():
     """The batch of one triangle covering the viewport (glsl/fullscreen_triangle.vert.glsl)."""
     global _fullscreen_batch
     if _fullscreen_batch is None:
-        from gpu_extras.batch import batch_for_shader
-
-        _fullscreen_batch = batch_for_shader(shader("texel_moments"), "TRIS",
-                                             {"position": [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]})
+        _fullscreen_batch = fullscreen_triangle_batch(shader("texel_moments"))
     return _fullscreen_batch
 
 
@@ -175,24 +173,7 @@ def _groups(count: int, group: int) -> int:
 
 
 # --- Textures --------------------------------------------------------------------------------
-
-
-def _texture_from_array(array: np.ndarray):
-    """An RGBA32F texture from an (H, W, 4) array (row 0 first)."""
-    import gpu
-
-    data = np.ascontiguousarray(array, dtype=np.float32)
-    height, width = data.shape[:2]
-    return gpu.types.GPUTexture((width, height), format="RGBA32F",
-                                data=gpu.types.Buffer("FLOAT", data.shape, data))
-
-
-def read_texture(texture, width: int, height: int) -> np.ndarray:
-    """An RGBA32F texture as a float32 (height, width, 4) array (Blender's multi-dimensional
-    Buffers report wrong strides to numpy: flattened first)."""
-    buffer = texture.read()
-    buffer.dimensions = width * height * 4
-    return np.array(buffer, dtype=np.float32).reshape(height, width, 4)
+# RGBA32F uploads and read-backs come from .gpu_util (vsgl_shading imports read_texture from here).
 
 
 @dataclass
@@ -234,11 +215,11 @@ def upload_rsm(rsm) -> RSMTextures:
     with np.errstate(over="ignore", invalid="ignore"):
         return RSMTextures(
             size=rsm.size,
-            position=_texture_from_array(_pad4(rsm.position, sharpness)),
-            normal=_texture_from_array(_pad4(rsm.normal)),
-            flux_diffuse=_texture_from_array(_pad4(rsm.flux_diffuse)),
-            flux_specular=_texture_from_array(_pad4(rsm.flux_specular)),
-            specular_axis=_texture_from_array(_pad4(rsm.specular_axis)),
+            position=texture_from_array(_pad4(rsm.position, sharpness)),
+            normal=texture_from_array(_pad4(rsm.normal)),
+            flux_diffuse=texture_from_array(_pad4(rsm.flux_diffuse)),
+            flux_specular=texture_from_array(_pad4(rsm.flux_specular)),
+            specular_axis=texture_from_array(_pad4(rsm.specular_axis)),
         )
 
 
@@ -251,7 +232,7 @@ def upload_pdf(pdf, size: int):
         raise ValueError("a PDF image must be finite and non-negative")
     data = np.zeros((size, size, 4), dtype=np.float32)
     data[..., 0] = pdf
-    return _texture_from_array(data)
+    return texture_from_array(data)
 
 
 # --- Mip atlas ---------------------------------------------------------------------------------

@@ -2,9 +2,9 @@
 """Float64 twin of ``glsl/direct_light/lights.glsl`` and of the direct-light pass's shading
 (:mod:`vsgl_addon.passes.direct_light`), without shadows (a visibility can be passed in).
 
-Blender's light units (formulas.md §4, checked against Cycles 5.0 in tests/test_direct_light.py):
-point and spot lights radiate P/(4π) W/sr (spot: times :func:`~vsgl_addon.reference.rsm.spot_attenuation`
-of the direction in the light's local frame), an area light is a Lambertian point emitter
+Blender's lights are the emission model of :mod:`vsgl_addon.reference.lights` (formulas.md §4,
+checked against Cycles 5.0 in tests/test_direct_light.py): point and spot lights radiate
+P/(4π) W/sr (spot: times Blender's cone), an area light is a Lambertian point emitter
 I(θ) = (P/π) cos θ about its −Z axis, a sun puts S W/m² on a surface facing it. The irradiance of a
 surface at distance d is E = I cos θ_surface / d² (sun: S cos θ_surface); the reflected radiance is
 f E with the Principled BRDF f of :mod:`vsgl_addon.reference.principled`, split into its diffuse
@@ -13,37 +13,16 @@ and specular parts.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from . import principled
-from .rsm import spot_attenuation
+from .lights import light_params, radiant_intensity
 
-LIGHT_TYPE_CODES = {"POINT": 0, "SPOT": 1, "SUN": 2, "AREA": 3}
 MIN_DISTANCE2 = 1e-12
 
 
 def _f64(x):
     return np.asarray(x, dtype=np.float64)
-
-
-def light_params(light) -> tuple[float, float, float, float]:
-    """(type code, cos half spot angle, 1 / ((1 − cos) spot_blend) or −1, intensity scale): the
-    ``params`` of lights.glsl (point/spot P/4π, area P/π, sun S)."""
-    code = LIGHT_TYPE_CODES[light.type]
-    cos_half, smooth = 0.0, 0.0
-    if light.type in ("POINT", "SPOT"):
-        scale = light.power / (4.0 * math.pi)
-    elif light.type == "AREA":
-        scale = light.power / math.pi
-    else:
-        scale = light.power
-    if light.type == "SPOT":
-        cos_half = math.cos(0.5 * light.spot_size)
-        denominator = (1.0 - cos_half) * light.spot_blend
-        smooth = 1.0 / denominator if denominator > 0.0 else -1.0
-    return float(code), float(cos_half), float(smooth), float(scale)
 
 
 def light_irradiance(light, positions, normals):
@@ -60,14 +39,7 @@ def light_irradiance(light, positions, normals):
     distance2 = np.maximum(np.sum(towards * towards, axis=-1), MIN_DISTANCE2)
     length = np.linalg.norm(towards, axis=-1)
     incoming = np.where(length[..., None] > 0.0, towards / np.where(length > 0.0, length, 1.0)[..., None], n)
-    intensity = np.full(p.shape[:-1], scale)
-    if light.type == "SPOT":
-        to_local = np.linalg.inv(_f64(light.matrix_world)[:3, :3])
-        local = (-incoming) @ to_local.T
-        local = local / np.linalg.norm(local, axis=-1, keepdims=True)
-        intensity = intensity * spot_attenuation(-local[..., 2], light.spot_size, light.spot_blend)
-    elif light.type == "AREA":
-        intensity = intensity * np.maximum(-np.sum(incoming * axis, axis=-1), 0.0)
+    intensity = radiant_intensity(light, -incoming)
     return intensity * np.maximum(np.sum(n * incoming, axis=-1), 0.0) / distance2, incoming
 
 

@@ -52,6 +52,16 @@ def fresnel_schlick(cos_theta, f0):
     return _f64(f0) + (1.0 - _f64(f0)) * (1.0 - c) ** 5
 
 
+def ggx_half_vector_ndf(incoming, outgoing, normal, roughness):
+    """D(wh.n) (004 Eq. 6) of the half vector wh = (wi + wo)/|wi + wo| of directions above the
+    surface; 0 when wi = -wo (no half vector). The GLSL twin keeps sin² of wh in twice the
+    precision near the peak of a sharp lobe."""
+    half = _f64(incoming) + _f64(outgoing)
+    half_length = _norm(half)
+    half = half / np.where(half_length > 0.0, half_length, 1.0)[..., None]
+    return np.where(half_length > 0.0, ggx_ndf(_dot(half, _f64(normal)), _f64(roughness)), 0.0)
+
+
 def microfacet_brdf(incoming, outgoing, normal, roughness, f0):
     """GGX BRDF f = F(wi.wh) G1dist(wi) G1dist(wo) D(wh.n) / (4 |wi.n| |wo.n|) (004 Eq. 7-8).
 
@@ -71,7 +81,7 @@ def microfacet_brdf(incoming, outgoing, normal, roughness, f0):
     half_length = _norm(half)
     valid = (cos_i > 0.0) & (cos_o > 0.0) & (half_length > 0.0)
     half = half / np.where(half_length > 0.0, half_length, 1.0)[..., None]
-    d = ggx_ndf(_dot(half, normal), alpha)
+    d = ggx_half_vector_ndf(incoming, outgoing, normal, alpha)
     f = fresnel_schlick(_dot(incoming, half), f0)
     ci = np.maximum(cos_i, 0.0)
     co = np.maximum(cos_o, 0.0)

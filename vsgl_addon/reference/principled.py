@@ -37,7 +37,7 @@ import numpy as np
 
 from .ggx import ggx_ndf
 
-#: Smallest GGX α (roughness 1e-3), as the RSM pass (``reference/rsm.py``).
+#: Smallest GGX α (roughness 1e-3), also the RSM's (``reference/rsm.py``).
 ALPHA_MIN = 1e-6
 #: Largest dielectric F0 (η = 1e4·…): keeps η = (1 + √F0)/(1 − √F0) finite.
 F0_MAX = 0.9999

@@ -3,88 +3,58 @@
 computes per texel, given the texel's ray, position, normal and material.
 
 Used by the tests of :mod:`vsgl_addon.passes.rsm` and by anything that needs the light model of the
-RSM without a GPU. Blender's units throughout (formulas.md §4):
-
-* point light of power P: radiant intensity P / (4π) W/sr in every direction;
-* spot light: the same, times Blender's cone attenuation (:func:`spot_attenuation`);
-* sun of strength S: irradiance S W/m² on a surface facing it; a texel's flux is S times the
-  texel's area on the sun's plane (orthographic view);
-* area light of power P: a Lambertian point emitter, I(θ) = (P/π) cos θ about its -Z axis (the
-  emitter's size and shape, and the spread, are not modelled: "small area light").
+RSM without a GPU. Blender's units throughout: the lights are the emission model of
+:mod:`vsgl_addon.reference.lights` (point and spot P/(4π) W/sr, spot times Blender's cone, area a
+Lambertian point emitter (P/π) cos θ, sun S W/m²), the one the direct light uses.
 
 A texel's flux is Φ = I(ω) dω: the intensity towards the texel centre times the texel's solid angle
 dω = ∫ cos³ dA over the texel's area on the image plane at distance 1 (:func:`texel_solid_angles`;
 the midpoint rule, area × cos³ at the centre, would be off by 1 % in the corner texels of a 16²
-cube face, so the GPU integrates it exactly: see ``glsl/rsm/rsm.frag.glsl`` texel_solid_angle).
+cube face, so the GPU integrates it exactly: see ``glsl/rsm/rsm.frag.glsl`` texel_solid_angle); for
+a sun, S times the texel's area on the sun's plane (orthographic view).
 
-Reflectances of the Principled BSDF's base layer (:func:`principled_reflectances`):
+Reflectances (:func:`principled_reflectances`): the Principled BSDF base layer of
+:mod:`vsgl_addon.reference.principled` (Cycles' model, calibrated against its Diffuse/Glossy Color
+passes), the one the direct light uses, evaluated for the texel's incidence ω' (from the surface
+towards the light), μ' = n·ω'. A texel lit from ω' reflects the intensity Φ ρ(ω', ω) ⟨ω, n⟩
+(formulas.md §4), and its two lobes carry
 
-* Rd = base colour × (1 − metallic);
-* Rs = lerp(F0_dielectric, base colour, metallic), the reflectance at normal incidence, with
-  F0_dielectric = ((ior − 1)/(ior + 1))² × 2 × specular_ior_level clamped to [0, 1] — Blender's own
-  adjustment (Cycles ``kernel/svm/closure.h``, Principled BSDF: ``f0 = F0_from_ior(ior);
-  f0 *= 2 * specular_ior_level``; EEVEE's ``gpu_shader_material_principled.glsl`` the same; the
-  Specular Tint is taken as white) — and the metallic layer's F0 = base colour (Cycles' F82-tint
-  Schlick Fresnel starts at the base colour). Blender's diffuse is further reduced by the
-  dielectric layer's albedo and its specular by the GGX directional albedo; neither is modelled
-  here. Calibration of Rd and Rs against Cycles' Diffuse/Glossy Color passes comes in a later issue.
+* Rd = base colour × (1 − metallic) × (1 − E_spec(μ')): the flux the dielectric layer lets through
+  to the Lambertian base (Cycles' layering weight with the dielectric lobe's directional albedo,
+  real Fresnel and multiple scattering included), so the diffuse lobe of 000 Eq. 6,
+  Rd · G(ω; n, λd)/A(λd), re-emits Φ·Rd in all;
+* Rs = (1 − metallic) E_dielectric(μ') + metallic E_metal(μ'): the directional albedo of the
+  specular lobes for incidence ω' (the fraction of Φ they reflect, with Cycles' multiple-scattering
+  energy compensation), so the normalized warped lobe of 000 Eq. 7, Rs · G(ω; ξs, λs)/A(λs),
+  re-emits Φ·Rs in all.
+
+Cycles' layering weight depends on the outgoing direction of a path (here ω, towards the receiving
+point); a VPL carries one Rd for every receiver, and by reciprocity the incidence ω' gives the
+energy the texel actually reflects of the light it receives.
 
 The specular lobe of a texel is 000 Eq. 7's spherical warp (``sg.specular_lobe_warp``) for the
-incoming direction ω' (towards the light) with GGX α = max(roughness², ALPHA_MIN).
+incoming direction ω' with GGX α = max(roughness², 1e-6) (``principled.alpha_from_roughness``: the
+roughness 1e-3 keeps λh = 2/α² finite for a roughness of 0).
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from .principled import alpha_from_roughness, material_terms
 from .sg import specular_lobe_warp
-
-#: Smallest GGX α = roughness² (roughness 1e-3): keeps λ_h = 2/α² finite for roughness 0.
-ALPHA_MIN = 1e-6
 
 
 def _f64(x):
     return np.asarray(x, dtype=np.float64)
 
 
-def smoothstep(x):
-    """Cycles' smoothstepf: 0 for x <= 0, 1 for x >= 1, 3x² − 2x³ between."""
-    x = np.clip(_f64(x), 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
-
-
-def spot_attenuation(cos_axis, spot_size: float, spot_blend: float):
-    """Blender's spot cone (Cycles ``kernel/light/spot.h`` ``spot_light_attenuation``):
-
-    smoothstep((cos θ − cos(spot_size/2)) / ((1 − cos(spot_size/2)) · spot_blend)), θ the angle off
-    the spot axis in the light's local frame (object scale divided out); a hard edge for blend 0.
-    """
-    cos_axis = _f64(cos_axis)
-    cos_half = math.cos(0.5 * spot_size)
-    if spot_blend <= 0.0:
-        return np.where(cos_axis > cos_half, 1.0, 0.0)
-    return smoothstep((cos_axis - cos_half) / ((1.0 - cos_half) * spot_blend))
-
-
-def spot_cone_solid_angle(spot_size: float, spot_blend: float, samples: int = 200_001) -> float:
-    """∫ spot_attenuation dω over the sphere (numerically, 2π ∫ atten(c) dc by the trapezoid rule)."""
-    cos_half = math.cos(0.5 * spot_size)
-    c = np.linspace(cos_half, 1.0, samples)
-    values = spot_attenuation(c, spot_size, spot_blend)
-    return float(2.0 * math.pi * np.sum(0.5 * (values[1:] + values[:-1]) * np.diff(c)))
-
-
-def principled_reflectances(base_color, metallic, specular_ior_level, ior):
-    """(Rd, Rs) of a Principled BSDF's base layer, RGB (see the module documentation)."""
-    base_color = np.maximum(_f64(base_color), 0.0)  # a float image may hold negative values
-    metallic = np.clip(_f64(metallic), 0.0, 1.0)[..., None]
-    ratio = (_f64(ior) - 1.0) / (_f64(ior) + 1.0)
-    f0 = np.clip(ratio * ratio * 2.0 * np.maximum(_f64(specular_ior_level), 0.0), 0.0, 1.0)[..., None]
-    diffuse = base_color * (1.0 - metallic)
-    specular = f0 * (1.0 - metallic) + base_color * metallic
-    return diffuse, specular
+def principled_reflectances(base_color, metallic, specular_ior_level, ior, roughness, cos_incidence):
+    """(Rd, Rs) RGB of a texel whose surface (Principled base layer) is lit at μ' = n·ω'
+    (``cos_incidence``; see the module documentation): the diffuse reflectance and the specular
+    lobes' directional albedo. Numpy broadcasting over texels."""
+    terms = material_terms(base_color, metallic, specular_ior_level, ior, roughness, cos_incidence)
+    return terms["diffuse"], terms["specular_albedo"]
 
 
 def texel_solid_angles(size: int, half_extent) -> np.ndarray:
@@ -113,27 +83,6 @@ def texel_rays(size: int, half_extent, view_to_world) -> np.ndarray:
     return local @ _f64(view_to_world)[:3, :3].T
 
 
-def radiant_intensity(light, directions) -> np.ndarray:
-    """Intensity per unit light colour (W/sr) of a point, spot or area light towards ``directions``
-    (..., 3, unit, from the light); for a sun the irradiance S (W/m²), whatever the direction."""
-    directions = _f64(directions)
-    shape = directions.shape[:-1]
-    if light.type == "SUN":
-        return np.full(shape, float(light.power))
-    if light.type == "POINT":
-        return np.full(shape, light.power / (4.0 * math.pi))
-    if light.type == "SPOT":
-        to_local = np.linalg.inv(_f64(light.matrix_world)[:3, :3])
-        local = directions @ to_local.T
-        local /= np.linalg.norm(local, axis=-1, keepdims=True)
-        return light.power / (4.0 * math.pi) * spot_attenuation(-local[..., 2], light.spot_size,
-                                                                light.spot_blend)
-    if light.type == "AREA":
-        axis = _f64(light.direction)
-        return light.power / math.pi * np.maximum(directions @ axis, 0.0)
-    raise ValueError(f"unknown light type {light.type!r}")
-
-
 def incoming_directions(light, positions) -> np.ndarray:
     """ω' per texel (..., 3): unit, from the surface towards the light (a sun: −its direction)."""
     positions = _f64(positions)
@@ -144,6 +93,5 @@ def incoming_directions(light, positions) -> np.ndarray:
 
 
 def specular_lobes(incoming, normal, roughness):
-    """(ξs, λs) of the texels: 000 Eq. 7's warp with α = max(roughness², ALPHA_MIN)."""
-    alpha = np.maximum(_f64(roughness) ** 2, ALPHA_MIN)
-    return specular_lobe_warp(incoming, normal, alpha)
+    """(ξs, λs) of the texels: 000 Eq. 7's warp with α = ``principled.alpha_from_roughness``."""
+    return specular_lobe_warp(incoming, normal, alpha_from_roughness(roughness))

@@ -1,0 +1,48 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Small helpers every GPU pass shares: numpy arrays to and from RGBA32F textures, numpy matrices
+to ``mathutils.Matrix`` for ``uniform_float``, and the full-screen triangle of the passes whose
+vertex stage is ``glsl/fullscreen_triangle.vert.glsl``. Needs a GPU context, main thread.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def matrix(array):
+    """A (4, 4) array as a ``mathutils.Matrix`` (what ``GPUShader.uniform_float`` takes for a MAT4)."""
+    from mathutils import Matrix
+
+    return Matrix(np.asarray(array, dtype=np.float64).tolist())
+
+
+def texture_from_array(array: np.ndarray):
+    """An RGBA32F texture from an (H, W, 4) array; row 0 of the array is row 0 of the texture (the
+    bottom, as ``GPUTexture.read`` returns it)."""
+    import gpu
+
+    data = np.ascontiguousarray(array, dtype=np.float32)
+    height, width = data.shape[:2]
+    return gpu.types.GPUTexture((width, height), format="RGBA32F",
+                                data=gpu.types.Buffer("FLOAT", data.shape, data))
+
+
+def read_texture(texture, width: int, height: int, channels: int = 4) -> np.ndarray:
+    """A float texture as a float32 (height, width, channels) array (flattened first: Blender's
+    multi-dimensional Buffers report wrong strides to numpy). ``channels`` = 1 for a depth texture."""
+    buffer = texture.read()
+    buffer.dimensions = width * height * channels
+    return np.array(buffer, dtype=np.float32).reshape(height, width, channels)
+
+
+#: The one triangle that covers the viewport (``glsl/fullscreen_triangle.vert.glsl``'s ``position``).
+FULLSCREEN_TRIANGLE = ((-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0))
+
+
+def fullscreen_triangle_batch(shader):
+    """A batch of :data:`FULLSCREEN_TRIANGLE` for ``shader`` (any shader whose vertex stage is
+    ``glsl/fullscreen_triangle.vert.glsl``: they share the vertex format, so one batch serves them
+    all). Callers cache it."""
+    from gpu_extras.batch import batch_for_shader
+
+    return batch_for_shader(shader, "TRIS", {"position": FULLSCREEN_TRIANGLE})

@@ -1,0 +1,130 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The scene's triangles on the GPU, shared by the passes that rasterise the scene (the RSM views
+of :mod:`.rsm`, the camera G-buffer of :mod:`.gbuffer`): :class:`SceneGPU` uploads them once, and
+every such pass draws them with the same vertex stage (``glsl/scene_triangles.vert.glsl``), the
+same vertex interface and the same per-material inputs (:func:`scene_shader_interface`,
+:meth:`SceneGPU.draw`).
+
+Per-material inputs of the fragment stage: ``material_base_color`` = (rgb, 1 when the base colour
+image is used), ``material_params`` = (roughness, metallic, Specular IOR Level, IOR) and the
+``base_color_image`` sampler (a 1x1 white texture when the material has none), sampled by
+``glsl/lib/image.glsl``.
+
+Needs a GPU context, main thread.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..shaders import ShaderInterface
+from .gpu_util import texture_from_array
+
+#: The vertex stage of every pass that draws :class:`SceneGPU`.
+VERTEX_STAGE = "scene_triangles.vert.glsl"
+
+
+def scene_shader_interface(push_constants, samplers, fragment_outputs) -> ShaderInterface:
+    """The interface of a shader that draws :class:`SceneGPU` with :data:`VERTEX_STAGE`: the
+    view-projection, the per-material inputs (see the module documentation), then the pass's own
+    ``push_constants`` and ``samplers`` (lists of (type, name)), and its ``fragment_outputs``."""
+    # Push constants: these 96 bytes first, so a pass has 32 of the 128 every backend guarantees.
+    return ShaderInterface(
+        push_constants=[
+            ("MAT4", "view_projection"),
+            ("VEC4", "material_base_color"),  # (rgb, 1 when the image is used)
+            ("VEC4", "material_params"),  # (roughness, metallic, specular IOR level, IOR)
+            *push_constants,
+        ],
+        samplers=[("FLOAT_2D", "base_color_image"), *samplers],
+        vertex_inputs=[("VEC3", "position"), ("VEC3", "normal"), ("VEC3", "face_normal"),
+                       ("VEC2", "uv")],
+        varyings=[("VEC3", "world_position"), ("VEC3", "corner_normal"), ("VEC2", "texcoord")],
+        flat_varyings=[("VEC3", "face_normal_flat")],
+        fragment_outputs=list(fragment_outputs),
+    )
+
+
+class SceneGPU:
+    """The scene's triangles on the GPU, uploaded once and shared by every light and view.
+
+    One vertex per triangle corner (position, shading normal, face normal, UV), sorted by material
+    so each material is one ``draw_range``; base colour images as RGBA32F textures.
+    """
+
+    def __init__(self, scene):
+        import gpu
+
+        self.scene = scene
+        geometry = scene.geometry
+        count = geometry.triangle_count
+        self.triangle_count = count
+        order = np.argsort(geometry.material_index, kind="stable")
+        positions = np.asarray(geometry.positions, np.float64)[order]
+        self.positions = positions  # (T, 3, 3) float64, material order (CPU frustum tests)
+        self.bounds = (positions.reshape(-1, 3).min(axis=0), positions.reshape(-1, 3).max(axis=0)) \
+            if count else None
+        materials = np.asarray(geometry.material_index)[order]
+        self.ranges: list[tuple[int, int, int]] = []  # (material index, first vertex, vertex count)
+        if count:
+            starts = np.flatnonzero(np.r_[True, materials[1:] != materials[:-1]])
+            ends = np.r_[starts[1:], count]
+            self.ranges = [(int(materials[s]), 3 * int(s), 3 * int(e - s)) for s, e in zip(starts, ends)]
+        self.batch = None
+        self.vertex_buffer = None
+        if count:
+            face = np.cross(positions[:, 1] - positions[:, 0], positions[:, 2] - positions[:, 0])
+            face_normals = np.repeat(face[:, None, :], 3, axis=1)
+            fmt = gpu.types.GPUVertFormat()
+            fmt.attr_add(id="position", comp_type="F32", len=3, fetch_mode="FLOAT")
+            fmt.attr_add(id="normal", comp_type="F32", len=3, fetch_mode="FLOAT")
+            fmt.attr_add(id="face_normal", comp_type="F32", len=3, fetch_mode="FLOAT")
+            fmt.attr_add(id="uv", comp_type="F32", len=2, fetch_mode="FLOAT")
+            vbo = gpu.types.GPUVertBuf(fmt, 3 * count)
+
+            def fill(name, array, width):
+                vbo.attr_fill(id=name, data=np.ascontiguousarray(
+                    np.asarray(array, np.float32).reshape(3 * count, width)))
+
+            fill("position", positions, 3)
+            fill("normal", np.asarray(geometry.normals)[order], 3)
+            fill("face_normal", face_normals, 3)
+            fill("uv", np.asarray(geometry.uvs)[order], 2)
+            self.vertex_buffer = vbo
+            self.batch = gpu.types.GPUBatch(type="TRIS", buf=vbo)
+        self._images: dict[int, object] = {}
+        self._white = None
+
+    def material_image(self, material_index: int):
+        """The base colour texture of a material, or a 1x1 white one (uploaded once)."""
+        material = self.scene.materials[material_index]
+        if material.base_color_image is None:
+            if self._white is None:
+                self._white = texture_from_array(np.ones((1, 1, 4), np.float32))
+            return self._white
+        if material_index not in self._images:
+            self._images[material_index] = texture_from_array(np.asarray(material.base_color_image, np.float32))
+        return self._images[material_index]
+
+    def draw(self, program, per_material=None) -> None:
+        """Draw every material's triangles with ``program`` (bound, with the interface of
+        :func:`scene_shader_interface`), setting the per-material inputs first;
+        ``per_material(program, material_index)`` sets a pass's own per-material uniforms."""
+        for material_index, first, count in self.ranges:
+            material = self.scene.materials[material_index]
+            use_image = material.base_color_image is not None
+            program.uniform_float("material_base_color",
+                                  (*np.asarray(material.base_color, float)[:3], 1.0 if use_image else 0.0))
+            program.uniform_float("material_params", (float(material.roughness), float(material.metallic),
+                                                      float(material.specular_ior_level), float(material.ior)))
+            program.uniform_sampler("base_color_image", self.material_image(material_index))
+            if per_material is not None:
+                per_material(program, material_index)
+            self.batch.draw_range(program, elem_start=first, elem_count=count)
+
+    def free(self) -> None:
+        """Drop the GPU objects (Blender frees them with their last reference)."""
+        self.batch = None
+        self.vertex_buffer = None
+        self._images.clear()
+        self._white = None
