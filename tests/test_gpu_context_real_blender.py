@@ -116,3 +116,21 @@ def test_with_a_window_it_does_nothing():
     assert "llvmpipe" in seen["renderer"], seen
     assert seen["init_calls"] == 0, seen
     assert seen["data_unchanged"], seen
+
+
+def test_every_pass_shader_compiles_in_blender_5_2():
+    """5.2 runs its own GLSL preprocessor over Python shader sources (5.0 does not)."""
+    with scratch_dir("vsgl-gpu-") as folder:
+        script = folder / "compile.py"
+        script.write_text(textwrap.dedent(f"""
+            import sys
+            sys.path.insert(0, {str(REPO)!r})
+            from vsgl_addon.gpu_context import ensure_gpu_context
+            from vsgl_addon.passes import compile_all_shaders, free_all_shaders
+            ensure_gpu_context()
+            compile_all_shaders()
+            free_all_shaders()
+            print("VSGL-SHADERS-COMPILED")
+        """))
+        proc = run_blender("-b", "--factory-startup", "--python-exit-code", "1", "--python", str(script))
+    assert proc.returncode == 0 and "VSGL-SHADERS-COMPILED" in proc.stdout, describe(proc)

@@ -10,6 +10,8 @@ import pytest
 from vsgl_addon.shaders import (GLSL_ROOT, LINE_STRIDE, ShaderCompileError, ShaderInterface,
                                 ShaderSourceError, compose, create_shader, map_messages)
 
+REPO = Path(__file__).resolve().parents[1]
+
 
 def _write(root: Path, files: dict[str, str]) -> Path:
     for relative, text in files.items():
@@ -168,3 +170,31 @@ def test_a_shader_name_need_not_be_an_identifier(tmp_path):
     root = _write(tmp_path, {"stage.frag.glsl": "void main() { color = vec4(uv, 0.0, 1.0); }\n"})
     assert create_shader("a name with spaces & symbols", _INTERFACE, vertex="fullscreen_triangle.vert.glsl",
                          fragment="stage.frag.glsl", root=[root, GLSL_ROOT]) is not None
+
+
+def test_glsl_sources_have_no_block_comments():
+    """Blender 5.2 preprocesses Python shader sources and reads `/*` even inside a `//` comment as
+    the start of a block comment ("Malformed multi-line comment"); 5.0 does not, so only the real
+    application would notice. Comments are `//` only, and never contain `/*` or `*/`."""
+    offenders = [f"{path.relative_to(REPO)}:{number}"
+                 for path in sorted((REPO / "glsl").rglob("*.glsl"))
+                 for number, line in enumerate(path.read_text().splitlines(), start=1)
+                 if "/*" in line or "*/" in line]
+    assert not offenders, offenders
+
+
+@pytest.mark.gpu
+def test_every_pass_shader_compiles_in_the_bpy_module():
+    from vsgl_addon.passes import compile_all_shaders
+
+    compile_all_shaders()
+
+
+def test_blender_5_2_preprocessor_messages_are_mapped_too():
+    """5.2's GLSL preprocessor reports without a kind ("name:LINE:COL: text"); when LINE is one of our
+    tags it is ours, when not (Blender's own libraries) it is left out."""
+    source = compose("rsm/rsm.frag.glsl", first_tag=2)
+    third = source.files[2]
+    log = (f"python_shader.glsl:{4 * LINE_STRIDE + 3}:80: Malformed multi-line comment.\n"
+           "  |  draw_colormanagement_lib.glsl:45:2: preprocessor error: #error conversion failled\n")
+    assert map_messages(log, [source]) == [f"{third}:3:80: error: Malformed multi-line comment."]

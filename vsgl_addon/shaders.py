@@ -37,7 +37,7 @@ _REQUIRE = re.compile(r"^\s*//\s*@require\s+(\S+)\s*$", re.MULTILINE)
 # Blender 5.x reformats the driver's messages as "name:LINE:COL: Error: text"; Mesa's own form is
 # "0:LINE(COL): error: text". Both are accepted.
 _MESSAGE = re.compile(
-    r"(?P<line>\d+)(?::(?P<col>\d+)|\((?P<pcol>\d+)\)):\s*(?P<kind>error|warning)\s*:\s*(?P<text>.*\S)",
+    r"(?P<line>\d+)(?::(?P<col>\d+)|\((?P<pcol>\d+)\)):\s*(?:(?P<kind>error|warning)\s*:\s*)?(?P<text>.*\S)",
     re.IGNORECASE,
 )
 
@@ -144,8 +144,13 @@ def map_messages(log: str, sources: list[ComposedSource]) -> list[str]:
             where = source.locate(tagged)
             if where is not None:
                 break
+        if match["kind"] is None and where is None:
+            # Only the compiler's messages name a kind; an untagged line (Blender 5.2's own GLSL
+            # preprocessor reports that way) counts when its line number is one of our tags.
+            continue
         place = f"{where[0]}:{where[1]}" if where else f"<Blender's generated code>:{tagged}"
-        message = f"{place}:{column}: {match['kind'].lower()}: {match['text']}"
+        kind = (match["kind"] or "error").lower()
+        message = f"{place}:{column}: {kind}: {match['text']}"
         if message not in messages:
             messages.append(message)
     return messages

@@ -1,6 +1,6 @@
 // @require lib/math.glsl
 //
-// Blender's light emission model (formulas.md sec. 4; Cycles 5.0, kernel/light/*.h), shared by the
+// Blender's light emission model (formulas.md sec. 4; Cycles 5.0, kernel/light/ headers), shared by the
 // RSM pass (the flux of a texel: glsl/rsm/rsm.frag.glsl) and the direct light pass (the irradiance
 // of a point: glsl/direct_light/lights.glsl), so that the light a VPL re-emits is the light the
 // direct pass puts on the same surface. Measured against Cycles in tests/test_direct_light.py, the
