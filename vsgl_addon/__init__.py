@@ -12,11 +12,12 @@ What the add-on adds to Blender is declared in one place, :func:`_registry`:
   (``bpy.types.Scene.vsgl``), attached after the classes and removed before them;
 * ``handlers``: ``(bpy.app.handlers list name, function)``; decorate the function with
   ``@bpy.app.handlers.persistent`` if it must survive loading another .blend file;
-* ``timers``: ``(function, keyword arguments of bpy.app.timers.register)``.
+* ``timers``: ``(function, keyword arguments of bpy.app.timers.register)``;
+* ``hooks``: ``(install, uninstall)`` pairs for hooks of another kind (e.g. the overlay's
+  ``SpaceView3D.draw_handler_add``, which returns a handle): install() is called last in register(),
+  uninstall() first in unregister(); uninstall() must be harmless when nothing is installed.
 
-Later parts (panels, render engine, depsgraph handlers) add entries there; hooks of another kind
-(e.g. ``SpaceView3D.draw_handler_add``, which returns a handle) need a field of their own, added
-in register() and removed in unregister() the same way.
+Later parts add entries there.
 :func:`unregister` removes exactly what is present, so it also cleans up after a register() that
 failed part-way, and calling it twice is harmless.
 """
@@ -31,17 +32,19 @@ class Registry(NamedTuple):
     properties: tuple[tuple[type, str, Callable[[], Any]], ...]
     handlers: tuple[tuple[str, Callable[..., Any]], ...]
     timers: tuple[tuple[Callable[[], float | None], dict[str, Any]], ...]
+    hooks: tuple[tuple[Callable[[], None], Callable[[], None]], ...] = ()
 
 
 def _registry() -> Registry:
     """Everything register() adds, built on demand (it imports bpy-dependent submodules)."""
-    from . import engine, properties
+    from . import engine, operators, overlay, properties, ui
 
     return Registry(
-        classes=(*properties.CLASSES, *engine.CLASSES),
+        classes=(*properties.CLASSES, *engine.CLASSES, *operators.CLASSES, *ui.CLASSES),
         properties=(*properties.TYPE_PROPERTIES,),
-        handlers=(),
-        timers=(),
+        handlers=(*overlay.HANDLERS,),
+        timers=(*overlay.TIMERS,),
+        hooks=(*overlay.HOOKS,),
     )
 
 
@@ -62,6 +65,8 @@ def register() -> None:
         for function, options in reg.timers:
             if not bpy.app.timers.is_registered(function):
                 bpy.app.timers.register(function, **options)
+        for install, _uninstall in reg.hooks:
+            install()
     except Exception:
         # Leave Blender as it was: undo whatever part of the above did happen.
         unregister()
@@ -73,6 +78,11 @@ def unregister() -> None:
 
     reg = _registry()
     errors: list[str] = []
+    for _install, uninstall in reversed(reg.hooks):
+        try:
+            uninstall()
+        except Exception as ex:  # noqa: BLE001 - keep removing the rest
+            errors.append(f"{getattr(uninstall, '__qualname__', uninstall)}: {ex}")
     for function, _options in reversed(reg.timers):
         if bpy.app.timers.is_registered(function):
             bpy.app.timers.unregister(function)

@@ -7,7 +7,7 @@ See /work/shared/reference/formulas.md, sections 4-5.
 """
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 from bpy.types import PropertyGroup
 
 from .settings import K_RANGE, RSM_SIZE_RANGE, VSGL_COUNT_RANGE
@@ -39,6 +39,32 @@ KERNEL_ITEMS = (
         2,
     ),
 )
+
+
+# What the viewport overlay shows (stored in .blend files: never rename the identifiers).
+OVERLAY_MODE_ITEMS = (
+    ("INDIRECT", "Indirect Only",
+     "One-bounce indirect light (diffuse + specular) alone, over black where there is geometry: "
+     "shows exactly where the bounce light falls and how strong it is", 0),
+    ("ADDED", "Added to Viewport",
+     "The indirect light added on top of whatever the viewport shows (solid, material preview, "
+     "rendered): a quick look at the bounce light in context", 1),
+    ("INDIRECT_DIFFUSE", "Indirect Diffuse",
+     "Only the diffuse part of the indirect light (colour bleeding)", 2),
+    ("INDIRECT_SPECULAR", "Indirect Specular",
+     "Only the glossy part of the indirect light (glossy reflections of lit surfaces, caustics)", 3),
+    ("DIRECT", "Direct",
+     "Only the direct light the VSGL renderer computes (with its shadow-map shadows)", 4),
+    ("COMBINED", "Combined",
+     "Direct plus indirect light: what an F12 render with the VSGL engine gives", 5),
+)
+
+
+def _overlay_changed(settings, context):
+    """Overlay switched on or off: free its GPU resources or start updating (overlay.py)."""
+    from . import overlay
+
+    overlay.on_overlay_toggled(bool(settings.show_overlay))
 
 
 class VSGLSceneSettings(PropertyGroup):
@@ -101,6 +127,54 @@ class VSGLSceneSettings(PropertyGroup):
         ),
         default=0,
         min=0,
+    )
+
+    # --- viewport overlay (overlay.py); none of these changes a render ---
+    show_overlay: BoolProperty(
+        name="Overlay",
+        description=(
+            "Show the VSGL indirect light over every 3D viewport, for the viewport's own view. "
+            "While on, every scene change reruns the light passes (reflective shadow maps and "
+            "VSGL generation) and every view change reruns the viewport shading, a coarse image "
+            "first, then a refined one once nothing moves. Off frees all its GPU memory. Hidden "
+            "in a viewport whose Show Overlays is off"
+        ),
+        default=False,
+        update=_overlay_changed,
+    )
+    overlay_mode: EnumProperty(
+        name="Display",
+        description="What the overlay shows; switching costs nothing (every pass is kept)",
+        items=OVERLAY_MODE_ITEMS,
+        default="INDIRECT",
+    )
+    overlay_resolution_scale: FloatProperty(
+        name="Resolution",
+        description=(
+            "Overlay resolution as a fraction of the viewport's pixels, for the refined image "
+            "(the coarse image uses a quarter of it per side). Shading time grows with the "
+            "square of this: 0.5 costs 4 times 0.25. Lower keeps the viewport responsive on slow "
+            "GPUs; higher shows sharper glossy reflections"
+        ),
+        default=0.25,
+        min=0.02,
+        max=1.0,
+        soft_min=0.05,
+        subtype="FACTOR",
+        precision=2,
+    )
+    overlay_intensity: FloatProperty(
+        name="Intensity",
+        description=(
+            "Multiplier of the overlay's brightness (display only: renders are unchanged). Raise "
+            "it to see faint bounce light, lower it when bright glossy reflections saturate; "
+            "the scene's exposure applies on top"
+        ),
+        default=1.0,
+        min=0.0,
+        max=1000.0,
+        soft_max=16.0,
+        precision=2,
     )
 
 

@@ -68,6 +68,44 @@ def _rgb(image: np.ndarray) -> np.ndarray:
     return np.nan_to_num(np.asarray(image[..., :3], np.float32), nan=0.0, posinf=0.0, neginf=0.0)
 
 
+@dataclass
+class SceneLights:
+    """The view-independent part of a frame: the scene on the GPU, the RSM views and VSGL tables.
+
+    Built once per scene state and settings; any number of views can then be rendered from it
+    (FrameRenderer.render_view) without rerunning the light passes. `free()` releases it all.
+    """
+
+    scene: object  # SceneDescription
+    scene_gpu: object  # SceneGPU
+    vsgls: object  # pipeline.SceneVSGLs
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def build(cls, scene, settings: VSGLSettings) -> "SceneLights":
+        clock = time.perf_counter()
+        scene_gpu = SceneGPU(scene)
+        timings = {"upload": time.perf_counter() - clock}
+        clock = time.perf_counter()
+        try:
+            vsgls = render_scene_vsgls(scene_gpu, settings)
+            if vsgls.generations:
+                _finish(vsgls.generations[-1][2].table)
+        except BaseException:
+            scene_gpu.free()
+            raise
+        timings["rsm_and_vsgl_generation"] = time.perf_counter() - clock
+        return cls(scene, scene_gpu, vsgls, timings)
+
+    def free(self) -> None:
+        if self.vsgls is not None:
+            self.vsgls.free()
+            self.vsgls = None
+        if self.scene_gpu is not None:
+            self.scene_gpu.free()
+            self.scene_gpu = None
+
+
 class FrameRenderer:
     """Renders frames; holds the shading pass's textures between frames (free() releases them)."""
 
@@ -77,11 +115,32 @@ class FrameRenderer:
     def free(self) -> None:
         self._shading.free()
 
-    def render(self, scene, settings: VSGLSettings, width: int, height: int) -> FrameImages:
-        """The frame of `scene` (a SceneDescription with a camera) at width × height pixels."""
-        if scene.camera is None:
-            raise ValueError("the scene has no camera")
-        timings: dict[str, float] = {}
+    def render(self, scene, settings: VSGLSettings, width: int, height: int,
+               view_matrix=None, projection_matrix=None) -> FrameImages:
+        """The frame of `scene` (a SceneDescription) at width × height pixels.
+
+        Seen from the scene's camera, or from `view_matrix` (world -> view, 4×4) and
+        `projection_matrix` (OpenGL clip, 4×4; orthographic when [3][3] == 1) when both are given,
+        e.g. a 3D viewport's own view.
+        """
+        if (view_matrix is None) != (projection_matrix is None):
+            raise ValueError("give both view_matrix and projection_matrix, or neither")
+        if view_matrix is None:
+            if scene.camera is None:
+                raise ValueError("the scene has no camera")
+            view_matrix, projection_matrix = scene.camera.view_matrix(), scene.camera.projection_matrix()
+        lights = SceneLights.build(scene, settings)
+        try:
+            return self.render_view(lights, settings, width, height, view_matrix, projection_matrix)
+        finally:
+            lights.free()
+
+    def render_view(self, lights: SceneLights, settings: VSGLSettings, width: int, height: int,
+                    view_matrix, projection_matrix) -> FrameImages:
+        """One view of already built `lights`: G-buffer, direct light, VSGL shading, read-back.
+        `settings` must be the ones `lights` was built with (the kernel picks the diffuse mode)."""
+        scene = lights.scene
+        timings: dict[str, float] = dict(lights.timings)
         clock = time.perf_counter()
 
         def lap(name):
@@ -90,16 +149,10 @@ class FrameRenderer:
             timings[name] = now - clock
             clock = now
 
-        scene_gpu = SceneGPU(scene)
-        vsgls = gbuffer = direct = inputs = None
+        vsgls = lights.vsgls
+        gbuffer = direct = None
         try:
-            lap("upload")
-            vsgls = render_scene_vsgls(scene_gpu, settings)
-            if vsgls.generations:
-                _finish(vsgls.generations[-1][2].table)
-            lap("rsm_and_vsgl_generation")
-            gbuffer = render_gbuffer(scene_gpu, scene.camera.view_matrix(), scene.camera.projection_matrix(),
-                                     (width, height))
+            gbuffer = render_gbuffer(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
             _finish(gbuffer.textures["position"])
             lap("gbuffer")
             direct = render_direct_light(gbuffer, scene.lights, vsgls.views_by_light)
@@ -121,9 +174,6 @@ class FrameRenderer:
                 direct.free()
             if gbuffer is not None:
                 gbuffer.free()
-            if vsgls is not None:
-                vsgls.free()
-            scene_gpu.free()
         return FrameImages(_rgb(direct_diffuse), _rgb(direct_specular), _rgb(indirect_diffuse),
                            _rgb(indirect_specular), np.clip(np.nan_to_num(coverage), 0.0, 1.0).astype(np.float32),
                            timings, counts)

@@ -1,0 +1,236 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Run inside the Blender 5.2 application with its window (tests/test_overlay_real_blender.py).
+
+    real-blender gui demo.blend --python gui_overlay_script.py   (VSGL_SHOTS=<folder> in BLENDER_VSGL_SHOTS)
+
+Drives the interface from a timer, as an artist would through the sidebar: shows the VSGL tab,
+looks through the camera, switches the overlay on and changes its settings, waiting each time
+until the overlay's refined image is drawn, and takes a screenshot of the whole screen with
+ImageMagick's `import` (the same X server the tool's own screenshot uses). Writes result.json in
+the folder: screenshots, the 3D viewport's region, where sample points of the walls and floor fall
+on the screen, and the measured update times. Touches $REAL_BLENDER_SHOT_NOW when done.
+"""
+
+import json
+import os
+import subprocess
+import time
+import traceback
+
+import bpy
+from bpy_extras.view3d_utils import location_3d_to_region_2d
+
+OUT = os.environ["BLENDER_VSGL_SHOTS"]
+MODULE = "bl_ext.user_default.vsgl"
+# Points of demo.blend (world space): the white walls where the red floor's bounce falls, and a
+# wall point far up where little of it does.
+SAMPLES = {"back_wall_low": (-2.2, 2.99, 1.4), "left_wall_low": (-2.99, 0.6, 0.5),
+           "back_wall_high": (-2.0, 2.99, 5.0)}
+result = {"shots": {}, "timings": {}, "errors": [], "log": []}
+
+
+def log(text):
+    result["log"].append(f"{time.perf_counter():.2f} {text}")
+
+
+def overlay_module():
+    import importlib
+
+    return importlib.import_module(MODULE + ".vsgl_addon.overlay")
+
+
+def viewport():
+    for window in bpy.context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D":
+                region = next(r for r in area.regions if r.type == "WINDOW")
+                return window, area, region, area.spaces.active
+    raise RuntimeError("no 3D viewport")
+
+
+def screenshot(name):
+    path = os.path.join(OUT, name + ".png")
+    subprocess.run(["import", "-window", "root", path], check=True, timeout=30)
+    result["shots"][name] = path
+    log(f"shot {name}")
+
+
+def refined_and_drawn():
+    """The overlay's images of the viewport are refined for the current view and scene state."""
+    overlay = overlay_module()
+    cache = overlay.cache
+    _window, _area, _region, space = viewport()
+    key = space.region_3d.as_pointer()
+    view = cache.views.get(key)
+    request = cache.requests.get(key)
+    if cache.error:
+        raise RuntimeError(cache.error)
+    return (view is not None and request is not None and view.level == overlay.REFINED
+            and view.scene_version == cache.scene_version and overlay._same_view(view.request, request))
+
+
+def setup():
+    window, area, region, space = viewport()
+    space.shading.type = "SOLID"
+    space.region_3d.view_perspective = "CAMERA"
+    space.show_region_ui = True
+    area.tag_redraw()
+
+
+def vsgl_tab():
+    """The sidebar's tab can be chosen once the sidebar has been drawn (before, it is read-only)."""
+    window, area, region, space = viewport()
+    ui = next(r for r in area.regions if r.type == "UI")
+    ui.active_panel_category = "VSGL"
+    area.tag_redraw()
+    result["sidebar"] = {"category": ui.active_panel_category, "rect": [ui.x, ui.y, ui.width, ui.height]}
+    # Through the camera by now (the view matrices are updated when the viewport has redrawn).
+    points = {}
+    for name, point in SAMPLES.items():
+        xy = location_3d_to_region_2d(region, space.region_3d, point)
+        # Screen coordinates, origin at the bottom left of the window (the screenshot's is at the top).
+        points[name] = None if xy is None else [region.x + float(xy[0]), region.y + float(xy[1])]
+    result["region"] = [region.x, region.y, region.width, region.height]
+    result["window"] = [window.width, window.height]
+    result["points"] = points
+
+
+def overlay_on():
+    bpy.context.scene.vsgl.overlay_mode = "INDIRECT"
+    bpy.context.scene.vsgl.show_overlay = True
+
+
+def mode_added():
+    bpy.context.scene.vsgl.overlay_mode = "ADDED"
+
+
+def fewer_vsgls():
+    bpy.context.scene.vsgl.overlay_mode = "INDIRECT"
+    bpy.context.scene.vsgl.vsgl_count = 4
+
+
+def restore_vsgls():
+    bpy.context.scene.vsgl.overlay_mode = "ADDED"
+    bpy.context.scene.vsgl.vsgl_count = 256
+
+
+def orbit():
+    """A view-only change: must not rerun the light passes."""
+    cache = overlay_module().cache
+    result["lights_version_before_orbit"] = cache.lights_version
+    import math
+
+    from mathutils import Quaternion
+
+    _window, _area, _region, space = viewport()
+    rv3d = space.region_3d
+    rv3d.view_perspective = "PERSP"
+    rv3d.view_location = (-0.5, 0.8, 1.2)
+    rv3d.view_distance = 7.5
+    rotation = bpy.context.scene.camera.matrix_world.to_quaternion()
+    rv3d.view_rotation = Quaternion((0.0, 0.0, 1.0), math.radians(-20.0)) @ rotation
+
+
+def after_orbit():
+    cache = overlay_module().cache
+    result["lights_version_after_orbit"] = cache.lights_version
+
+
+def move_light():
+    cache = overlay_module().cache
+    result["lights_version_before_move"] = cache.lights_version
+    bpy.data.objects["Spot"].location.x += 0.3
+
+
+def after_move():
+    cache = overlay_module().cache
+    result["lights_version_after_move"] = cache.lights_version
+
+
+def overlay_off():
+    bpy.context.scene.vsgl.show_overlay = False
+
+
+def resources_after_off():
+    result["gpu_resources_after_off"] = overlay_module().cache.gpu_resource_count()
+
+
+def render_properties_and_preview():
+    """VSGL as the render engine: its panels in Render Properties; the look-dev preview operator."""
+    scene = bpy.context.scene
+    scene.render.engine = "VSGL"
+    window, area, region, space = viewport()
+    properties = next(a for a in window.screen.areas if a.type == "PROPERTIES")
+    properties.spaces.active.context = "RENDER"
+    properties.tag_redraw()
+    with bpy.context.temp_override(window=window, area=area, region=region):
+        outcome = bpy.ops.vsgl.render_preview(percentage=25)
+    result["preview"] = {"outcome": sorted(outcome),
+                         "images": sorted(image.name for image in bpy.data.images if image.name.startswith("VSGL "))}
+    result["properties_rect"] = [properties.x, properties.y, properties.width, properties.height]
+
+
+# (action, wait for the refined overlay?, screenshot name or None, timing label or None)
+STEPS = [
+    (setup, False, None, None),
+    (vsgl_tab, False, None, None),
+    (None, False, "01_sidebar_overlay_off", None),
+    (overlay_on, True, "02_overlay_on_indirect_only", "first"),
+    (mode_added, False, "03_overlay_added_to_solid", None),
+    (fewer_vsgls, True, "04_vsgl_count_4", "parameter_change"),
+    (restore_vsgls, True, None, None),
+    (orbit, True, "05_after_orbit_view_only", "view_change"),
+    (after_orbit, False, None, None),
+    (move_light, True, "06_after_moving_the_spot", "scene_change"),
+    (after_move, False, None, None),
+    (overlay_off, False, "07_overlay_switched_off", None),
+    (resources_after_off, False, None, None),
+    (render_properties_and_preview, False, "08_render_properties", None),
+]
+state = {"step": 0, "phase": "act", "since": 0.0, "first_update": 0}
+TIMEOUT = 60.0
+
+
+def finish():
+    with open(os.path.join(OUT, "result.json"), "w") as f:
+        json.dump(result, f, indent=1, default=str)
+    open(os.environ["REAL_BLENDER_SHOT_NOW"], "w").close()
+
+
+def tick():
+    try:
+        if state["step"] >= len(STEPS):
+            finish()
+            return None
+        action, wait, shot, label = STEPS[state["step"]]
+        cache = overlay_module().cache
+        if state["phase"] == "act":
+            if action is not None:
+                action()
+                log(f"did {action.__name__}")
+            state.update(phase="wait", since=time.perf_counter(), first_update=cache.updates)
+            return 0.3
+        if state["phase"] == "wait":
+            if wait:
+                if not refined_and_drawn():
+                    if time.perf_counter() - state["since"] > TIMEOUT:
+                        raise RuntimeError(f"no refined overlay after {TIMEOUT} s at step {state['step']}")
+                    return 0.1
+                if label:
+                    result["timings"][label] = {
+                        "updates": [dict(entry) for entry in cache.history if entry["index"] >= state["first_update"]],
+                        "until_refined_seconds": time.perf_counter() - state["since"]}
+            viewport()[1].tag_redraw()
+            state["phase"] = "shoot"
+            return 0.7  # let the window redraw
+        if shot:
+            screenshot(shot)
+        state.update(step=state["step"] + 1, phase="act")
+        return 0.1
+    except Exception:
+        result["errors"].append(traceback.format_exc())
+        finish()
+        return None
+
+
+bpy.app.timers.register(tick, first_interval=1.5)

@@ -1,0 +1,192 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Panels, overlay properties and look-dev operators in the bpy module (ui.py, properties.py, operators.py).
+
+Panels are drawn into a recording layout (no window here); the real sidebar is checked on screen
+by test_overlay_real_blender.py.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import bpy
+import numpy as np
+import pytest
+
+import vsgl_addon
+from vsgl_addon import engine, overlay, ui
+from vsgl_addon.operators import settings_image_name
+from vsgl_addon.settings import VSGLSettings
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+class RecordingLayout:
+    """Stands in for bpy.types.UILayout: records every prop, label and operator drawn."""
+
+    def __init__(self, record=None):
+        self.record = record if record is not None else {"props": [], "labels": [], "operators": []}
+        self.use_property_split = self.use_property_decorate = False
+        self.active = self.enabled = True
+
+    def _child(self, *args, **kwargs):
+        return RecordingLayout(self.record)
+
+    column = row = box = grid_flow = split = _child
+
+    def separator(self, **kwargs):
+        pass
+
+    def prop(self, data, name, **kwargs):
+        assert name in data.bl_rna.properties, name
+        self.record["props"].append(name)
+
+    def label(self, text="", **kwargs):
+        self.record["labels"].append(text)
+
+    def operator(self, idname, **kwargs):
+        self.record["operators"].append(idname)
+
+
+@pytest.fixture
+def registered():
+    vsgl_addon.unregister()
+    bpy.ops.wm.open_mainfile(filepath=str(REPO / "demo.blend"), load_ui=False)
+    vsgl_addon.register()
+    yield bpy.context.scene
+    vsgl_addon.unregister()
+    overlay.cache.free()
+    engine.last_frame_statistics.clear()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def draw(panel_class, scene):
+    layout = RecordingLayout()
+    panel = SimpleNamespace(layout=layout)
+    context = SimpleNamespace(scene=scene, engine=scene.render.engine)
+    panel_class.draw(panel, context)
+    return layout.record
+
+
+def test_sidebar_tab_and_render_properties_show_every_setting(registered):
+    scene = registered
+    for cls in ui.CLASSES:
+        assert cls.is_registered
+    sidebar = [cls for cls in ui.CLASSES if cls.bl_space_type == "VIEW_3D"]
+    assert {cls.bl_category for cls in sidebar} == {"VSGL"} and {cls.bl_region_type for cls in sidebar} == {"UI"}
+    wanted = {"vsgl_count", "k", "kernel", "rsm_size", "seed", "show_overlay", "overlay_mode",
+              "overlay_resolution_scale", "overlay_intensity"}
+    for prefix in ("VIEW3D_PT_vsgl", "RENDER_PT_vsgl"):
+        drawn = set()
+        for cls in ui.CLASSES:
+            if cls.__name__.startswith(prefix):
+                drawn |= set(draw(cls, scene)["props"])
+                if hasattr(cls, "draw_header"):
+                    drawn |= set(draw_header(cls, scene))
+        assert wanted <= drawn, f"{prefix}: missing {wanted - drawn}"
+    operators = set()
+    for cls in (ui.VIEW3D_PT_vsgl_lookdev, ui.RENDER_PT_vsgl_lookdev):
+        operators |= set(draw(cls, scene)["operators"])
+    assert operators == {"vsgl.render_preview", "vsgl.render_to_file"}
+
+
+def draw_header(cls, scene):
+    layout = RecordingLayout()
+    cls.draw_header(SimpleNamespace(layout=layout), SimpleNamespace(scene=scene))
+    return layout.record["props"]
+
+
+def test_render_panels_only_with_the_vsgl_engine(registered):
+    scene = registered
+    assert ui.RENDER_PT_vsgl.poll(SimpleNamespace(engine="VSGL", scene=scene))
+    assert not ui.RENDER_PT_vsgl.poll(SimpleNamespace(engine="CYCLES", scene=scene))
+    assert ui.VIEW3D_PT_vsgl.poll(SimpleNamespace(scene=scene))
+
+
+def test_pass_sections_name_real_properties_so_new_ones_slot_in(registered):
+    names = [name for _heading, names in ui.PASS_SECTIONS for name in names]
+    assert set(names) == {"rsm_size", "vsgl_count", "k", "kernel", "seed"}
+    for name in names:
+        assert name in registered.vsgl.bl_rna.properties
+
+
+def test_statistics_and_warnings_are_shown(registered):
+    scene = registered
+    assert "Turn on the overlay or render to see timings" in draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
+    engine.last_frame_statistics.update(timings={"gbuffer": 0.012, "vsgl_shading": 0.5}, counts={"vsgls": 256},
+                                        resolution=[96, 72], warnings=["VSGL: skipped lights: Sun"])
+    overlay.cache.statistics = {"level": "refined", "seconds": 0.2, "size": (80, 60), "counts": {"lights": 1},
+                                "timings": {"vsgl_shading": 0.15}, "light_timings": {"rsm_and_vsgl_generation": 0.05}}
+    overlay.cache.error = "ShaderCompileError: broken"
+    labels = draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
+    for text in ("VSGL Shading", "500.0 ms", "150.0 ms", "RSM + VSGL Generation", "50.0 ms", "VSGLs", "256",
+                 "Last render 96×72", "Overlay: view, refined 80×60", "Overlay: light passes"):
+        assert text in labels, text
+    top = draw(ui.VIEW3D_PT_vsgl, scene)["labels"]
+    assert "Overlay stopped: ShaderCompileError: broken" in top and "VSGL: skipped lights: Sun" in top
+
+
+def test_overlay_properties_defaults_ranges_tooltips(registered):
+    settings = registered.vsgl
+    properties = settings.bl_rna.properties
+    assert settings.show_overlay is False
+    assert settings.overlay_mode == "INDIRECT"
+    assert {item.identifier for item in properties["overlay_mode"].enum_items} == set(overlay.MODE_INDEX)
+    scale = properties["overlay_resolution_scale"]
+    assert (scale.default, scale.hard_min, scale.hard_max) == pytest.approx((0.25, 0.02, 1.0))
+    intensity = properties["overlay_intensity"]
+    assert intensity.default == 1.0 and intensity.hard_min == 0.0
+    for name in ("show_overlay", "overlay_mode", "overlay_resolution_scale", "overlay_intensity"):
+        assert len(properties[name].description) > 40, name
+    assert "square" in scale.description  # the cost
+    settings.overlay_resolution_scale = 5.0
+    assert settings.overlay_resolution_scale == 1.0
+
+
+@pytest.mark.gpu
+def test_preview_operator_makes_an_image_named_for_its_settings(registered):
+    scene = registered
+    scene.vsgl.vsgl_count, scene.vsgl.rsm_size = 32, 32
+    width = scene.render.resolution_x * scene.render.resolution_percentage // 100 * 10 // 100
+    assert bpy.ops.vsgl.render_preview(percentage=10) == {"FINISHED"}
+    name = settings_image_name(VSGLSettings.from_properties(scene.vsgl))
+    assert name == "VSGL N32 K1 Modified RSM32 Seed0 Combined"
+    image = bpy.data.images[name]
+    assert image.size[0] == width
+    pixels = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(pixels)
+    assert pixels.reshape(-1, 4)[:, :3].max() > 0
+    # Other settings: another image beside it (A/B); the same settings again: the same image.
+    scene.vsgl.k = 2.0
+    assert bpy.ops.vsgl.render_preview(percentage=10, pass_name="INDIRECT") == {"FINISHED"}
+    assert "VSGL N32 K2 Modified RSM32 Seed0 Indirect" in bpy.data.images
+    count = len(bpy.data.images)
+    assert bpy.ops.vsgl.render_preview(percentage=10, pass_name="INDIRECT") == {"FINISHED"}
+    assert len(bpy.data.images) == count
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("file_format, extension", [("OPEN_EXR", ".exr"), ("PNG", ".png")])
+def test_render_to_file(registered, tmp_path, file_format, extension):
+    scene = registered
+    scene.vsgl.vsgl_count, scene.vsgl.rsm_size = 16, 32
+    images_before = set(bpy.data.images.keys())
+    target = tmp_path / "out" / "render"
+    assert bpy.ops.vsgl.render_to_file(filepath=str(target), file_format=file_format, percentage=10) == {"FINISHED"}
+    written = target.with_suffix(extension)
+    assert written.is_file() and written.stat().st_size > 100
+    assert set(bpy.data.images.keys()) == images_before  # its temporary image is gone
+    loaded = bpy.data.images.load(str(written))
+    try:
+        assert loaded.size[0] == scene.render.resolution_x * scene.render.resolution_percentage // 100 * 10 // 100
+    finally:
+        bpy.data.images.remove(loaded)
+
+
+@pytest.mark.gpu
+def test_render_to_file_reports_failure(registered, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    with pytest.raises(RuntimeError, match="failed"):
+        bpy.ops.vsgl.render_to_file(filepath=str(blocker / "x.exr"), percentage=5)

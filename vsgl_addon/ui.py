@@ -1,0 +1,248 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Panels (Blender-facing only): a ``VSGL`` tab in the 3D viewport's sidebar, and the same settings
+in Render Properties when VSGL is the render engine.
+
+Both places draw the same sections with the same functions:
+
+* **Light Passes**: the parameters of the passes, grouped by pass in PASS_SECTIONS. A later pass
+  (e.g. VSGL visibility with its δ, or the disk radius of shading) adds its row there: a
+  (heading, property names) entry, nothing else changes;
+* **Viewport Overlay**: on/off, display mode, resolution, intensity, and the state of its updates;
+* **Look-Dev**: the preview and render-to-file operators;
+* **Statistics**: per-pass times and counts of the last overlay update and of the last render;
+* warnings (materials approximated, lights skipped, a failed update) at the top, where they are seen.
+"""
+
+from __future__ import annotations
+
+import bpy
+
+from . import engine, overlay
+
+#: (heading, scene.vsgl property names), in pipeline order. Append an entry for a new pass's controls.
+PASS_SECTIONS = (
+    ("Reflective Shadow Maps", ("rsm_size",)),
+    ("VSGL Generation", ("kernel", "vsgl_count", "k", "seed")),
+)
+OVERLAY_PROPERTIES = ("overlay_mode", "overlay_resolution_scale", "overlay_intensity")
+TIMING_LABELS = {
+    "scene_extraction": "Scene Extraction",
+    "upload": "Upload",
+    "rsm_and_vsgl_generation": "RSM + VSGL Generation",
+    "gbuffer": "G-Buffer",
+    "direct_light": "Direct Light",
+    "vsgl_shading": "VSGL Shading",
+    "read_back": "Read Back",
+}
+COUNT_LABELS = {"lights": "Lights", "rsm_views": "RSM Views", "vsgls": "VSGLs", "triangles": "Triangles"}
+
+
+def warnings() -> list[str]:
+    """Every warning the panels show: overlay failure, extraction warnings, last render's."""
+    lines = []
+    if overlay.cache.error:
+        lines.append(f"Overlay stopped: {overlay.cache.error}")
+    lines.extend(overlay.cache.warnings)
+    for line in engine.last_frame_statistics.get("warnings", ()):
+        if line not in lines:
+            lines.append(line)
+    return lines
+
+
+def draw_warnings(layout) -> None:
+    lines = warnings()
+    if not lines:
+        return
+    box = layout.box()
+    for line in lines:
+        box.label(text=line, icon="ERROR")
+
+
+def draw_pass_settings(layout, settings) -> None:
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    for heading, names in PASS_SECTIONS:
+        column = layout.column(heading=heading, align=True)
+        for name in names:
+            row = column.row()
+            row.prop(settings, name)
+            if name in ("vsgl_count", "k") and settings.kernel == "TWO_VSGL":
+                row.enabled = False  # the two-VSGL mode ignores them (003)
+
+
+def draw_overlay_settings(layout, settings) -> None:
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    column = layout.column()
+    column.active = settings.show_overlay
+    for name in OVERLAY_PROPERTIES:
+        column.prop(settings, name)
+    state = overlay.cache.statistics
+    if settings.show_overlay:
+        if overlay.cache.error:
+            column.label(text="Stopped (see warnings)", icon="ERROR")
+        elif state.get("size"):
+            width, height = state["size"]
+            steps = f" in {state['bands']} steps" if state.get("bands", 1) > 1 else ""
+            column.label(text=f"Last update: {state['level']} {width}×{height}", icon="TIME")
+            column.label(text=f"{state['seconds'] * 1000:.0f} ms{steps}", icon="BLANK1")
+        else:
+            column.label(text="Updating…", icon="TIME")
+
+
+def _draw_statistics_block(layout, title: str, statistics: dict) -> None:
+    box = layout.box()
+    box.label(text=title)
+    timings = statistics.get("timings", {})
+    if not timings:
+        box.label(text="None yet")
+        return
+    column = box.column(align=True)
+    for key, seconds in timings.items():
+        row = column.split(factor=0.62)
+        row.label(text=TIMING_LABELS.get(key, key))
+        row.label(text=f"{seconds * 1000:.1f} ms")
+    counts = statistics.get("counts", {})
+    if counts:
+        column.separator()
+        for key, value in counts.items():
+            row = column.split(factor=0.62)
+            row.label(text=COUNT_LABELS.get(key, key))
+            row.label(text=f"{value}")
+
+
+def draw_statistics(layout) -> None:
+    state = overlay.cache.statistics
+    if state:
+        _draw_statistics_block(layout, "Overlay: light passes", {"timings": state.get("light_timings", {})})
+        size = state.get("size")
+        if size:
+            _draw_statistics_block(layout, f"Overlay: view, {state['level']} {size[0]}×{size[1]}", state)
+    render = engine.last_frame_statistics
+    if render:
+        width, height = render.get("resolution", (0, 0))
+        _draw_statistics_block(layout, f"Last render {width}×{height}", render)
+    if not state and not render:
+        layout.label(text="Turn on the overlay or render to see timings")
+
+
+def draw_lookdev(layout, context) -> None:
+    column = layout.column(align=True)
+    column.operator("vsgl.render_preview", icon="IMAGE_DATA")
+    column.operator("vsgl.render_to_file", icon="FILE_IMAGE")
+    if context.scene.camera is None:
+        column.label(text="Needs an active camera", icon="INFO")
+
+
+# --- the 3D viewport's sidebar (N panel), tab "VSGL" ------------------------------------------
+
+class _SidebarPanel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "VSGL"
+
+    @classmethod
+    def poll(cls, context):
+        return getattr(context.scene, "vsgl", None) is not None
+
+
+class VIEW3D_PT_vsgl(_SidebarPanel, bpy.types.Panel):
+    bl_label = "VSGL Indirect Light"
+
+    def draw(self, context):
+        layout = self.layout
+        shown = context.scene.vsgl.show_overlay
+        layout.prop(context.scene.vsgl, "show_overlay", toggle=True,
+                    text="Hide Indirect Light Overlay" if shown else "Show Indirect Light Overlay",
+                    icon="HIDE_OFF" if shown else "HIDE_ON")
+        draw_warnings(layout)
+
+
+class VIEW3D_PT_vsgl_overlay(_SidebarPanel, bpy.types.Panel):
+    bl_label = "Viewport Overlay"
+    bl_parent_id = "VIEW3D_PT_vsgl"
+
+    def draw(self, context):
+        draw_overlay_settings(self.layout, context.scene.vsgl)
+
+
+class VIEW3D_PT_vsgl_passes(_SidebarPanel, bpy.types.Panel):
+    bl_label = "Light Passes"
+    bl_parent_id = "VIEW3D_PT_vsgl"
+
+    def draw(self, context):
+        draw_pass_settings(self.layout, context.scene.vsgl)
+
+
+class VIEW3D_PT_vsgl_lookdev(_SidebarPanel, bpy.types.Panel):
+    bl_label = "Look-Dev"
+    bl_parent_id = "VIEW3D_PT_vsgl"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        draw_lookdev(self.layout, context)
+
+
+class VIEW3D_PT_vsgl_statistics(_SidebarPanel, bpy.types.Panel):
+    bl_label = "Statistics"
+    bl_parent_id = "VIEW3D_PT_vsgl"
+
+    def draw(self, context):
+        draw_statistics(self.layout)
+
+
+# --- Render Properties, when VSGL is the render engine ----------------------------------------
+
+class _RenderPanel:
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+    COMPAT_ENGINES = {engine.ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and getattr(context.scene, "vsgl", None) is not None
+
+
+class RENDER_PT_vsgl(_RenderPanel, bpy.types.Panel):
+    bl_label = "VSGL Indirect Light"
+
+    def draw(self, context):
+        draw_warnings(self.layout)
+        draw_pass_settings(self.layout, context.scene.vsgl)
+
+
+class RENDER_PT_vsgl_overlay(_RenderPanel, bpy.types.Panel):
+    bl_label = "Viewport Overlay"
+    bl_parent_id = "RENDER_PT_vsgl"
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.vsgl, "show_overlay", text="")
+
+    def draw(self, context):
+        draw_overlay_settings(self.layout, context.scene.vsgl)
+
+
+class RENDER_PT_vsgl_lookdev(_RenderPanel, bpy.types.Panel):
+    bl_label = "Look-Dev"
+    bl_parent_id = "RENDER_PT_vsgl"
+
+    def draw(self, context):
+        draw_lookdev(self.layout, context)
+
+
+class RENDER_PT_vsgl_statistics(_RenderPanel, bpy.types.Panel):
+    bl_label = "Statistics"
+    bl_parent_id = "RENDER_PT_vsgl"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        draw_statistics(self.layout)
+
+
+# Parents before children (register order); unregister goes in reverse.
+CLASSES = (
+    VIEW3D_PT_vsgl, VIEW3D_PT_vsgl_overlay, VIEW3D_PT_vsgl_passes, VIEW3D_PT_vsgl_lookdev,
+    VIEW3D_PT_vsgl_statistics,
+    RENDER_PT_vsgl, RENDER_PT_vsgl_overlay, RENDER_PT_vsgl_lookdev, RENDER_PT_vsgl_statistics,
+)
