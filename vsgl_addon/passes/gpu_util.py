@@ -46,3 +46,15 @@ def fullscreen_triangle_batch(shader):
     from gpu_extras.batch import batch_for_shader
 
     return batch_for_shader(shader, "TRIS", {"position": FULLSCREEN_TRIANGLE})
+
+
+def set_uniform(setter, name, value) -> None:
+    """`setter(name, value)` (e.g. `program.uniform_int`), unless the shader has no such uniform.
+
+    The GLSL compiler drops the uniforms a variant of a shader does not use (one stage serves
+    several kernel or diffuse modes), and Blender then raises ValueError for the name.
+    """
+    try:
+        setter(name, value)
+    except ValueError:
+        pass

@@ -60,7 +60,7 @@ import numpy as np
 
 from ..reference import vsgl as reference
 from ..shaders import ShaderInterface, create_shader
-from .gpu_util import fullscreen_triangle_batch, read_texture, texture_from_array
+from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, texture_from_array
 
 KERNEL_MODES = reference.KERNEL_MODES  # ("modified", "original", "two-vsgl")
 _KERNEL_MODE_INDEX = {"modified": 0, "original": 1, "two-vsgl": 2}
@@ -151,21 +151,6 @@ def free_shaders() -> None:
     global _fullscreen_batch
     _fullscreen_batch = None
     _shaders.clear()
-
-
-def _set_int(program, name, value) -> None:
-    # The GLSL compiler drops unused uniforms; Blender then raises ValueError.
-    try:
-        program.uniform_int(name, value)
-    except ValueError:
-        pass
-
-
-def _set_float(program, name, value) -> None:
-    try:
-        program.uniform_float(name, value)
-    except ValueError:
-        pass
 
 
 def _groups(count: int, group: int) -> int:
@@ -358,9 +343,9 @@ class VSGLGeneration:
                 gpu.state.depth_test_set("NONE")
                 gpu.state.depth_mask_set(False)
                 moments.bind()
-                _set_int(moments, "rsm_size", size)
-                _set_int(moments, "moment_layout", 1 if two_vsgl else 0)
-                _set_int(moments, "use_custom_pdf", 0 if pdf_texture is None else 1)
+                set_uniform(moments.uniform_int, "rsm_size", size)
+                set_uniform(moments.uniform_int, "moment_layout", 1 if two_vsgl else 0)
+                set_uniform(moments.uniform_int, "use_custom_pdf", 0 if pdf_texture is None else 1)
                 moments.uniform_sampler("rsm_position", rsm_textures.position)
                 moments.uniform_sampler("rsm_normal", rsm_textures.normal)
                 moments.uniform_sampler("rsm_flux_diffuse", rsm_textures.flux_diffuse)
@@ -381,7 +366,7 @@ class VSGLGeneration:
                     for plane, texture in enumerate(self.level0):
                         x, y = layout.origin(1, plane)
                         gpu.state.viewport_set(x, y, side, side)
-                        _set_int(first, "target_origin", (x, y))
+                        set_uniform(first.uniform_int, "target_origin", (x, y))
                         first.uniform_sampler("level0_source", texture)
                         batch.draw(first)
         finally:
@@ -395,11 +380,11 @@ class VSGLGeneration:
             return
         reduce = shader("mip_reduce")
         reduce.bind()
-        _set_int(reduce, "rsm_size", size)
+        set_uniform(reduce.uniform_int, "rsm_size", size)
         reduce.image("mip_atlas", self.atlas)
         for level in range(2, layout.top_level + 1):
             side = size >> level
-            _set_int(reduce, "level", level)
+            set_uniform(reduce.uniform_int, "level", level)
             gpu.compute.dispatch(reduce, _groups(side, _REDUCE_GROUP[0]), _groups(side, _REDUCE_GROUP[1]),
                                  ATLAS_PLANES)
 
@@ -428,11 +413,11 @@ class VSGLGeneration:
         self.vsgl_count = count
         kernels = shader("vsgl_kernels")
         kernels.bind()
-        _set_int(kernels, "rsm_size", self.layout.size)
-        _set_int(kernels, "vsgl_count", count)
-        _set_int(kernels, "kernel_mode", _KERNEL_MODE_INDEX[kernel])
-        _set_float(kernels, "kernel_k", k)
-        _set_int(kernels, "lattice_rotation_fixed", rotation_fixed_point(rotation))
+        set_uniform(kernels.uniform_int, "rsm_size", self.layout.size)
+        set_uniform(kernels.uniform_int, "vsgl_count", count)
+        set_uniform(kernels.uniform_int, "kernel_mode", _KERNEL_MODE_INDEX[kernel])
+        set_uniform(kernels.uniform_float, "kernel_k", k)
+        set_uniform(kernels.uniform_int, "lattice_rotation_fixed", rotation_fixed_point(rotation))
         self._bind_levels(kernels)
         kernels.image("vsgl_table", self.table)
         gpu.compute.dispatch(kernels, _groups(count, _KERNEL_GROUP[0]), 1, 1)

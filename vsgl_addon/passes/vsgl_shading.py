@@ -52,6 +52,7 @@ import numpy as np
 
 from ..reference.vsgl_shading import DIFFUSE_MODES
 from ..shaders import ShaderInterface, create_shader
+from .gpu_util import set_uniform
 from .vsgl_generation import MAX_VSGL_COUNT, TABLE_ROWS, read_texture
 
 _MODE_INDEX = {"cosine": 0, "sg-convolution": 1}
@@ -93,14 +94,6 @@ def free_shaders() -> None:
     global _batch
     _batch = None
     _shaders.clear()
-
-
-def _uniform(setter, name, value) -> None:
-    # The GLSL compiler drops uniforms a variant does not use; Blender then raises ValueError.
-    try:
-        setter(name, value)
-    except ValueError:
-        pass
 
 
 def _fullscreen_triangle():
@@ -260,8 +253,8 @@ class VSGLShading:
                 gpu.state.depth_test_set("NONE")
                 gpu.state.depth_mask_set(False)
                 program.bind()
-                _uniform(program.uniform_float, "camera", camera_uniform(camera))
-                _uniform(program.uniform_int, "roughness_is_perceptual",
+                set_uniform(program.uniform_float, "camera", camera_uniform(camera))
+                set_uniform(program.uniform_int, "roughness_is_perceptual",
                          1 if gbuffer.roughness_is_perceptual else 0)
                 program.uniform_sampler("gbuffer_position", gbuffer.position)
                 program.uniform_sampler("gbuffer_normal", gbuffer.normal)
@@ -270,8 +263,8 @@ class VSGLShading:
                 for index, table in enumerate(tables):
                     # The first table writes, the others add (ONE, ONE), alpha 0.
                     gpu.state.blend_set("NONE" if index == 0 else "ADDITIVE_PREMULT")
-                    _uniform(program.uniform_int, "accumulate", 0 if index == 0 else 1)
-                    _uniform(program.uniform_int, "vsgl_count", int(table.count))
+                    set_uniform(program.uniform_int, "accumulate", 0 if index == 0 else 1)
+                    set_uniform(program.uniform_int, "vsgl_count", int(table.count))
                     program.uniform_sampler("vsgl_table", table.texture)
                     batch.draw(program)
         finally:
