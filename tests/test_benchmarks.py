@@ -1,0 +1,30 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The README's benchmarks still run (smoke tests: small subsets; the figures are the benchmarks' job)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _run(*arguments, timeout):
+    return subprocess.run([sys.executable, *map(str, arguments)], cwd=REPO, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def test_vsgl_generation_benchmark_prints_its_table():
+    result = _run("benchmarks/vsgl_generation.py", "--repeats", 1, "--counts", 64, "--sizes", 64, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert "| RSM | N |" in result.stdout and "overhead" in result.stdout
+
+
+def test_speed_accuracy_benchmark_quick_run_writes_table_plot_and_targets():
+    result = _run("benchmarks/speed_accuracy.py", "--quick", timeout=600)
+    assert result.returncode == 0, result.stderr
+    results = REPO / "benchmarks" / "results"
+    table = (results / "speed_accuracy_quick.md").read_text()
+    assert "Targets" in table and ("PASS" in table or "FAIL" in table)
+    assert (results / "speed_accuracy_quick.png").stat().st_size > 10_000
