@@ -109,11 +109,9 @@ def _same_view(a: ViewRequest, b: ViewRequest) -> bool:
 
 
 def _rgba_texture(rgb: np.ndarray, alpha: np.ndarray):
-    import gpu
+    from .passes.gpu_util import texture_from_array
 
-    data = np.ascontiguousarray(np.concatenate([rgb, alpha[..., None]], axis=-1), dtype=np.float32)
-    height, width = data.shape[:2]
-    return gpu.types.GPUTexture((width, height), format="RGBA32F", data=gpu.types.Buffer("FLOAT", data.shape, data))
+    return texture_from_array(np.concatenate([rgb, alpha[..., None]], axis=-1))
 
 
 class OverlayCache:

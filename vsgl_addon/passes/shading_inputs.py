@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from ..shaders import ShaderInterface, create_shader
 from .gbuffer import ATTACHMENTS as GBUFFER_ATTACHMENTS
+from .gpu_util import fullscreen_triangle_batch
 from .vsgl_shading import ShadingGBuffer, camera_uniform
 
 _shaders: dict[str, object] = {}
@@ -50,9 +51,7 @@ def free_shaders() -> None:
 def _fullscreen_batch():
     global _batch
     if _batch is None:
-        from gpu_extras.batch import batch_for_shader
-
-        _batch = batch_for_shader(shader(), "TRIS", {"position": [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]})
+        _batch = fullscreen_triangle_batch(shader())
     return _batch
 
 

@@ -158,7 +158,7 @@ def _groups(count: int, group: int) -> int:
 
 
 # --- Textures --------------------------------------------------------------------------------
-# RGBA32F uploads and read-backs come from .gpu_util (vsgl_shading imports read_texture from here).
+# RGBA32F uploads and read-backs come from .gpu_util.
 
 
 @dataclass
@@ -351,11 +351,8 @@ class VSGLGeneration:
                 moments.uniform_sampler("rsm_flux_diffuse", rsm_textures.flux_diffuse)
                 moments.uniform_sampler("rsm_flux_specular", rsm_textures.flux_specular)
                 moments.uniform_sampler("rsm_specular_axis", rsm_textures.specular_axis)
-                try:
-                    moments.uniform_sampler("pdf_image", pdf_texture if pdf_texture is not None
-                                            else rsm_textures.flux_diffuse)
-                except ValueError:
-                    pass
+                set_uniform(moments.uniform_sampler, "pdf_image",
+                            pdf_texture if pdf_texture is not None else rsm_textures.flux_diffuse)
                 batch.draw(moments)
             if layout.top_level >= 1:
                 # Level 1 of each plane: a draw into its region of the atlas.
@@ -391,10 +388,7 @@ class VSGLGeneration:
     def _bind_levels(self, program) -> None:
         """Bind the mip chains for reading (level-0 textures as samplers, the atlas as an image)."""
         for plane, texture in enumerate(self.level0):
-            try:
-                program.uniform_sampler(f"level0_plane{plane}", texture)
-            except ValueError:  # unused by this shader variant
-                pass
+            set_uniform(program.uniform_sampler, f"level0_plane{plane}", texture)
         program.image("mip_atlas", self.atlas)
 
     def generate(self, vsgl_count: int, k: float = 1.0, kernel: str = "modified",

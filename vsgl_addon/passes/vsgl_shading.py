@@ -52,8 +52,8 @@ import numpy as np
 
 from ..reference.vsgl_shading import DIFFUSE_MODES
 from ..shaders import ShaderInterface, create_shader
-from .gpu_util import set_uniform
-from .vsgl_generation import MAX_VSGL_COUNT, TABLE_ROWS, read_texture
+from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, texture_from_array
+from .vsgl_generation import MAX_VSGL_COUNT, TABLE_ROWS
 
 _MODE_INDEX = {"cosine": 0, "sg-convolution": 1}
 _shaders: dict[str, object] = {}
@@ -99,20 +99,8 @@ def free_shaders() -> None:
 def _fullscreen_triangle():
     global _batch
     if _batch is None:
-        from gpu_extras.batch import batch_for_shader
-
-        _batch = batch_for_shader(shader("cosine"), "TRIS",
-                                  {"position": [(-1.0, -1.0), (3.0, -1.0), (-1.0, 3.0)]})
+        _batch = fullscreen_triangle_batch(shader("cosine"))
     return _batch
-
-
-def _texture(array: np.ndarray):
-    import gpu
-
-    data = np.ascontiguousarray(array, dtype=np.float32)
-    height, width = data.shape[:2]
-    return gpu.types.GPUTexture((width, height), format="RGBA32F",
-                                data=gpu.types.Buffer("FLOAT", data.shape, data))
 
 
 def _rgba(array, fourth=None) -> np.ndarray:
@@ -144,9 +132,10 @@ def upload_gbuffer(position, coverage, normal, roughness, diffuse_reflectance, s
     position = np.asarray(position)
     height, width = position.shape[:2]
     return ShadingGBuffer(
-        position=_texture(_rgba(position, coverage)), normal=_texture(_rgba(normal, roughness)),
-        diffuse_reflectance=_texture(_rgba(diffuse_reflectance)),
-        specular_f0=_texture(_rgba(specular_f0)), width=width, height=height,
+        position=texture_from_array(_rgba(position, coverage)),
+        normal=texture_from_array(_rgba(normal, roughness)),
+        diffuse_reflectance=texture_from_array(_rgba(diffuse_reflectance)),
+        specular_f0=texture_from_array(_rgba(specular_f0)), width=width, height=height,
         roughness_is_perceptual=roughness_is_perceptual)
 
 
@@ -187,7 +176,7 @@ def upload_vsgl_table(vsgls) -> VSGLTable:
     count = len(np.asarray(vsgls["variance"]).reshape(-1))
     if count > MAX_VSGL_COUNT:
         raise ValueError(f"at most {MAX_VSGL_COUNT} VSGLs per table, got {count}")
-    return VSGLTable(_texture(table_array(vsgls)), count)
+    return VSGLTable(texture_from_array(table_array(vsgls)), count)
 
 
 def camera_uniform(camera) -> tuple[float, float, float, float]:
@@ -243,7 +232,7 @@ class VSGLShading:
         self._targets(width, height)
         if not tables:  # still one draw: coverage in alpha, zero radiance
             if self._empty_table is None:
-                self._empty_table = _texture(np.zeros((TABLE_ROWS, 1, 4), np.float32))
+                self._empty_table = texture_from_array(np.zeros((TABLE_ROWS, 1, 4), np.float32))
             tables = [VSGLTable(self._empty_table, 0)]
         saved = (gpu.state.blend_get(), gpu.state.depth_test_get(), gpu.state.depth_mask_get(),
                  tuple(gpu.state.viewport_get()))
