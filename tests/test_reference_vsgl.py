@@ -75,7 +75,9 @@ def all_finite(out):
 
 def check_shapes(out, count):
     expected = {
-        "mean": (count, 3), "variance": (count,), "diffuse_amplitude": (count, 3),
+        "mean": (count, 3), "variance": (count,), "diffuse_mean": (count, 3),
+        "diffuse_variance": (count,), "specular_mean": (count, 3), "specular_variance": (count,),
+        "diffuse_amplitude": (count, 3),
         "diffuse_axis": (count, 3), "diffuse_sharpness": (count,), "specular_amplitude": (count, 3),
         "specular_axis": (count, 3), "specular_sharpness": (count,), "power": (count, 3),
         "kernel_center": (count, 2), "kernel_level": (count,), "rsm_total_power": (3,),
@@ -87,6 +89,7 @@ def check_sane(out, count, top_level):
     check_shapes(out, count)
     assert all_finite(out)
     assert np.all(out["variance"] > 0.0)
+    assert np.all(out["diffuse_variance"] > 0.0) and np.all(out["specular_variance"] > 0.0)
     assert np.all(out["diffuse_sharpness"] >= 0.0) and np.all(out["specular_sharpness"] >= 0.0)
     assert np.all(out["diffuse_sharpness"] <= vsgl.MAX_SHARPNESS * (1 + 1e-12))
     assert np.all(out["specular_sharpness"] <= vsgl.MAX_SHARPNESS * (1 + 1e-12))
@@ -145,8 +148,10 @@ def test_mip_chain_levels_are_block_means_of_the_app_b3_quantities():
             w_d[..., None] * (LAMBDA_D / (LAMBDA_D + 1.0)) * rsm.normal,  # 000 Eq. 6, Toksvig
             rsm.flux_specular,
             w_s[..., None] * (lam_s / (lam_s + 1.0))[..., None] * rsm.specular_axis,
-            w[..., None] * rsm.position,
-            (w * (rsm.position**2).sum(-1))[..., None],
+            w_d[..., None] * rsm.position,  # per-lobe position moments; their sum is app. B.2's
+            (w_d * (rsm.position**2).sum(-1))[..., None],
+            w_s[..., None] * rsm.position,
+            (w_s * (rsm.position**2).sum(-1))[..., None],
         ],
         axis=-1,
     )
@@ -388,6 +393,73 @@ def test_vsgl_parameters_of_the_whole_rsm_match_appendix_b():
     # c_v A(λ_v) = Σ ΦR: the SG carries the cluster's power (000 app. B.1).
     np.testing.assert_allclose(out["diffuse_amplitude"][0] * sg_integral(out["diffuse_sharpness"][0]),
                                fd.sum(0), rtol=1e-12)
+
+
+def test_per_lobe_positions_are_each_lobes_power_centroid():
+    """'per-lobe': µ, σ² of each lobe weighted by its own power (lum Φ Rd, resp. lum Φ Rs), the
+    formulas of 000 app. B.2 with the lobe's weight; 'shared' and ``mean``/``variance``: the paper's
+    weight lum Φ (Rd + Rs) for both lobes."""
+    size = 8
+    rsm = make_rsm(size, seed=7)
+    totals = vsgl.texel_moments(rsm).reshape(-1, vsgl.MOMENT_CHANNELS).sum(0)
+    fd = rsm.flux_diffuse.reshape(-1, 3)
+    fs = rsm.flux_specular.reshape(-1, 3)
+    y = rsm.position.reshape(-1, 3)
+    per_lobe = vsgl.vsgl_parameters(totals[None], positional_distribution="per-lobe")
+    shared = vsgl.vsgl_parameters(totals[None], positional_distribution="shared")
+    for lobe, flux in (("diffuse", fd), ("specular", fs)):
+        weight = flux @ LUM
+        mu = (weight[:, None] * y).sum(0) / weight.sum()
+        var = (weight * ((y - mu) ** 2).sum(-1)).sum() / weight.sum()
+        np.testing.assert_allclose(per_lobe[f"{lobe}_mean"][0], mu, rtol=1e-12)
+        np.testing.assert_allclose(per_lobe[f"{lobe}_variance"][0], var, rtol=1e-10)
+        np.testing.assert_array_equal(shared[f"{lobe}_mean"], shared["mean"])
+        np.testing.assert_array_equal(shared[f"{lobe}_variance"], shared["variance"])
+    for key in ("mean", "variance", "diffuse_amplitude", "specular_axis", "power"):
+        np.testing.assert_array_equal(per_lobe[key], shared[key])
+    with pytest.raises(ValueError, match="positional_distribution"):
+        vsgl.vsgl_parameters(totals[None], positional_distribution="split")
+    with pytest.raises(ValueError, match="positional_distribution"):
+        vsgl.generate_vsgls(rsm, 4, positional_distribution="")
+
+
+def test_per_lobe_positions_keep_two_materials_apart():
+    """A cluster spanning a diffuse-only floor and a specular-only (metal) block above it: the
+    shared mean floats between the two surfaces, the per-lobe means stay on each; a lobe without
+    power takes the combined position (finite). Where every texel has the same Rd : Rs the two
+    distributions coincide."""
+    size = 8
+    v, u = _grid(size)
+    metal = u > 0.5
+    position = np.stack([u, v, np.where(metal, 1.0, 0.0)], -1)
+    normal = np.broadcast_to([0.0, 0.0, 1.0], (size, size, 3)).copy()
+    flux_d = np.where(metal[..., None], 0.0, 1.0) * np.ones((size, size, 3))
+    flux_s = np.where(metal[..., None], 3.0, 0.0) * np.ones((size, size, 3))
+    rsm = vsgl.RSM(position, normal, flux_d, flux_s, normal, np.full((size, size), 100.0))
+    uniform = np.ones((size, size))  # N = 1, K = 1, p = 1: Eq. 1 gives the whole RSM
+    per_lobe = vsgl.generate_vsgls(rsm, 1, kernel="original", seed=None, pdf=uniform,
+                                   positional_distribution="per-lobe")
+    shared = vsgl.generate_vsgls(rsm, 1, kernel="original", seed=None, pdf=uniform,
+                                 positional_distribution="shared")
+    assert per_lobe["kernel_level"][0] == 3.0  # one cluster: the whole RSM
+    np.testing.assert_allclose(per_lobe["diffuse_mean"][0, 2], 0.0, atol=1e-14)
+    np.testing.assert_allclose(per_lobe["specular_mean"][0, 2], 1.0, rtol=1e-14)
+    np.testing.assert_allclose(shared["diffuse_mean"][0, 2], 0.75, rtol=1e-12)  # 3 : 1 power
+    np.testing.assert_allclose(per_lobe["diffuse_mean"][0, :2], [0.25, 0.5], rtol=1e-12)
+    # A cluster of the floor alone has no specular power: its specular lobe sits at the combined mean.
+    floor_only = vsgl.RSM(position, normal, flux_d, 0.0 * flux_s, normal, np.full((size, size), 100.0))
+    out = vsgl.generate_vsgls(floor_only, 4, positional_distribution="per-lobe")
+    np.testing.assert_array_equal(out["specular_mean"], out["mean"])
+    np.testing.assert_array_equal(out["specular_variance"], out["variance"])
+    assert all_finite(out)
+    # Same Rd : Rs everywhere: both distributions give the same positions (to rounding).
+    rsm = make_rsm(16, seed=3, flux_specular=0.25 * make_rsm(16, seed=3).flux_diffuse)
+    a = vsgl.generate_vsgls(rsm, 64, positional_distribution="per-lobe")
+    b = vsgl.generate_vsgls(rsm, 64, positional_distribution="shared")
+    for key in ("diffuse_mean", "specular_mean"):
+        np.testing.assert_allclose(a[key], b[key], rtol=1e-10, atol=1e-12)
+    for key in ("diffuse_variance", "specular_variance"):
+        np.testing.assert_allclose(a[key], b[key], rtol=1e-8)
 
 
 def test_toksvig_round_trip_for_identical_lobes():

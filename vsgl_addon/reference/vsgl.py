@@ -97,18 +97,37 @@ VARIANCE_FLOOR_ABSOLUTE = 1e-12
 KERNEL_MODES = ("modified", "original", "two-vsgl")
 
 #: Channels of the per-texel moment image (mip-chained; "w" = luminance of the RGB power):
-#: Σ Φ Rd, Σ w_d ξ̄_d, Σ Φ Rs, Σ w_s ξ̄_s, Σ w y, Σ w |y|² (000 app. B.3, Fig. 4).
+#: Σ Φ Rd, Σ w_d ξ̄_d, Σ Φ Rs, Σ w_s ξ̄_s (000 app. B.1, B.3), and the position moments of each
+#: lobe, Σ w_d y, Σ w_d |y|², Σ w_s y, Σ w_s |y|². 000 app. B.2-B.3 keeps one pair, Σ w y and
+#: Σ w |y|² with w = w_d + w_s: it is the sum of the two (``combined_position_moments``), so both
+#: positional distributions (``POSITIONAL_DISTRIBUTIONS``) come from the same mip chains.
 CH_DIFFUSE = slice(0, 3)
 CH_DIFFUSE_DIRECTION = slice(3, 6)
 CH_SPECULAR = slice(6, 9)
 CH_SPECULAR_DIRECTION = slice(9, 12)
-CH_POSITION = slice(12, 15)
-CH_POSITION_SQUARED = 15
-MOMENT_CHANNELS = 16
+CH_DIFFUSE_POSITION = slice(12, 15)
+CH_DIFFUSE_POSITION_SQUARED = 15
+CH_SPECULAR_POSITION = slice(16, 19)
+CH_SPECULAR_POSITION_SQUARED = 19
+MOMENT_CHANNELS = 20
+
+#: Where a VSGL's lobes are placed. "shared": 000 app. B.2 as written, one isotropic Gaussian per
+#: VSGL weighted by Φ (Rd + Rs) for both lobes ("not divided into diffuse and specular components
+#: in order to avoid the increase of visibility tests"). "per-lobe": each lobe's own Gaussian,
+#: weighted by its own power (Φ Rd, resp. Φ Rs); it differs only in clusters that mix surfaces of
+#: different materials, where the shared mean moves one surface's light onto the other (000 §6,
+#: Fig. 7's world-space limitation). The add-on has no VSGL visibility, so the paper's reason for
+#: sharing does not apply; "shared" stays available and the combined ``mean``/``variance`` are
+#: always returned (what a per-VSGL shadow map would use).
+POSITIONAL_DISTRIBUTIONS = ("per-lobe", "shared")
 
 OUTPUT_KEYS = (
     "mean",
     "variance",
+    "diffuse_mean",
+    "diffuse_variance",
+    "specular_mean",
+    "specular_variance",
     "diffuse_amplitude",
     "diffuse_axis",
     "diffuse_sharpness",
@@ -202,18 +221,17 @@ def _toksvig_mean_direction(axis, sharpness):
 
 
 def texel_moments(rsm: RSM) -> np.ndarray:
-    """Per-texel VPL moments (H, W, 16) of 000 app. B.3 (channel layout: ``CH_*``).
+    """Per-texel VPL moments (H, W, 20) of 000 app. B.3 (channel layout: ``CH_*``).
 
-    Σ Φ Rd, Σ w_d ξ̄_d, Σ Φ Rs, Σ w_s ξ̄_s, Σ w y, Σ w |y|² with w_d = lum(Φ Rd), w_s = lum(Φ Rs),
-    w = w_d + w_s = lum(Φ (Rd + Rs)); ξ̄_d = λ_d/(λ_d + 1) n with λ_d = DIFFUSE_SHARPNESS (000 Eq. 6)
+    Σ Φ Rd, Σ w_d ξ̄_d, Σ Φ Rs, Σ w_s ξ̄_s, Σ w_d y, Σ w_d |y|², Σ w_s y, Σ w_s |y|² with
+    w_d = lum(Φ Rd), w_s = lum(Φ Rs); ξ̄_d = λ_d/(λ_d + 1) n with λ_d = DIFFUSE_SHARPNESS (000 Eq. 6)
     and ξ̄_s = λ_s/(λ_s + 1) ξ_s (000 Eq. 7). Texels without power contribute zeros everywhere.
     """
     w_d = luminance(rsm.flux_diffuse)
     w_s = luminance(rsm.flux_specular)
-    w = w_d + w_s
     lit_d = w_d > 0.0
     lit_s = w_s > 0.0
-    lit = w > 0.0
+    lit = (w_d + w_s) > 0.0
     normal = _unit_or_zero(rsm.normal, lit_d)
     spec_axis = _unit_or_zero(rsm.specular_axis, lit_s)
     spec_sharpness = np.where(lit_s, rsm.specular_sharpness, 0.0)
@@ -231,9 +249,19 @@ def texel_moments(rsm: RSM) -> np.ndarray:
     out[..., CH_SPECULAR_DIRECTION] = w_s[..., None] * _toksvig_mean_direction(
         spec_axis, spec_sharpness
     )
-    out[..., CH_POSITION] = w[..., None] * position
-    out[..., CH_POSITION_SQUARED] = w * np.sum(position * position, axis=-1)
+    squared = np.sum(position * position, axis=-1)
+    out[..., CH_DIFFUSE_POSITION] = w_d[..., None] * position
+    out[..., CH_DIFFUSE_POSITION_SQUARED] = w_d * squared
+    out[..., CH_SPECULAR_POSITION] = w_s[..., None] * position
+    out[..., CH_SPECULAR_POSITION_SQUARED] = w_s * squared
     return out
+
+
+def combined_position_moments(totals):
+    """Σ w y and Σ w |y|² with w = w_d + w_s (000 app. B.2-B.3) from moment totals (..., 20)."""
+    totals = _f64(totals)
+    return (totals[..., CH_DIFFUSE_POSITION] + totals[..., CH_SPECULAR_POSITION],
+            totals[..., CH_DIFFUSE_POSITION_SQUARED] + totals[..., CH_SPECULAR_POSITION_SQUARED])
 
 
 def default_pdf(rsm: RSM) -> np.ndarray:
@@ -256,7 +284,7 @@ def normalize_pdf(pdf) -> np.ndarray:
 
 @dataclass(frozen=True)
 class RSMMipmaps:
-    """Mip chains of an RSM: ``moments`` (levels of (h, w, 16), means of ``texel_moments``) and
+    """Mip chains of an RSM: ``moments`` (levels of (h, w, 20), means of ``texel_moments``) and
     ``pdf`` (levels of (h, w), the density p = M · texel probability, so the top level is 1)."""
 
     moments: list
@@ -359,28 +387,48 @@ def _position(weight, position_sum, position_squared_sum, fallback_mean, fallbac
     return mean, np.maximum(variance, np.where(has, floor, VARIANCE_FLOOR_ABSOLUTE))
 
 
-def vsgl_parameters(totals, fallback_mean=None, fallback_variance=None) -> dict:
-    """VSGL parameters from cluster totals (..., 16) of ``texel_moments`` (000 app. B.1-B.3).
+def vsgl_parameters(totals, fallback_mean=None, fallback_variance=None,
+                    positional_distribution="per-lobe") -> dict:
+    """VSGL parameters from cluster totals (..., 20) of ``texel_moments`` (000 app. B.1-B.3).
 
-    Per lobe: ξ̄_v = Σ w ξ̄ / Σ w, ξ_v = ξ̄_v / |ξ̄_v|, λ_v = |ξ̄_v| / (1 - |ξ̄_v|), c_v = Σ ΦR / A(λ_v);
-    position: µ_v = Σ w y / Σ w, σ_v² = Σ w |y|² / Σ w - |µ_v|² with w = lum(Φ (Rd + Rs)).
-    Any common positive scale of the totals cancels except in c_v and ``power``.
+    Per lobe: ξ̄_v = Σ w ξ̄ / Σ w, ξ_v = ξ̄_v / |ξ̄_v|, λ_v = |ξ̄_v| / (1 - |ξ̄_v|), c_v = Σ ΦR / A(λ_v).
+    Position (000 app. B.2): ``mean``/``variance`` µ_v = Σ w y / Σ w, σ_v² = Σ w |y|² / Σ w - |µ_v|²
+    with w = lum(Φ (Rd + Rs)), always; ``diffuse_mean``/``diffuse_variance`` and
+    ``specular_mean``/``specular_variance``, what shading places each lobe with, are the same
+    formulas with w = lum(Φ Rd), resp. lum(Φ Rs), for ``positional_distribution`` "per-lobe", and
+    copies of ``mean``/``variance`` for "shared" (``POSITIONAL_DISTRIBUTIONS``). A lobe without
+    power takes the combined position. Any common positive scale of the totals cancels except in
+    c_v and ``power``.
     """
+    if positional_distribution not in POSITIONAL_DISTRIBUTIONS:
+        raise ValueError(f"positional_distribution must be one of {POSITIONAL_DISTRIBUTIONS}, "
+                         f"got {positional_distribution!r}")
     totals = _f64(totals)
     if fallback_mean is None:
         fallback_mean = np.zeros(3)
     if fallback_variance is None:
         fallback_variance = VARIANCE_FLOOR_ABSOLUTE
-    d_amp, d_axis, d_sharp = _lobe(totals[..., CH_DIFFUSE], totals[..., CH_DIFFUSE_DIRECTION])
-    s_amp, s_axis, s_sharp = _lobe(totals[..., CH_SPECULAR], totals[..., CH_SPECULAR_DIRECTION])
-    power = totals[..., CH_DIFFUSE] + totals[..., CH_SPECULAR]
-    mean, variance = _position(
-        luminance(power), totals[..., CH_POSITION], totals[..., CH_POSITION_SQUARED],
-        fallback_mean, fallback_variance,
-    )
+    d_power, s_power = totals[..., CH_DIFFUSE], totals[..., CH_SPECULAR]
+    d_amp, d_axis, d_sharp = _lobe(d_power, totals[..., CH_DIFFUSE_DIRECTION])
+    s_amp, s_axis, s_sharp = _lobe(s_power, totals[..., CH_SPECULAR_DIRECTION])
+    power = d_power + s_power
+    position_sum, position_squared_sum = combined_position_moments(totals)
+    mean, variance = _position(luminance(power), position_sum, position_squared_sum,
+                               fallback_mean, fallback_variance)
+    if positional_distribution == "per-lobe":
+        d_mean, d_variance = _position(luminance(d_power), totals[..., CH_DIFFUSE_POSITION],
+                                       totals[..., CH_DIFFUSE_POSITION_SQUARED], mean, variance)
+        s_mean, s_variance = _position(luminance(s_power), totals[..., CH_SPECULAR_POSITION],
+                                       totals[..., CH_SPECULAR_POSITION_SQUARED], mean, variance)
+    else:
+        d_mean, d_variance, s_mean, s_variance = mean, variance, mean.copy(), variance.copy()
     return {
         "mean": mean,
         "variance": variance,
+        "diffuse_mean": d_mean,
+        "diffuse_variance": d_variance,
+        "specular_mean": s_mean,
+        "specular_variance": s_variance,
         "diffuse_amplitude": d_amp,
         "diffuse_axis": d_axis,
         "diffuse_sharpness": d_sharp,
@@ -395,8 +443,9 @@ def _rsm_fallback(top_moments):
     """Mean and variance of the whole RSM (its 1x1 level): the position of power-less clusters."""
     totals = top_moments[0, 0]
     power = totals[CH_DIFFUSE] + totals[CH_SPECULAR]
+    position_sum, position_squared_sum = combined_position_moments(totals)
     mean, variance = _position(
-        luminance(power), totals[CH_POSITION], totals[CH_POSITION_SQUARED], np.zeros(3),
+        luminance(power), position_sum, position_squared_sum, np.zeros(3),
         VARIANCE_FLOOR_ABSOLUTE,
     )
     return mean, float(variance)
@@ -419,27 +468,19 @@ def two_vsgls(rsm) -> dict:
     No mipmap and no sampling: a parallel sum over the RSM (003, "VSGLのパラメータ: Reflective
     Shadow Maps全領域の平均"). Row 0 carries only the diffuse lobe, row 1 only the specular lobe.
     003 does not say which power weights each VSGL's position; a VSGL that emits only one lobe is
-    placed at that lobe's power centroid (weights lum(Φ Rd), resp. lum(Φ Rs)), which is what the
-    full method's shared weights lum(Φ (Rd + Rs)) reduce to for a cluster holding a single lobe.
-    ``power`` is exact: Σ Φ Rd and Σ Φ Rs, summing to the RSM total.
+    placed at that lobe's power centroid (weights lum(Φ Rd), resp. lum(Φ Rs)), which is what both
+    positional distributions give for a cluster holding a single lobe. ``power`` is exact:
+    Σ Φ Rd and Σ Φ Rs, summing to the RSM total.
     """
     rsm = RSM.coerce(rsm)
-    moments = texel_moments(rsm).reshape(-1, MOMENT_CHANNELS)
-    w_d = luminance(rsm.flux_diffuse).reshape(-1)
-    w_s = luminance(rsm.flux_specular).reshape(-1)
-    w = w_d + w_s
-    y = np.where((w > 0.0)[:, None], rsm.position.reshape(-1, 3), 0.0)
-    yy = np.sum(y * y, axis=-1)
-    total_mean, total_variance = _rsm_fallback(moments.sum(axis=0)[None, None])
+    totals = texel_moments(rsm).reshape(-1, MOMENT_CHANNELS).sum(axis=0)
+    total_mean, total_variance = _rsm_fallback(totals[None, None])
     rows = np.zeros((2, MOMENT_CHANNELS))
-    rows[0, CH_DIFFUSE] = moments[:, CH_DIFFUSE].sum(axis=0)
-    rows[0, CH_DIFFUSE_DIRECTION] = moments[:, CH_DIFFUSE_DIRECTION].sum(axis=0)
-    rows[0, CH_POSITION] = (w_d[:, None] * y).sum(axis=0)
-    rows[0, CH_POSITION_SQUARED] = (w_d * yy).sum()
-    rows[1, CH_SPECULAR] = moments[:, CH_SPECULAR].sum(axis=0)
-    rows[1, CH_SPECULAR_DIRECTION] = moments[:, CH_SPECULAR_DIRECTION].sum(axis=0)
-    rows[1, CH_POSITION] = (w_s[:, None] * y).sum(axis=0)
-    rows[1, CH_POSITION_SQUARED] = (w_s * yy).sum()
+    for channel in (CH_DIFFUSE, CH_DIFFUSE_DIRECTION, CH_DIFFUSE_POSITION, CH_DIFFUSE_POSITION_SQUARED):
+        rows[0, channel] = totals[channel]
+    for channel in (CH_SPECULAR, CH_SPECULAR_DIRECTION, CH_SPECULAR_POSITION,
+                    CH_SPECULAR_POSITION_SQUARED):
+        rows[1, channel] = totals[channel]
     out = vsgl_parameters(rows, total_mean, total_variance)
     out["kernel_center"] = np.full((2, 2), 0.5)
     out["kernel_level"] = np.full(2, float(mipmap.mip_level_count(rsm.size) - 1))
@@ -448,7 +489,7 @@ def two_vsgls(rsm) -> dict:
 
 
 def cluster_totals(maps: RSMMipmaps, center, texel, k, vsgl_count, kernel="modified"):
-    """Kernel levels (N) and cluster estimates (N, 16) of the moments at warped kernel centres.
+    """Kernel levels (N) and cluster estimates (N, 20) of the moments at warped kernel centres.
 
     ``center`` (N, 2) and ``texel`` (N, 2) as returned by ``mipmap.warp_hierarchical``.
     'modified': l_i from Eq. 3 (Algorithm 1), estimate M F̄(x_i, l_i) / (N p̄(x_i, l_i)) (Eq. 5).
@@ -475,7 +516,7 @@ def cluster_totals(maps: RSMMipmaps, center, texel, k, vsgl_count, kernel="modif
 
 
 def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
-                   rotation=None) -> dict:
+                   rotation=None, positional_distribution="per-lobe") -> dict:
     """Generate VSGLs from an RSM by filtered importance sampling (000 §4, app. B.3, app. D).
 
     rsm         an :class:`RSM` or a mapping with its field names.
@@ -485,8 +526,12 @@ def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
     seed        seed of the random lattice rotation (None: no rotation); ignored if ``rotation``.
     pdf         (H, W) non-negative image, normalized here; default: lum(Φ (Rd + Rs)).
     rotation    explicit Cranley-Patterson shift (2,) of the Fibonacci lattice.
+    positional_distribution  "per-lobe" (default) or "shared" (000 app. B.2 as written); see
+                ``POSITIONAL_DISTRIBUTIONS`` and ``vsgl_parameters``.
 
-    Returns a dict of float64 arrays, one row per VSGL: ``mean`` (N, 3), ``variance`` (N),
+    Returns a dict of float64 arrays, one row per VSGL: ``mean`` (N, 3), ``variance`` (N)
+    (000 app. B.2), ``diffuse_mean``/``specular_mean`` (N, 3), ``diffuse_variance``/
+    ``specular_variance`` (N) (the lobes' positions shading uses),
     ``diffuse_amplitude`` (N, 3), ``diffuse_axis`` (N, 3), ``diffuse_sharpness`` (N),
     ``specular_amplitude`` (N, 3), ``specular_axis`` (N, 3), ``specular_sharpness`` (N),
     ``power`` (N, 3) (the cluster's estimate of Σ Φ (Rd + Rs)), ``kernel_center`` (N, 2) in
@@ -494,6 +539,9 @@ def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
     """
     if kernel not in KERNEL_MODES:
         raise ValueError(f"kernel must be one of {KERNEL_MODES}, got {kernel!r}")
+    if positional_distribution not in POSITIONAL_DISTRIBUTIONS:
+        raise ValueError(f"positional_distribution must be one of {POSITIONAL_DISTRIBUTIONS}, "
+                         f"got {positional_distribution!r}")
     rsm = RSM.coerce(rsm)
     if kernel == "two-vsgl":
         return two_vsgls(rsm)
@@ -510,7 +558,7 @@ def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
     level, totals = cluster_totals(maps, center, texel, k, vsgl_count, kernel)
 
     fallback_mean, fallback_variance = _rsm_fallback(maps.moments[-1])
-    out = vsgl_parameters(totals, fallback_mean, fallback_variance)
+    out = vsgl_parameters(totals, fallback_mean, fallback_variance, positional_distribution)
     out["kernel_center"] = center
     out["kernel_level"] = level
     out["rsm_total_power"] = (rsm.flux_diffuse + rsm.flux_specular).reshape(-1, 3).sum(axis=0)

@@ -11,7 +11,9 @@ the specular SG of every VSGL both illuminate) gives one incoming-radiance SG (0
     ξµ = (µv − y_p)/|µv − y_p|,  λσ = |µv − y_p|²/σv²,
     Lin(ω) ≈ cv/(2πσv²) G(ω; −ξv, λv) G(ω; ξµ, λσ) = cin G(ω; ξin, λin),
 
-the product taken with ``sg.sg_product`` (stable exponent |ξm| − λ1 − λ2). Then, per lobe:
+the product taken with ``sg.sg_product`` (stable exponent |ξm| − λ1 − λ2), µv and σv² the lobe's
+own (``diffuse_mean``/``specular_mean``; ``vsgl.POSITIONAL_DISTRIBUTIONS``: the same for both
+lobes in the paper's "shared" form, 000 app. B.2). Then, per lobe:
 
 * **Diffuse** (000 app. C, cosine pulled out of the integral), mode ``"cosine"``:
   ``Ld = cin Rd/π · A(λin) ⟨ξin, n_p⟩`` with the exact A(λ) (``sg.sg_integral``), not its
@@ -71,9 +73,11 @@ ALPHA_MIN = 1e-3
 DIFFUSE_MODES = ("cosine", "sg-convolution")
 SPECULAR_COSINES = ("normal", "lobe-axis")
 
-#: VSGL fields read by shading (a dict from ``vsgl.generate_vsgls`` or ``read_table``).
-VSGL_KEYS = ("mean", "variance", "diffuse_amplitude", "diffuse_axis", "diffuse_sharpness",
-             "specular_amplitude", "specular_axis", "specular_sharpness")
+#: VSGL fields read by shading (a dict from ``vsgl.generate_vsgls`` or ``read_table``): each lobe
+#: with its own position (``vsgl.POSITIONAL_DISTRIBUTIONS``; equal for "shared").
+VSGL_KEYS = ("diffuse_mean", "diffuse_variance", "diffuse_amplitude", "diffuse_axis",
+             "diffuse_sharpness", "specular_mean", "specular_variance", "specular_amplitude",
+             "specular_axis", "specular_sharpness")
 
 
 def diffuse_mode_for_kernel(kernel: str) -> str:
@@ -167,18 +171,18 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
     rd = _f64(diffuse_reflectance).reshape(-1, 3)
     f0 = _f64(specular_f0).reshape(-1, 3)
     alpha = _f64(roughness).reshape(-1)
-    count = len(_f64(vsgls["variance"]).reshape(-1))
+    count = len(_f64(vsgls["diffuse_variance"]).reshape(-1))
     diffuse = np.zeros((len(position), 3))
     specular = np.zeros((len(position), 3))
     terms = []
     chunk = max(1, 400_000 // max(len(position), 1))
-    lobes = (("diffuse_amplitude", "diffuse_axis", "diffuse_sharpness"),
-             ("specular_amplitude", "specular_axis", "specular_sharpness"))
+    lobes = ("diffuse", "specular")
     for rows in _chunks(count, chunk):
-        mean = _f64(vsgls["mean"]).reshape(-1, 3)[rows][None]
-        variance = _f64(vsgls["variance"]).reshape(-1)[rows][None]
         part = []
-        for amp_key, axis_key, sharp_key in lobes:
+        for lobe in lobes:
+            amp_key, axis_key, sharp_key = (f"{lobe}_amplitude", f"{lobe}_axis", f"{lobe}_sharpness")
+            mean = _f64(vsgls[f"{lobe}_mean"]).reshape(-1, 3)[rows][None]
+            variance = _f64(vsgls[f"{lobe}_variance"]).reshape(-1)[rows][None]
             amplitude = _f64(vsgls[amp_key]).reshape(-1, 3)[rows][None]
             axis_in, lam_in, scale = incoming_sg(
                 position[:, None], mean, variance,
@@ -292,7 +296,7 @@ def brute_force_shading(vpls: VPLs, position, normal, view, diffuse_reflectance,
 
 def per_texel_vsgls(rsm) -> dict:
     """Every RSM texel its own VSGL (the N = M limit, 000 app. B with one VPL per cluster)."""
-    from .vsgl import texel_moments, vsgl_parameters
+    from .vsgl import MOMENT_CHANNELS, texel_moments, vsgl_parameters
 
     rsm = RSM.coerce(rsm)
-    return vsgl_parameters(texel_moments(rsm).reshape(-1, 16))
+    return vsgl_parameters(texel_moments(rsm).reshape(-1, MOMENT_CHANNELS))
