@@ -15,7 +15,8 @@ import pytest
 import scene_builders as sb
 
 REPO = Path(__file__).resolve().parents[1]
-PER_VSGL = {"light_index": (), "mean": (3,), "variance": (), "diffuse_amplitude": (3,), "diffuse_axis": (3,),
+PER_VSGL = {"light_index": (), "mean": (3,), "variance": (), "diffuse_mean": (3,), "diffuse_variance": (),
+            "specular_mean": (3,), "specular_variance": (), "diffuse_amplitude": (3,), "diffuse_axis": (3,),
             "diffuse_sharpness": (), "specular_amplitude": (3,), "specular_axis": (3,),
             "specular_sharpness": (), "power": (3,), "kernel_center": (2,), "kernel_level": ()}
 PER_LIGHT = {"rsm_total_power": (3,), "rsm_size": ()}
@@ -88,7 +89,14 @@ def test_flags_override_the_scene_for_this_run(demo_like_blend, tmp_path):
     table = _load(out)
     assert np.bincount(table["light_index"]).tolist() == [5, 5]
     assert table["rsm_size"].tolist() == [32, 32]
-    assert "original kernel, N = 5, K = 4, RSM 32², seed 7" in result.stdout
+    assert "original kernel, N = 5, K = 4, RSM 32², seed 7, per-lobe positions" in result.stdout
+    assert not np.array_equal(table["diffuse_mean"], table["specular_mean"])  # the default: per lobe
+    shared = _run("vsgl", demo_like_blend, "--out", out, "--vsgl-count", 5, "--positional-distribution", "shared")
+    assert shared.returncode == 0, shared.stderr
+    table = _load(out)
+    np.testing.assert_array_equal(table["diffuse_mean"], table["mean"])
+    np.testing.assert_array_equal(table["specular_variance"], table["variance"])
+    assert "shared positions" in shared.stdout
     two = _run("vsgl", demo_like_blend, "--out", out, "--kernel", "two-vsgl")
     assert two.returncode == 0, two.stderr
     table = _load(out)
@@ -117,6 +125,7 @@ def test_the_seed_moves_the_kernels_and_repeats_exactly(demo_like_blend, tmp_pat
     (["vsgl", "BLEND", "--out", "OUT", "--k", "nan"], "K must be a finite number"),
     (["vsgl", "BLEND", "--out", "OUT", "--rsm-size", "100"], "power of two"),
     (["vsgl", "BLEND", "--out", "OUT", "--kernel", "fancy"], "invalid choice"),
+    (["vsgl", "BLEND", "--out", "OUT", "--positional-distribution", "both"], "invalid choice"),
     (["vsgl", "BLEND", "--out", "OUT", "--vsgl-count", "many"], "not a whole number"),
     (["vsgl", "BLEND"], "required: --out"),
 ])

@@ -19,7 +19,7 @@ scene = bpy.context.scene
 objects = sorted((o.name, o.type, tuple(round(v, 4) for v in o.matrix_world.translation)) for o in scene.objects)
 lights = sorted((l.name, l.type, round(l.energy, 3), round(l.shadow_soft_size, 3)) for l in bpy.data.lights)
 v = scene.vsgl
-print(repr((objects, lights, (v.vsgl_count, v.k, v.kernel, v.rsm_size, v.seed),
+print(repr((objects, lights, (v.vsgl_count, v.k, v.kernel, v.rsm_size, v.seed, v.positional_distribution),
             (scene.render.resolution_x, scene.render.resolution_y), scene.camera.name)))
 unregister()
 """
@@ -39,4 +39,4 @@ def test_committed_demo_blend_is_what_the_script_builds(tmp_path):
     assert build.returncode == 0, build.stderr
     committed = _summary(REPO / "demo.blend")
     assert committed == _summary(rebuilt)
-    assert "('Spot', 'SPOT', 1500.0, 0.0)" in committed and "(256, 1.0, 'MODIFIED', 128, 0)" in committed
+    assert "('Spot', 'SPOT', 1500.0, 0.0)" in committed and "(256, 1.0, 'MODIFIED', 128, 0, 'PER_LOBE')" in committed

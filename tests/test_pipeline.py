@@ -45,3 +45,18 @@ def test_a_light_that_hits_nothing_costs_nothing_and_the_other_is_whole(kernel):
     expected = 2 * table["rsm_view_count"][down] if kernel == "two-vsgl" else 64
     assert rows.sum() == expected
     np.testing.assert_allclose(table["power"][rows].sum(axis=0), table["rsm_total_power"][down], rtol=0.05)
+
+
+def test_positional_distribution_setting_is_checked_and_read_from_the_scene():
+    from types import SimpleNamespace
+
+    from vsgl_addon.settings import SettingsError, VSGLSettings
+
+    assert VSGLSettings().positional_distribution == "per-lobe"
+    with pytest.raises(SettingsError, match="positional distribution must be one of per-lobe, shared"):
+        VSGLSettings(positional_distribution="paper")
+    properties = SimpleNamespace(vsgl_count=64, k=2.0, kernel="ORIGINAL", rsm_size=100, seed=3,
+                                 positional_distribution="SHARED")
+    settings = VSGLSettings.from_properties(properties)
+    assert (settings.positional_distribution, settings.rsm_size, settings.kernel) == ("shared", 128, "original")
+    assert settings.overridden(positional_distribution="per-lobe").positional_distribution == "per-lobe"

@@ -128,9 +128,12 @@ def test_property_ranges_and_tooltips(entry, baseline):
     kernel = props["kernel"]
     assert [item.identifier for item in kernel.enum_items] == ["MODIFIED", "ORIGINAL", "TWO_VSGL"]
     assert [item.name for item in kernel.enum_items] == ["Modified (Eq. 3)", "Original (Eqs. 1, 4)", "Two VSGLs (003)"]
-    for name in ("vsgl_count", "k", "kernel", "rsm_size", "seed"):
+    positions = props["positional_distribution"]
+    assert [item.identifier for item in positions.enum_items] == ["PER_LOBE", "SHARED"]
+    assert positions.default == "PER_LOBE"
+    for name in ("vsgl_count", "k", "kernel", "rsm_size", "seed", "positional_distribution"):
         assert len(props[name].description) > 40, f"{name} needs a tooltip that explains the trade"
-    for item in kernel.enum_items:
+    for item in (*kernel.enum_items, *positions.enum_items):
         assert len(item.description) > 40, item.identifier
 
 

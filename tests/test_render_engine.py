@@ -73,6 +73,7 @@ def test_render_report_has_timings_counts_parameters_and_renderer(rendered):
     assert {"rsm_and_vsgl_generation", "gbuffer", "direct_light", "vsgl_shading"} <= set(data["timings"])
     assert data["counts"]["vsgls"] == 64 and data["counts"]["lights"] == 1
     assert data["settings"]["vsgl_count"] == 64 and data["settings"]["kernel"] == "modified"
+    assert data["settings"]["positional_distribution"] == "per-lobe"
     assert data["resolution"] == [96, 72] and "llvmpipe" in data["gpu_renderer"]
     assert "vsgl_shading" in result.stdout
 
@@ -131,8 +132,9 @@ def test_engine_renders_through_blender_with_resolution_percentage(tmp_path):
 @pytest.mark.parametrize("settings", [
     VSGLSettings(vsgl_count=1), VSGLSettings(vsgl_count=4096, rsm_size=64), VSGLSettings(k=0.25),
     VSGLSettings(k=16.0), VSGLSettings(rsm_size=1), VSGLSettings(kernel="original", k=16.0),
-    VSGLSettings(kernel="two-vsgl", rsm_size=64),
-], ids=lambda s: f"N{s.vsgl_count}-K{s.k:g}-{s.kernel}-rsm{s.rsm_size}")
+    VSGLSettings(kernel="two-vsgl", rsm_size=64), VSGLSettings(vsgl_count=4096, positional_distribution="shared"),
+    VSGLSettings(vsgl_count=1, rsm_size=1, positional_distribution="shared"),
+], ids=lambda s: f"N{s.vsgl_count}-K{s.k:g}-{s.kernel}-rsm{s.rsm_size}-{s.positional_distribution}")
 def test_no_nan_or_inf_reaches_a_pixel_at_the_parameter_extremes(settings):
     scene = _small_scene()
     description = extract_scene(sb.depsgraph(scene))

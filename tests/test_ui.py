@@ -75,7 +75,7 @@ def test_sidebar_tab_and_render_properties_show_every_setting(registered):
         assert cls.is_registered
     sidebar = [cls for cls in ui.CLASSES if cls.bl_space_type == "VIEW_3D"]
     assert {cls.bl_category for cls in sidebar} == {"VSGL"} and {cls.bl_region_type for cls in sidebar} == {"UI"}
-    wanted = {"vsgl_count", "k", "kernel", "rsm_size", "seed", "show_overlay", "overlay_mode",
+    wanted = {"vsgl_count", "k", "kernel", "positional_distribution", "rsm_size", "seed", "show_overlay", "overlay_mode",
               "overlay_resolution_scale", "overlay_intensity"}
     for prefix in ("VIEW3D_PT_vsgl", "RENDER_PT_vsgl"):
         drawn = set()
@@ -106,7 +106,7 @@ def test_render_panels_only_with_the_vsgl_engine(registered):
 
 def test_pass_sections_name_real_properties_so_new_ones_slot_in(registered):
     names = [name for _heading, names in ui.PASS_SECTIONS for name in names]
-    assert set(names) == {"rsm_size", "vsgl_count", "k", "kernel", "seed"}
+    assert set(names) == {"rsm_size", "vsgl_count", "k", "kernel", "positional_distribution", "seed"}
     for name in names:
         assert name in registered.vsgl.bl_rna.properties
 

@@ -139,6 +139,18 @@ def identical_rsm(size, roughness=1e-3):
                     np.broadcast_to([0.1, 0.2, 0.4], shape + (3,)).copy(), axis, sharpness)
 
 
+def two_material_rsm(size, seed=6):
+    """A diffuse-only half and a specular-only half 0.8 higher: clusters at the seam hold two
+    surfaces, so the lobes' own positions (per-lobe distribution) differ from the shared one."""
+    rsm = smooth_rsm(size, seed)
+    v, u = _grid(size)
+    metal = (u > 0.5)[..., None]
+    position = rsm.position + np.where(metal, [0.0, 0.0, 0.8], 0.0)
+    return vsgl.RSM(position, rsm.normal, np.where(metal, 0.0, rsm.flux_diffuse),
+                    np.where(metal, 3.0 * rsm.flux_specular, 0.0), rsm.specular_axis,
+                    rsm.specular_sharpness)
+
+
 def empty_rsm(size):
     """A light that hits nothing: no flux anywhere, NaN geometry."""
     nan = np.full((size, size, 3), np.nan)
@@ -186,10 +198,13 @@ def parameter_errors(gpu, ref, rows=None, relative=RELATIVE):
         xi_bar = lam / (1.0 + lam)
         record(f"{lobe}_axis", _norm(g[f"{lobe}_axis"] - r[f"{lobe}_axis"]),
                relative + 2.0**-21 / np.maximum(xi_bar, 2.0**-21))
-    second = _second_moment(r)
-    record("mean", _norm(g["mean"] - r["mean"]), relative * np.sqrt(second) + 1e-30)
-    record("variance", np.abs(g["variance"] - r["variance"]),
-           relative * (second + r["variance"]) + 1e-30)
+    for prefix in ("", "diffuse_", "specular_"):
+        # The shared Gaussian (000 app. B.2) and each lobe's own (positional distributions).
+        second = r[f"{prefix}variance"] + np.sum(r[f"{prefix}mean"] ** 2, axis=-1)
+        record(f"{prefix}mean", _norm(g[f"{prefix}mean"] - r[f"{prefix}mean"]),
+               relative * np.sqrt(second) + 1e-30)
+        record(f"{prefix}variance", np.abs(g[f"{prefix}variance"] - r[f"{prefix}variance"]),
+               relative * (second + r[f"{prefix}variance"]) + 1e-30)
     record("power", _norm(g["power"] - r["power"]), relative * _norm(r["power"]) + 1e-30)
     return ratios
 
@@ -199,7 +214,7 @@ def _texel_of(center, size):
     return np.clip(texel[:, ::-1], 0, size - 1)  # (row, column)
 
 
-def _reference_at(rsm, pdf, center, level, k, count, kernel, texel=None):
+def _reference_at(rsm, pdf, center, level, k, count, kernel, texel=None, positional_distribution="per-lobe"):
     """The reference's cluster totals and VSGL parameters at given kernel centres and levels
     (and, for Eq. 4, the level-0 texels (row, column) the centres were warped into)."""
     maps = vsgl.build_mipmaps(rsm, pdf)
@@ -212,17 +227,19 @@ def _reference_at(rsm, pdf, center, level, k, count, kernel, texel=None):
     denominator = np.maximum(denominator, np.finfo(np.float64).tiny)
     totals = n * mipmap.trilinear(maps.moments, center, level) / denominator[:, None]
     mean, variance = vsgl._rsm_fallback(maps.moments[-1])
-    out = vsgl.vsgl_parameters(totals, mean, variance)
+    out = vsgl.vsgl_parameters(totals, mean, variance, positional_distribution)
     out["kernel_center"] = np.asarray(center)
     out["kernel_level"] = np.asarray(level)
     return out
 
 
-def compare_with_reference(rsm, count, k, kernel, rotation, pdf=None):
+def compare_with_reference(rsm, count, k, kernel, rotation, pdf=None, positional_distribution="per-lobe"):
     """GPU table vs reference; returns a dict of measured worst errors (asserts the tolerances)."""
     vg = _vg()
-    gpu = vg.generate_vsgls_gpu(rsm, count, k=k, kernel=kernel, rotation=rotation, pdf=pdf)
-    ref = vsgl.generate_vsgls(rsm, count, k=k, kernel=kernel, rotation=rotation, pdf=pdf)
+    gpu = vg.generate_vsgls_gpu(rsm, count, k=k, kernel=kernel, rotation=rotation, pdf=pdf,
+                                positional_distribution=positional_distribution)
+    ref = vsgl.generate_vsgls(rsm, count, k=k, kernel=kernel, rotation=rotation, pdf=pdf,
+                              positional_distribution=positional_distribution)
     _all_finite(gpu)
     assert set(vsgl.OUTPUT_KEYS) | {"rsm_total_power"} <= set(gpu)
     for name in vsgl.OUTPUT_KEYS:
@@ -268,7 +285,7 @@ def compare_with_reference(rsm, count, k, kernel, rotation, pdf=None):
     # Against the reference evaluated at the GPU's centres, levels and texels (Eq. 4 reads p in
     # the texel the warp chose; a float32 centre can round onto that texel's far edge): every row.
     at = _reference_at(coerced, pdf, gpu["kernel_center"], gpu["kernel_level"], k, count, kernel,
-                       gpu["kernel_texel"])
+                       gpu["kernel_texel"], positional_distribution)
     ratios = parameter_errors(gpu, at)
     assert max(ratios.values()) <= 1.0, ratios
     measured["ratios_fed"] = ratios
@@ -293,15 +310,35 @@ CASES = {
     "smooth64": lambda: smooth_rsm(64, 4),
     "checker64": lambda: checker_rsm(64),
     "single_texel16": lambda: single_texel_rsm(16),
+    "two_material32": lambda: two_material_rsm(32),
 }
 
 
+@pytest.mark.parametrize("positions", vsgl.POSITIONAL_DISTRIBUTIONS)
 @pytest.mark.parametrize("kernel", ["modified", "original", "two-vsgl"])
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_table_matches_reference(compiled, case, kernel):
+def test_table_matches_reference(compiled, case, kernel, positions):
     rsm = CASES[case]()
     for count, k, rotation in ((256, 1.0, (0.137, 0.733)), (61, 4.0, (0.91, 0.02))):
-        compare_with_reference(rsm, count, k, kernel, rotation)
+        compare_with_reference(rsm, count, k, kernel, rotation, positional_distribution=positions)
+
+
+def test_lobe_positions_on_the_gpu_differ_only_where_materials_mix(compiled):
+    """On the two-material RSM the per-lobe diffuse mean stays on the diffuse half (z below the
+    seam) and the shared mean does not; 'shared' writes the combined Gaussian into both lobes."""
+    vg = _vg()
+    rsm = two_material_rsm(32)
+    per_lobe = vg.generate_vsgls_gpu(rsm, 64, positional_distribution="per-lobe")
+    shared = vg.generate_vsgls_gpu(rsm, 64, positional_distribution="shared")
+    np.testing.assert_array_equal(shared["diffuse_mean"], shared["mean"])
+    np.testing.assert_array_equal(shared["specular_variance"], shared["variance"])
+    has_diffuse = vsgl.luminance(per_lobe["diffuse_amplitude"]) > 0.0
+    floor_top = np.max(np.where(np.isfinite(rsm.position[..., 2]), rsm.position[..., 2], -np.inf)[:, :16])
+    assert np.all(per_lobe["diffuse_mean"][has_diffuse, 2] <= floor_top + 1e-5)
+    mixed = has_diffuse & (vsgl.luminance(per_lobe["specular_amplitude"]) > 0.0)
+    assert mixed.any() and np.all(shared["mean"][mixed, 2] > per_lobe["diffuse_mean"][mixed, 2])
+    with pytest.raises(ValueError, match="positional_distribution"):
+        vg.generate_vsgls_gpu(rsm, 4, positional_distribution="both")
 
 
 def test_table_matches_reference_with_custom_pdf(compiled):
@@ -324,7 +361,7 @@ def test_lattice_points_match_reference(compiled):
 
 
 def test_mip_atlas_matches_reference_chains(compiled):
-    """Every level of the 16 moment channels and of the PDF, to float32 rounding.
+    """Every level of the 20 moment channels and of the PDF, to float32 rounding.
 
     Each level is a mean of 4 float32 values of the level below: k levels up, the rounding is at
     most ~(k + 2) 2^-24 of the mean of the absolute values (channels with signs cancel), plus the

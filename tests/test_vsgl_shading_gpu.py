@@ -149,8 +149,10 @@ def _conditioning(grid, reference, seed=11):
     return worst
 
 
-# The fused per-VSGL function the pass calls, with the lobe in the specular slot (the diffuse slot
-# has no power and is skipped): the same outputs as LOBE_BODY's.
+# The fused per-VSGL function the pass calls: the same outputs as LOBE_BODY's, with the lobe in the
+# diffuse slot (first call: diffuse_cosine and the specular outputs) and in the specular slot
+# (second call: diffuse_convolution); the other slot has no power and a position of its own, which
+# must not leak into the lobe's (per-lobe positions).
 FUSED_BODY = """
 vec3 axis_in; float sharpness_in; float s;
 vsgl_incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness, axis_in, sharpness_in, s);
@@ -158,10 +160,12 @@ incoming = vec4(axis_in, sharpness_in);
 scale = s;
 VSGLReceiver rc = vsgl_receiver(position, normal, view, roughness);
 vec3 d0 = vec3(0.0), d1 = vec3(0.0), sp = vec3(0.0), fr = vec3(0.0), unused_s = vec3(0.0), unused_f = vec3(0.0);
-vsgl_accumulate(rc, mean, variance, vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0, vec3(1.0), lobe_axis, lobe_sharpness,
-                VSGL_DIFFUSE_COSINE, d0, sp, fr);
-vsgl_accumulate(rc, mean, variance, vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0, vec3(1.0), lobe_axis, lobe_sharpness,
-                VSGL_DIFFUSE_SG_CONVOLUTION, d1, unused_s, unused_f);
+vec3 elsewhere = vec3(-7.0, 3.0, 1.0);
+vsgl_accumulate(rc, mean, variance, vec3(1.0), lobe_axis, lobe_sharpness,
+                elsewhere, 0.5, vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0, VSGL_DIFFUSE_COSINE, d0, sp, fr);
+vsgl_accumulate(rc, elsewhere, 0.5, vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0,
+                mean, variance, vec3(1.0), lobe_axis, lobe_sharpness, VSGL_DIFFUSE_SG_CONVOLUTION, d1,
+                unused_s, unused_f);
 diffuse_cosine = d0.x;
 diffuse_convolution = d1.x;
 specular_f0_1 = sp.x + fr.x;
@@ -303,7 +307,8 @@ def test_pass_matches_reference(gpu_context, floor_rsm, count):
     size = 16 if count == 1 else 8
     vsgls = generate_vsgls(floor_rsm, count)
     gbuffer = extreme_gbuffer(size, size)
-    gbuffer["position"][3, 2] = vsgls["mean"][0]  # a pixel at a VSGL's mean
+    gbuffer["position"][3, 2] = vsgls["diffuse_mean"][0]  # pixels at a VSGL lobe's mean
+    gbuffer["position"][4, 2] = vsgls["specular_mean"][0]
     gpu_d, gpu_s = shading_pass.shade_gpu(upload(gbuffer), CAMERA, vsgls)
     ref_d, ref_s = reference_image(gbuffer, [vsgls])
     assert_image_matches(gpu_d, ref_d, label=f"diffuse N={count}")
@@ -330,6 +335,9 @@ def extreme_vsgls():
     out = {key: np.array([row[i] for row in rows], dtype=np.float64) for i, key in enumerate(keys)}
     for key in ("diffuse_axis", "specular_axis"):
         out[key] = _unit(out[key])
+    # Each lobe at its own position (per-lobe distribution): the specular lobes shifted by one row.
+    out["diffuse_mean"], out["diffuse_variance"] = out["mean"], out["variance"]
+    out["specular_mean"], out["specular_variance"] = np.roll(out["mean"], 1, 0), np.roll(out["variance"], 1)
     return out
 
 
@@ -340,6 +348,7 @@ def test_pass_with_extreme_vsgls_and_several_tables(gpu_context, floor_rsm, diff
     two = generate_vsgls(floor_rsm, 2, kernel="two-vsgl")
     gbuffer = extreme_gbuffer(12, 12)
     gbuffer["position"][5, 1] = extreme["mean"][0]
+    gbuffer["position"][6, 1] = extreme["specular_mean"][0]
     gpu_d, gpu_s = shading_pass.shade_gpu(upload(gbuffer), CAMERA, [extreme, two], diffuse_mode)
     ref_d, ref_s = reference_image(gbuffer, [extreme, two], diffuse_mode=diffuse_mode)
     # The image spans 1e-9 ... 1e11 (a pixel at a VSGL of variance 1e-12): judged per pixel.

@@ -99,6 +99,7 @@ def build(out: Path) -> None:
         scene.vsgl.kernel = "MODIFIED"
         scene.vsgl.rsm_size = 128
         scene.vsgl.seed = 0
+        scene.vsgl.positional_distribution = "PER_LOBE"
         bpy.ops.wm.save_as_mainfile(filepath=str(out), compress=True)
     finally:
         unregister()

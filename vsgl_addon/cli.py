@@ -12,7 +12,7 @@ import tomllib
 from pathlib import Path
 
 from .gpu_context import GPUContextError
-from .settings import KERNEL_FROM_PROPERTY
+from .settings import KERNEL_FROM_PROPERTY, POSITIONAL_FROM_PROPERTY
 
 MANIFEST = Path(__file__).resolve().parent.parent / "blender_manifest.toml"
 
@@ -43,7 +43,7 @@ def _command_demo(arguments) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     arguments = argparse.Namespace(scene=str(DEMO_BLEND), out=str(out), report=str(out.with_suffix(".json")),
                                    resolution=arguments.resolution, vsgl_count=None, k=None, kernel=None,
-                                   rsm_size=None, seed=None, frame=None)
+                                   rsm_size=None, seed=None, positional_distribution=None, frame=None)
     print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
     return _command_render(arguments)
 
@@ -77,7 +77,8 @@ def _settings(scene, arguments):
     try:
         return VSGLSettings.from_properties(scene.vsgl).overridden(
             vsgl_count=arguments.vsgl_count, k=arguments.k, kernel=arguments.kernel,
-            rsm_size=arguments.rsm_size, seed=arguments.seed)
+            rsm_size=arguments.rsm_size, seed=arguments.seed,
+            positional_distribution=arguments.positional_distribution)
     except SettingsError as error:
         raise UsageError(str(error)) from None
 
@@ -117,7 +118,8 @@ def _command_vsgl(arguments) -> int:
         print(line, file=sys.stderr)
     print(f"{out}: {len(table['light_index'])} VSGLs from {len(table['rsm_size'])} lights "
           f"({settings.kernel} kernel, N = {settings.vsgl_count}, K = {settings.k:g}, "
-          f"RSM {settings.rsm_size}², seed {settings.seed}) in {seconds:.2f} s")
+          f"RSM {settings.rsm_size}², seed {settings.seed}, {settings.positional_distribution} positions) "
+          f"in {seconds:.2f} s")
     return 0
 
 
@@ -178,6 +180,8 @@ def _command_render(arguments) -> int:
         scene.vsgl.vsgl_count, scene.vsgl.k, scene.vsgl.rsm_size, scene.vsgl.seed = (
             settings.vsgl_count, settings.k, settings.rsm_size, settings.seed)
         scene.vsgl.kernel = {v: k for k, v in KERNEL_FROM_PROPERTY.items()}[settings.kernel]
+        scene.vsgl.positional_distribution = {
+            v: k for k, v in POSITIONAL_FROM_PROPERTY.items()}[settings.positional_distribution]
         scene.render.engine = ENGINE_ID
         if arguments.resolution:
             scene.render.resolution_x, scene.render.resolution_y = arguments.resolution
@@ -236,7 +240,10 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--resolution", type=_resolution, metavar="WxH", help="default: the scene's (480x360)")
     demo.set_defaults(run=_command_demo)
 
-    from .settings import KERNEL_MODES
+    from .settings import KERNEL_MODES, POSITIONAL_DISTRIBUTIONS
+
+    positional_help = ("where each VSGL's lobes sit: per-lobe (default; each lobe's own power centroid) or "
+                       "shared (000 app. B.2 as written)")
 
     vsgl = commands.add_parser(
         "vsgl", help="export the VSGLs of a .blend's scene (one row per VSGL) to a numpy .npz",
@@ -249,6 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
     vsgl.add_argument("--kernel", choices=KERNEL_MODES)
     vsgl.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
     vsgl.add_argument("--seed", type=_positive_int, metavar="S")
+    vsgl.add_argument("--positional-distribution", choices=POSITIONAL_DISTRIBUTIONS, help=positional_help)
     vsgl.set_defaults(run=_command_vsgl)
 
     render = commands.add_parser(
@@ -264,6 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--kernel", choices=KERNEL_MODES)
     render.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
     render.add_argument("--seed", type=_positive_int, metavar="S")
+    render.add_argument("--positional-distribution", choices=POSITIONAL_DISTRIBUTIONS, help=positional_help)
     render.add_argument("--frame", type=int, metavar="F")
     render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")
     render.set_defaults(run=_command_render)

@@ -22,11 +22,13 @@ from .reference.vsgl import LUMINANCE_WEIGHTS
 from .settings import VSGLSettings
 
 # Per-VSGL arrays of VSGL generation that the exported table keeps (one row per VSGL).
-VSGL_FIELDS = ("mean", "variance", "diffuse_amplitude", "diffuse_axis", "diffuse_sharpness",
+VSGL_FIELDS = ("mean", "variance", "diffuse_mean", "diffuse_variance", "specular_mean",
+               "specular_variance", "diffuse_amplitude", "diffuse_axis", "diffuse_sharpness",
                "specular_amplitude", "specular_axis", "specular_sharpness", "power",
                "kernel_center", "kernel_level")
-_FIELD_SHAPES = {"mean": (3,), "diffuse_amplitude": (3,), "diffuse_axis": (3,),
-                 "specular_amplitude": (3,), "specular_axis": (3,), "power": (3,), "kernel_center": (2,)}
+_FIELD_SHAPES = {"mean": (3,), "diffuse_mean": (3,), "specular_mean": (3,), "diffuse_amplitude": (3,),
+                 "diffuse_axis": (3,), "specular_amplitude": (3,), "specular_axis": (3,), "power": (3,),
+                 "kernel_center": (2,)}
 
 
 def share_vsgl_count(vsgl_count: int, view_powers) -> np.ndarray:
@@ -117,7 +119,7 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings) -> SceneVSGL
             generations = [VSGLGeneration() for _ in views]
             totals = []
             for view, generation in zip(views, generations):
-                generation.build_mip_atlas(view.rsm_textures(), two_vsgl=two_vsgl)
+                generation.build_mip_atlas(view.rsm_textures())
                 # One kernel is enough to read the view's total from the atlas's top level.
                 generation.generate(1 if not two_vsgl else 2, settings.k, settings.kernel)
                 totals.append(generation.read_table()["rsm_total_power"])
@@ -132,7 +134,8 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings) -> SceneVSGL
                     generation.free()
                     continue
                 generation.generate(int(count), settings.k, settings.kernel,
-                                    _rotation(settings.seed, light_index, view_index))
+                                    _rotation(settings.seed, light_index, view_index),
+                                    settings.positional_distribution)
                 result.generations.append((light_index, view_index, generation))
     except BaseException:
         result.free()

@@ -41,6 +41,19 @@ KERNEL_ITEMS = (
 )
 
 
+# Where each VSGL's two lobes sit (stored in .blend files: never rename the identifiers).
+POSITIONAL_DISTRIBUTION_ITEMS = (
+    ("PER_LOBE", "Per Lobe",
+     "Each VSGL's diffuse and specular light sit at their own centre and spread (weighted by the "
+     "diffuse, resp. specular power of its texels). Keeps a matte floor's bounce on the floor when a "
+     "cluster also holds a shiny object's texels; costs the same to shade", 0),
+    ("SHARED", "Shared (Paper)",
+     "One position for both lobes, weighted by the total power, as the paper writes it (000 app. B.2, "
+     "shared so one shadow map per VSGL serves both). Clusters mixing matte and shiny surfaces move "
+     "one surface's bounce light towards the other", 1),
+)
+
+
 # What the viewport overlay shows (stored in .blend files: never rename the identifiers).
 OVERLAY_MODE_ITEMS = (
     ("INDIRECT", "Indirect Only",
@@ -101,6 +114,12 @@ class VSGLSceneSettings(PropertyGroup):
         description="How the reflective shadow map is clustered into VSGLs",
         items=KERNEL_ITEMS,
         default="MODIFIED",
+    )
+    positional_distribution: EnumProperty(
+        name="Lobe Positions",
+        description="Where each VSGL's diffuse and specular light come from",
+        items=POSITIONAL_DISTRIBUTION_ITEMS,
+        default="PER_LOBE",
     )
     rsm_size: IntProperty(
         name="RSM Resolution",

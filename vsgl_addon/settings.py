@@ -13,6 +13,10 @@ from dataclasses import dataclass, replace
 KERNEL_MODES = ("modified", "original", "two-vsgl")
 # scene.vsgl.kernel identifiers (stored in .blend files) -> pass names (000 Eq. 3, Eqs. 1/4, 003).
 KERNEL_FROM_PROPERTY = {"MODIFIED": "modified", "ORIGINAL": "original", "TWO_VSGL": "two-vsgl"}
+# Where each VSGL's lobes sit (reference.vsgl.POSITIONAL_DISTRIBUTIONS): own power centroid per lobe,
+# or 000 app. B.2's one Gaussian for both.
+POSITIONAL_DISTRIBUTIONS = ("per-lobe", "shared")
+POSITIONAL_FROM_PROPERTY = {"PER_LOBE": "per-lobe", "SHARED": "shared"}
 
 VSGL_COUNT_RANGE = (1, 4096)
 K_RANGE = (0.25, 16.0)
@@ -42,6 +46,7 @@ class VSGLSettings:
     kernel: str = "modified"
     rsm_size: int = 128
     seed: int = 0
+    positional_distribution: str = "per-lobe"
 
     def __post_init__(self):
         _check_range("VSGL count", self.vsgl_count, *VSGL_COUNT_RANGE)
@@ -55,6 +60,9 @@ class VSGLSettings:
             raise SettingsError(f"RSM size must be a power of two, got {self.rsm_size}")
         if self.seed < 0:
             raise SettingsError(f"seed must be 0 or more, got {self.seed}")
+        if self.positional_distribution not in POSITIONAL_DISTRIBUTIONS:
+            raise SettingsError(f"positional distribution must be one of "
+                                f"{', '.join(POSITIONAL_DISTRIBUTIONS)}, got {self.positional_distribution!r}")
 
     @classmethod
     def from_properties(cls, properties) -> "VSGLSettings":
@@ -64,7 +72,8 @@ class VSGLSettings:
         """
         return cls(vsgl_count=int(properties.vsgl_count), k=float(properties.k),
                    kernel=KERNEL_FROM_PROPERTY[properties.kernel],
-                   rsm_size=nearest_power_of_two(properties.rsm_size), seed=int(properties.seed))
+                   rsm_size=nearest_power_of_two(properties.rsm_size), seed=int(properties.seed),
+                   positional_distribution=POSITIONAL_FROM_PROPERTY[properties.positional_distribution])
 
     def overridden(self, **values) -> "VSGLSettings":
         """A copy with the given values (None means keep), validated."""

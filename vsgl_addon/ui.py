@@ -22,7 +22,7 @@ from . import engine, overlay
 #: (heading, scene.vsgl property names), in pipeline order. Append an entry for a new pass's controls.
 PASS_SECTIONS = (
     ("Reflective Shadow Maps", ("rsm_size",)),
-    ("VSGL Generation", ("kernel", "vsgl_count", "k", "seed")),
+    ("VSGL Generation", ("kernel", "vsgl_count", "k", "positional_distribution", "seed")),
 )
 OVERLAY_PROPERTIES = ("overlay_mode", "overlay_resolution_scale", "overlay_intensity")
 TIMING_LABELS = {
@@ -66,7 +66,7 @@ def draw_pass_settings(layout, settings) -> None:
         for name in names:
             row = column.row()
             row.prop(settings, name)
-            if name in ("vsgl_count", "k") and settings.kernel == "TWO_VSGL":
+            if name in ("vsgl_count", "k", "positional_distribution") and settings.kernel == "TWO_VSGL":
                 row.enabled = False  # the two-VSGL mode ignores them (003)
 
 

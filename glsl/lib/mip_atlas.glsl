@@ -1,22 +1,22 @@
 // Mip chains of the RSM quantities, read with exact float32 weights (a Python GPUTexture has no mip
-// levels, shared/reference/blender-gpu.md). Five planes of four channels each
+// levels, shared/reference/blender-gpu.md). Six planes of four channels each
 // (vsgl_addon/passes/vsgl_generation.py):
 //   level 0 of plane p: its own RGBA32F texture, the sampler `level0_plane<p>` (S x S, written by a
 //   fragment pass: render targets are the fast path on every GPU and on llvmpipe);
 //   levels l >= 1 of all planes: one RGBA32F image `mip_atlas`. With H = S / 2 (side of level 1),
 //   plane p occupies rows [p H, (p + 1) H); level 1 at (0, p H), level l >= 2 at
 //   (H, p H + H - 2H / 2^(l-1)), each level below the previous one in the column right of level 1.
-//   Atlas size (H + H/2) x 5 H (1 x 1 when S = 1: no level >= 1).
+//   Atlas size (H + H/2) x 6 H (1 x 1 when S = 1: no level >= 1).
 // Texel (x, y) of a level = (column u, row v) of vsgl_addon/reference/mipmap.py: u runs along x, v
 // along y, row 0 uploaded first. Each level-l texel is the mean of its 2x2 children (reference
 // build_mip_chain).
 //
-// Shaders that @require this file declare the samplers level0_plane0 .. level0_plane4 and the
+// Shaders that @require this file declare the samplers level0_plane0 .. level0_plane5 and the
 // image mip_atlas in their create-info (on llvmpipe image loads measured ~25 % faster than texel
 // fetches through a sampler).
 
 const int MIP_ATLAS_MAX_LEVELS = 15;  // RSM side up to 2^14
-const int MIP_PLANES = 5;
+const int MIP_PLANES = 6;
 
 // Atlas position of texel (0, 0) of level `level` >= 1 of plane `plane` (RSM side `size`).
 ivec2 mip_atlas_origin(int size, int level, int plane)
@@ -40,8 +40,10 @@ vec4 level0_fetch(int plane, ivec2 texel)
       return texelFetch(level0_plane2, texel, 0);
     case 3:
       return texelFetch(level0_plane3, texel, 0);
-    default:
+    case 4:
       return texelFetch(level0_plane4, texel, 0);
+    default:
+      return texelFetch(level0_plane5, texel, 0);
   }
 }
 

@@ -143,21 +143,16 @@ void vsgl_accumulate_lobe(VSGLReceiver rc, vec3 mean, float variance, vec3 ampli
   fresnel += c_in * (k * m5);
 }
 
-// Adds both lobes of one VSGL (its diffuse and its specular SG), sharing the position terms; a lobe
-// without power (amplitude 0: the 2-VSGL mode's rows, empty clusters) is skipped. The same sums as
-// two vsgl_accumulate_lobe calls.
-void vsgl_accumulate(VSGLReceiver rc, vec3 mean, float variance, vec3 diffuse_amplitude,
-                     vec3 diffuse_axis, float diffuse_sharpness, vec3 specular_amplitude,
+// Adds both lobes of one VSGL (its diffuse and its specular SG), each at its own position
+// (mu_v, sigma_v^2 per lobe: equal in the paper's shared positional distribution, 000 app. B.2;
+// vsgl_addon/reference/vsgl.py POSITIONAL_DISTRIBUTIONS); a lobe without power (amplitude 0: the
+// 2-VSGL mode's rows, empty clusters) is skipped. The same sums as two vsgl_accumulate_lobe calls.
+void vsgl_accumulate(VSGLReceiver rc, vec3 diffuse_mean, float diffuse_variance,
+                     vec3 diffuse_amplitude, vec3 diffuse_axis, float diffuse_sharpness,
+                     vec3 specular_mean, float specular_variance, vec3 specular_amplitude,
                      vec3 specular_axis, float specular_sharpness, int diffuse_mode,
                      inout vec3 diffuse, inout vec3 specular, inout vec3 fresnel)
 {
-  vec3 r = mean - rc.position;
-  float dist = safe_length(r);
-  float var = max(variance, VSGL_VARIANCE_FLOOR);
-  float lam_sigma = dist * (dist / var);
-  float inv_area = 1.0 / (TWO_PI * var);
-  // At dist = 0 lam_sigma = 0 and xi_mu drops out of the product (any unit vector would do).
-  vec3 xi_mu = safe_normalize(r, vec3(0.0, 0.0, 1.0));
   for (int lobe = 0; lobe < 2; lobe++) {
     vec3 amplitude = lobe == 0 ? diffuse_amplitude : specular_amplitude;
     if (!(max(max(amplitude.x, amplitude.y), amplitude.z) > 0.0)) {
@@ -165,6 +160,13 @@ void vsgl_accumulate(VSGLReceiver rc, vec3 mean, float variance, vec3 diffuse_am
     }
     vec3 lobe_axis = -(lobe == 0 ? diffuse_axis : specular_axis);
     float lobe_sharpness = lobe == 0 ? diffuse_sharpness : specular_sharpness;
+    vec3 r = (lobe == 0 ? diffuse_mean : specular_mean) - rc.position;
+    float dist = safe_length(r);
+    float var = max(lobe == 0 ? diffuse_variance : specular_variance, VSGL_VARIANCE_FLOOR);
+    float lam_sigma = dist * (dist / var);
+    float inv_area = 1.0 / (TWO_PI * var);
+    // At dist = 0 lam_sigma = 0 and xi_mu drops out of the product (any unit vector would do).
+    vec3 xi_mu = safe_normalize(r, vec3(0.0, 0.0, 1.0));
     // sg_product(lobe_axis, lobe_sharpness, xi_mu, lam_sigma, ...) with one length.
     vec3 xi_m = sg_product_vector(lobe_axis, lobe_sharpness, xi_mu, lam_sigma);
     // safe_length(xi_m) and safe_normalize(xi_m, lobe_axis) with one scaling (same arithmetic).

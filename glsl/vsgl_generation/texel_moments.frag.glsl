@@ -4,12 +4,12 @@
 // `vsgl.texel_moments`) and the PDF weight, one fragment per RSM texel, one render target per plane
 // (glsl/lib/mip_atlas.glsl; drawn with the viewport set to the RSM's size).
 //
-// Planes (16 moment channels in the reference's order, channel c in plane c / 4, component c % 4):
+// Planes (20 moment channels in the reference's order, channel c in plane c / 4, component c % 4):
 //   0: (Phi Rd).rgb, (w_d xi_bar_d).x          1: (w_d xi_bar_d).yz, (Phi Rs).rg
-//   2: (Phi Rs).b, (w_s xi_bar_s).xyz          3: w y, w |y|^2            (w = w_d + w_s)
-//   4: PDF weight (lum(Phi (Rd + Rs)) or the custom PDF), 0, 0, 0
-// In the 2-VSGL layout (moment_layout == 1) planes 3 and 4 hold the lobes' position moments
-// separately: 3 = (w_d y, w_d |y|^2), 4 = (w_s y, w_s |y|^2) (reference `two_vsgls`).
+//   2: (Phi Rs).b, (w_s xi_bar_s).xyz          3: w_d y, w_d |y|^2          4: w_s y, w_s |y|^2
+//   5: PDF weight (lum(Phi (Rd + Rs)) or the custom PDF), 0, 0, 0
+// Planes 3 and 4 are the lobes' own position moments; 000 app. B.2's shared ones (w = w_d + w_s)
+// are their sum (reference `combined_position_moments`).
 //
 // RSM textures (RGBA32F, rsm_size^2): rsm_position = (y, lam_s), rsm_normal = (n, -),
 // rsm_flux_diffuse = (Phi Rd, -), rsm_flux_specular = (Phi Rs, -), rsm_specular_axis = (xi_s, -);
@@ -23,10 +23,9 @@ void main()
   vec3 flux_specular = texelFetch(rsm_flux_specular, texel, 0).rgb;
   float w_d = luminance(flux_diffuse);
   float w_s = luminance(flux_specular);
-  float w = w_d + w_s;
   bool lit_d = w_d > 0.0;
   bool lit_s = w_s > 0.0;
-  bool lit = w > 0.0;
+  bool lit = w_d + w_s > 0.0;
   vec3 normal = unit_or_zero(texelFetch(rsm_normal, texel, 0).xyz, lit_d);
   vec3 specular_axis = unit_or_zero(texelFetch(rsm_specular_axis, texel, 0).xyz, lit_s);
   float specular_sharpness = lit_s ? position_sharpness.w : 0.0;
@@ -39,13 +38,8 @@ void main()
   level0_out0 = vec4(flux_diffuse, diffuse_direction.x);
   level0_out1 = vec4(diffuse_direction.yz, flux_specular.rg);
   level0_out2 = vec4(flux_specular.b, specular_direction);
-  if (moment_layout == 1) {
-    level0_out3 = w_d * vec4(y, y_squared);
-    level0_out4 = w_s * vec4(y, y_squared);
-  }
-  else {
-    level0_out3 = w * vec4(y, y_squared);
-    float pdf_weight = use_custom_pdf != 0 ? texelFetch(pdf_image, texel, 0).r : w;
-    level0_out4 = vec4(pdf_weight, 0.0, 0.0, 0.0);
-  }
+  level0_out3 = w_d * vec4(y, y_squared);
+  level0_out4 = w_s * vec4(y, y_squared);
+  float pdf_weight = use_custom_pdf != 0 ? texelFetch(pdf_image, texel, 0).r : w_d + w_s;
+  level0_out5 = vec4(pdf_weight, 0.0, 0.0, 0.0);
 }

@@ -10,13 +10,18 @@
 //              1 = original kernel size (000 Eqs. 1 and 4),
 //              2 = 003's two VSGLs from the whole-RSM totals (the atlas's top level).
 //
-// Output table `vsgl_table` (RGBA32F, vsgl_count x 8), column i = VSGL i:
-//   row 0: mean.xyz, variance              row 1: diffuse_amplitude.rgb, diffuse_sharpness
+// positional_distribution: 0 = per lobe (each lobe at its own power centroid), 1 = shared (000
+// app. B.2 as written); see vsgl_addon/reference/vsgl.py POSITIONAL_DISTRIBUTIONS.
+//
+// Output table `vsgl_table` (RGBA32F, vsgl_count x 10), column i = VSGL i:
+//   row 0: mean.xyz, variance (000 app. B.2, weight Phi (Rd + Rs), in both modes)
+//   row 1: diffuse_amplitude.rgb, diffuse_sharpness
 //   row 2: diffuse_axis.xyz, kernel_level  row 3: specular_amplitude.rgb, specular_sharpness
 //   row 4: specular_axis.xyz, center.u     row 5: power.rgb, center.v
 //   row 6: the level-0 texel the warp chose (row, column), 0, 0 (the centre can round onto the
 //          texel's far edge: (texel + u) / S in float32 with u just below 1)
 //   row 7 (column 0 only): rsm_total_power.rgb, 0
+//   row 8: diffuse_mean.xyz, diffuse_variance    row 9: specular_mean.xyz, specular_variance
 
 const int BISECTION_ITERATIONS = 12;   // 000 section 3.2
 const float BELOW_ONE = 0.99999994;     // largest float32 below 1 (1 - 2^-24)
@@ -24,10 +29,13 @@ const float SMALLEST_NORMAL = 1.17549435e-38;
 const uint GOLDEN_RATIO_CONJUGATE_HIGH = 0x9E3779B9u;  // (sqrt(5) - 1) / 2 in 64-bit fixed point
 const uint GOLDEN_RATIO_CONJUGATE_LOW = 0x7F4A7C15u;
 
-// The 16 moment channels (planes 0-3) of one atlas level at a bilinear tap.
-void moments_bilinear(int level, BilinearTap tap, out vec4 m[4])
+const int MOMENT_PLANES = 5;  // 20 moment channels; plane 5 is the PDF
+const int PDF_PLANE = 5;
+
+// The 20 moment channels (planes 0-4) of one atlas level at a bilinear tap.
+void moments_bilinear(int level, BilinearTap tap, out vec4 m[MOMENT_PLANES])
 {
-  for (int plane = 0; plane < 4; plane++) {
+  for (int plane = 0; plane < MOMENT_PLANES; plane++) {
     m[plane] = mip_atlas_bilinear_tap(rsm_size, level, plane, tap);
   }
 }
@@ -50,10 +58,10 @@ vec2 fibonacci_lattice_point(int index)
   return vec2(float(u_fixed >> 8u), float(v_fixed >> 8u)) * (1.0 / 16777216.0);
 }
 
-// The PDF weight (plane 4, not normalized) of a texel.
+// The PDF weight (plane 5, not normalized) of a texel.
 float pdf_weight(int level, ivec2 texel)
 {
-  return mip_atlas_fetch(rsm_size, level, 4, texel).x;
+  return mip_atlas_fetch(rsm_size, level, PDF_PLANE, texel).x;
 }
 
 // Hierarchical sample warping (reference `warp_hierarchical`): returns uv, sets the level-0 texel
@@ -97,7 +105,7 @@ float interpolate_levels(float per_level[MIP_ATLAS_MAX_LEVELS], float level, int
   return (1.0 - fraction) * per_level[lower] + fraction * per_level[upper];
 }
 
-void write_vsgl(int column, vec4 totals[4], vec3 fallback_mean, float fallback_variance,
+void write_vsgl(int column, vec4 totals[MOMENT_PLANES], vec3 fallback_mean, float fallback_variance,
                 vec2 center, float level, ivec2 texel)
 {
   vec3 diffuse_power = totals[0].xyz;
@@ -111,9 +119,22 @@ void write_vsgl(int column, vec4 totals[4], vec3 fallback_mean, float fallback_v
   vec3 power = diffuse_power + specular_power;
   vec3 mean;
   float variance;
-  vsgl_position(luminance(power), totals[3].xyz, totals[3].w, fallback_mean, fallback_variance,
+  vec4 combined = totals[3] + totals[4];  // reference `combined_position_moments`
+  vsgl_position(luminance(power), combined.xyz, combined.w, fallback_mean, fallback_variance,
                 mean, variance);
+  vec3 diffuse_mean = mean;
+  vec3 specular_mean = mean;
+  float diffuse_variance = variance;
+  float specular_variance = variance;
+  if (positional_distribution == 0) {
+    vsgl_position(luminance(diffuse_power), totals[3].xyz, totals[3].w, mean, variance,
+                  diffuse_mean, diffuse_variance);
+    vsgl_position(luminance(specular_power), totals[4].xyz, totals[4].w, mean, variance,
+                  specular_mean, specular_variance);
+  }
   imageStore(vsgl_table, ivec2(column, 0), vec4(mean, variance));
+  imageStore(vsgl_table, ivec2(column, 8), vec4(diffuse_mean, diffuse_variance));
+  imageStore(vsgl_table, ivec2(column, 9), vec4(specular_mean, specular_variance));
   imageStore(vsgl_table, ivec2(column, 1), vec4(diffuse_amplitude, diffuse_sharpness));
   imageStore(vsgl_table, ivec2(column, 2), vec4(diffuse_axis, level));
   imageStore(vsgl_table, ivec2(column, 3), vec4(specular_amplitude, specular_sharpness));
@@ -134,8 +155,8 @@ void main()
   int index = int(gl_GlobalInvocationID.x);
   int top = findMSB(rsm_size);
   float texel_count = float(rsm_size) * float(rsm_size);
-  vec4 top_moments[5];
-  for (int plane = 0; plane < 5; plane++) {
+  vec4 top_moments[MIP_PLANES];
+  for (int plane = 0; plane < MIP_PLANES; plane++) {
     top_moments[plane] = mip_atlas_fetch(rsm_size, top, plane, ivec2(0));
   }
   vec3 top_power = top_moments[0].xyz + vec3(top_moments[1].zw, top_moments[2].x);
@@ -151,18 +172,20 @@ void main()
     vec3 fallback_mean;
     float fallback_variance;
     rsm_fallback(top_moments[3] + top_moments[4], top_power, fallback_mean, fallback_variance);
-    vec4 totals[4];
+    vec4 totals[MOMENT_PLANES];
     if (index == 0) {
       totals[0] = texel_count * top_moments[0];
       totals[1] = texel_count * vec4(top_moments[1].xy, 0.0, 0.0);
       totals[2] = vec4(0.0);
       totals[3] = texel_count * top_moments[3];
+      totals[4] = vec4(0.0);
     }
     else {
       totals[0] = vec4(0.0);
       totals[1] = texel_count * vec4(0.0, 0.0, top_moments[1].zw);
       totals[2] = texel_count * top_moments[2];
-      totals[3] = texel_count * top_moments[4];
+      totals[3] = vec4(0.0);
+      totals[4] = texel_count * top_moments[4];
     }
     write_vsgl(index, totals, fallback_mean, fallback_variance, vec2(0.5), float(top),
                ivec2(rsm_size / 2));
@@ -173,10 +196,10 @@ void main()
   }
   vec3 fallback_mean;
   float fallback_variance;
-  rsm_fallback(top_moments[3], top_power, fallback_mean, fallback_variance);
+  rsm_fallback(top_moments[3] + top_moments[4], top_power, fallback_mean, fallback_variance);
 
   // Density p = M x texel probability = PDF weight / top-level mean; uniform for an all-zero PDF.
-  float pdf_top = top_moments[4].x;
+  float pdf_top = top_moments[PDF_PLANE].x;
   bool uniform_pdf = !(pdf_top > 0.0);
   float pdf_scale = uniform_pdf ? 0.0 : 1.0 / pdf_top;
 
@@ -190,7 +213,7 @@ void main()
     // 000 Eq. 3 by bisection (Algorithm 1): 4^l / M p_bar(x, l) = K / N, l in [0, top].
     float per_level[MIP_ATLAS_MAX_LEVELS];
     for (int l = 0; l <= top; l++) {
-      per_level[l] = uniform_pdf ? 1.0 : mip_atlas_bilinear(rsm_size, l, 4, center).x * pdf_scale;
+      per_level[l] = uniform_pdf ? 1.0 : mip_atlas_bilinear(rsm_size, l, PDF_PLANE, center).x * pdf_scale;
     }
     float target = kernel_k / n;
     float level_min = 0.0;
@@ -223,12 +246,12 @@ void main()
   int lower, upper;
   float fraction;
   mip_level_split(level, top, lower, upper, fraction);
-  vec4 a[4];
-  vec4 b[4];
+  vec4 a[MOMENT_PLANES];
+  vec4 b[MOMENT_PLANES];
   moments_bilinear(lower, bilinear_tap(rsm_size >> lower, center), a);
   moments_bilinear(upper, bilinear_tap(rsm_size >> upper, center), b);
-  vec4 totals[4];
-  for (int plane = 0; plane < 4; plane++) {
+  vec4 totals[MOMENT_PLANES];
+  for (int plane = 0; plane < MOMENT_PLANES; plane++) {
     vec4 filtered = (1.0 - fraction) * a[plane] + fraction * b[plane];
     totals[plane] = texel_count * filtered / denominator;
   }

@@ -3,9 +3,10 @@
 //
 // Indirect light from VSGLs (000 app. C), one fragment per pixel of the camera G-buffer
 // (vsgl_addon/passes/vsgl_shading.py documents the inputs). For each VSGL of the table (RGBA32F,
-// vsgl_count x 8, the layout of vsgl_addon/passes/vsgl_generation.py: row 0 = (mean, variance),
-// 1 = (diffuse amplitude, sharpness), 2 = (diffuse axis, -), 3 = (specular amplitude, sharpness),
-// 4 = (specular axis, -)) both lobes are added (glsl/lib/vsgl_shading.glsl). Outputs: indirect
+// vsgl_count x 10, the layout of vsgl_addon/passes/vsgl_generation.py: 1 = (diffuse amplitude,
+// sharpness), 2 = (diffuse axis, -), 3 = (specular amplitude, sharpness), 4 = (specular axis, -),
+// 8 = (diffuse mean, variance), 9 = (specular mean, variance)) both lobes are added, each at its
+// own position (glsl/lib/vsgl_shading.glsl). Outputs: indirect
 // diffuse = Rd * sum, indirect specular = F0 * sum_s + sum_f (Schlick is linear in F0); alpha =
 // coverage, or 0 when `accumulate` is set (later tables are added by blending).
 // VSGL_DIFFUSE_MODE is a compile-time define (0: cosine pulled out, 1: 003's SG convolution).
@@ -31,13 +32,14 @@ void main()
   vec3 specular = vec3(0.0);
   vec3 fresnel = vec3(0.0);
   for (int i = 0; i < vsgl_count; i++) {
-    vec4 row0 = texelFetch(vsgl_table, ivec2(i, 0), 0);
     vec4 row1 = texelFetch(vsgl_table, ivec2(i, 1), 0);
     vec4 row2 = texelFetch(vsgl_table, ivec2(i, 2), 0);
     vec4 row3 = texelFetch(vsgl_table, ivec2(i, 3), 0);
     vec4 row4 = texelFetch(vsgl_table, ivec2(i, 4), 0);
-    vsgl_accumulate(rc, row0.xyz, row0.w, row1.xyz, row2.xyz, row1.w, row3.xyz, row4.xyz, row3.w,
-                    VSGL_DIFFUSE_MODE, diffuse, specular, fresnel);
+    vec4 row8 = texelFetch(vsgl_table, ivec2(i, 8), 0);
+    vec4 row9 = texelFetch(vsgl_table, ivec2(i, 9), 0);
+    vsgl_accumulate(rc, row8.xyz, row8.w, row1.xyz, row2.xyz, row1.w, row9.xyz, row9.w, row3.xyz,
+                    row4.xyz, row3.w, VSGL_DIFFUSE_MODE, diffuse, specular, fresnel);
   }
   vec3 rd = texelFetch(gbuffer_diffuse, pixel, 0).rgb;
   vec3 f0 = texelFetch(gbuffer_specular, pixel, 0).rgb;

@@ -6,10 +6,10 @@
 
 Four shader stages (``glsl/vsgl_generation/``), compiled once per process and cached:
 
-1. ``texel_moments.frag.glsl``: one fragment per RSM texel writes level 0 of the five **planes**
-   (five render targets): the 16 per-texel VPL moment channels of 000 app. B.3 (planes 0-3, the
-   reference's channel order) and the PDF weight (plane 4; by default lum(Φ (Rd + Rs)), or a
-   custom PDF image).
+1. ``texel_moments.frag.glsl``: one fragment per RSM texel writes level 0 of the six **planes**
+   (six render targets): the 20 per-texel VPL moment channels of 000 app. B.3 (planes 0-4, the
+   reference's channel order: lobes, then each lobe's position moments) and the PDF weight
+   (plane 5; by default lum(Φ (Rd + Rs)), or a custom PDF image).
 2. ``mip_reduce_level1.frag.glsl``: level 1 of each plane, one draw per plane into its region of
    the **mip atlas**, each texel the mean of its 2x2 children (the reference's
    ``build_mip_chain``, same order of additions).
@@ -22,14 +22,15 @@ Four shader stages (``glsl/vsgl_generation/``), compiled once per process and ca
    point, hierarchical warp through the PDF plane, kernel level (modified: 000 Eq. 3 by bisection,
    12 iterations; original: Eq. 1), cluster totals (Eq. 5 / Eq. 4) from float32 trilinear lookups
    with exact weights (texel loads, no hardware filtering), VSGL parameters with the reference's
-   clamps (``glsl/lib/vsgl_parameters.glsl``). The 2-VSGL mode reads the atlas's top level (the
-   parallel sum comes with the mip chain).
+   clamps (``glsl/lib/vsgl_parameters.glsl``), each lobe's position per the positional
+   distribution (``reference.vsgl.POSITIONAL_DISTRIBUTIONS``). The 2-VSGL mode reads the atlas's
+   top level (the parallel sum comes with the mip chain).
 
 Python textures have no mip levels (shared/reference/blender-gpu.md). Level 0 of each plane is its
 own S x S texture; levels >= 1 of all planes share one RGBA32F texture, the mip atlas
 (``MipAtlasLayout``; ``glsl/lib/mip_atlas.glsl``): with H = S / 2, plane p holds rows
 [p H, (p + 1) H), level 1 at (0, p H) and level l >= 2 at (H, p H + H - 2H / 2^(l-1)); its size is
-(H + H/2) x 5 H. Five samplers and one image binding serve the later stages; lookups use texel
+(H + H/2) x 6 H. Six samplers and one image binding serve the later stages; lookups use texel
 loads with float32 weights computed in the shader (no hardware filtering, whose weights have
 8 bits).
 
@@ -37,12 +38,13 @@ The PDF plane is not normalized: the density p = M · probability is the plane's
 its top-level mean (the same number, rounded differently); an all-zero PDF is uniform, as in the
 reference.
 
-Output table (``vsgl_table``, RGBA32F, N x 8, column i = VSGL i), kept on the GPU for shading and
+Output table (``vsgl_table``, RGBA32F, N x 10, column i = VSGL i), kept on the GPU for shading and
 read back by :meth:`VSGLGeneration.read_table` into the reference's dict of arrays:
-row 0 (mean, variance), 1 (diffuse_amplitude, diffuse_sharpness), 2 (diffuse_axis, kernel_level),
-3 (specular_amplitude, specular_sharpness), 4 (specular_axis, kernel_center u),
-5 (power, kernel_center v), 6 (kernel_texel: the level-0 texel (row, column) the warp chose),
-7 (column 0: rsm_total_power).
+row 0 (mean, variance: 000 app. B.2's shared Gaussian), 1 (diffuse_amplitude, diffuse_sharpness),
+2 (diffuse_axis, kernel_level), 3 (specular_amplitude, specular_sharpness), 4 (specular_axis,
+kernel_center u), 5 (power, kernel_center v), 6 (kernel_texel: the level-0 texel (row, column) the
+warp chose), 7 (column 0: rsm_total_power), 8 (diffuse_mean, diffuse_variance), 9 (specular_mean,
+specular_variance): the positions shading places each lobe at.
 
 RSM input: an :class:`~vsgl_addon.reference.vsgl.RSM` (or mapping) of numpy arrays, uploaded with
 :func:`upload_rsm`, or :class:`RSMTextures` already on the GPU (RGBA32F, S x S):
@@ -64,17 +66,20 @@ from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, text
 
 KERNEL_MODES = reference.KERNEL_MODES  # ("modified", "original", "two-vsgl")
 _KERNEL_MODE_INDEX = {"modified": 0, "original": 1, "two-vsgl": 2}
+POSITIONAL_DISTRIBUTIONS = reference.POSITIONAL_DISTRIBUTIONS  # ("per-lobe", "shared")
+_POSITIONAL_INDEX = {"per-lobe": 0, "shared": 1}
 
-#: Planes of the mip atlas: 4 x 4 moment channels + the PDF (or, in the 2-VSGL layout, the
-#: diffuse- and specular-weighted position moments in planes 3 and 4).
-ATLAS_PLANES = 5
+#: Planes of the mip atlas: 5 x 4 moment channels (reference ``MOMENT_CHANNELS``) + the PDF.
+ATLAS_PLANES = 6
+MOMENT_PLANES = 5
+PDF_PLANE = 5
 #: Rows of the output table (see the module documentation).
-TABLE_ROWS = 8
+TABLE_ROWS = 10
 #: Largest VSGL count: the table is one texture row wide (and the lattice's fixed point is exact
 #: up to 2^15).
 MAX_VSGL_COUNT = 16384
-#: Largest RSM side: at 2048 the five level-0 textures and the atlas take ~430 MB of RGBA32F
-#: (the atlas, 5 S/2 rows, would fit a 16384-row texture up to S = 4096).
+#: Largest RSM side: at 2048 the six level-0 textures and the atlas take ~520 MB of RGBA32F
+#: (the atlas, 6 S/2 rows, would fit a 16384-row texture up to S = 4096).
 MAX_RSM_SIZE = 2048
 
 _REDUCE_GROUP = (8, 8, 1)
@@ -90,7 +95,7 @@ def _interfaces() -> dict[str, tuple[ShaderInterface, dict]]:
     atlas = ("RGBA32F", "FLOAT_2D", "mip_atlas")
     return {
         "texel_moments": (ShaderInterface(
-            push_constants=[("INT", "rsm_size"), ("INT", "moment_layout"), ("INT", "use_custom_pdf")],
+            push_constants=[("INT", "rsm_size"), ("INT", "use_custom_pdf")],
             samplers=[("FLOAT_2D", "rsm_position"), ("FLOAT_2D", "rsm_normal"),
                       ("FLOAT_2D", "rsm_flux_diffuse"), ("FLOAT_2D", "rsm_flux_specular"),
                       ("FLOAT_2D", "rsm_specular_axis"), ("FLOAT_2D", "pdf_image")],
@@ -115,7 +120,8 @@ def _interfaces() -> dict[str, tuple[ShaderInterface, dict]]:
         ), {"compute": "vsgl_generation/mip_reduce.comp.glsl"}),
         "vsgl_kernels": (ShaderInterface(
             push_constants=[("INT", "rsm_size"), ("INT", "vsgl_count"), ("INT", "kernel_mode"),
-                            ("FLOAT", "kernel_k"), ("IVEC2", "lattice_rotation_fixed")],
+                            ("INT", "positional_distribution"), ("FLOAT", "kernel_k"),
+                            ("IVEC2", "lattice_rotation_fixed")],
             samplers=_LEVEL0_SAMPLERS,
             images=[atlas, ("RGBA32F", "FLOAT_2D", "vsgl_table")],
             local_group_size=_KERNEL_GROUP,
@@ -272,10 +278,13 @@ def rotation_fixed_point(rotation) -> tuple[int, int]:
 # --- The pass ----------------------------------------------------------------------------------
 
 
-def _check_arguments(vsgl_count, k, kernel) -> tuple[int, float]:
+def _check_arguments(vsgl_count, k, kernel, positional_distribution="per-lobe") -> tuple[int, float]:
     """(row count, K) after validation; 'two-vsgl' always has 2 rows."""
     if kernel not in _KERNEL_MODE_INDEX:
         raise ValueError(f"kernel must be one of {KERNEL_MODES}, got {kernel!r}")
+    if positional_distribution not in _POSITIONAL_INDEX:
+        raise ValueError(f"positional_distribution must be one of {POSITIONAL_DISTRIBUTIONS}, "
+                         f"got {positional_distribution!r}")
     count = 2 if kernel == "two-vsgl" else int(vsgl_count)
     if not 1 <= count <= MAX_VSGL_COUNT:
         raise ValueError(f"vsgl_count must be in [1, {MAX_VSGL_COUNT}], got {count}")
@@ -302,7 +311,6 @@ class VSGLGeneration:
         self.table = None
         self.table_width = 0
         self.vsgl_count = 0
-        self._two_vsgl_layout = False
 
     def free(self) -> None:
         """Release the textures (Blender frees a GPUTexture with its last reference)."""
@@ -315,7 +323,7 @@ class VSGLGeneration:
         self.table_width = 0
         self.vsgl_count = 0
 
-    def build_mip_atlas(self, rsm_textures: RSMTextures, pdf_texture=None, two_vsgl=False) -> None:
+    def build_mip_atlas(self, rsm_textures: RSMTextures, pdf_texture=None) -> None:
         """Stages 1, 2 and 2b: level 0 from the RSM, then the mip levels of every plane."""
         import gpu
 
@@ -344,7 +352,6 @@ class VSGLGeneration:
                 gpu.state.depth_mask_set(False)
                 moments.bind()
                 set_uniform(moments.uniform_int, "rsm_size", size)
-                set_uniform(moments.uniform_int, "moment_layout", 1 if two_vsgl else 0)
                 set_uniform(moments.uniform_int, "use_custom_pdf", 0 if pdf_texture is None else 1)
                 moments.uniform_sampler("rsm_position", rsm_textures.position)
                 moments.uniform_sampler("rsm_normal", rsm_textures.normal)
@@ -372,7 +379,6 @@ class VSGLGeneration:
             gpu.state.depth_mask_set(saved[2])
             gpu.state.viewport_set(*saved[3])
 
-        self._two_vsgl_layout = bool(two_vsgl)
         if layout.top_level < 1:
             return
         reduce = shader("mip_reduce")
@@ -392,15 +398,13 @@ class VSGLGeneration:
         program.image("mip_atlas", self.atlas)
 
     def generate(self, vsgl_count: int, k: float = 1.0, kernel: str = "modified",
-                 rotation=(0.0, 0.0)):
+                 rotation=(0.0, 0.0), positional_distribution: str = "per-lobe"):
         """Stage 3 on the current mip atlas; returns the table texture (see the module doc)."""
         import gpu
 
         if self.atlas is None:
             raise RuntimeError("build_mip_atlas() first")
-        count, k = _check_arguments(vsgl_count, k, kernel)
-        if (kernel == "two-vsgl") != self._two_vsgl_layout:
-            raise ValueError("the mip atlas was built for another kernel mode (two_vsgl flag)")
+        count, k = _check_arguments(vsgl_count, k, kernel, positional_distribution)
         if self.table is None or self.table_width != count:
             self.table = gpu.types.GPUTexture((count, TABLE_ROWS), format="RGBA32F")
             self.table_width = count
@@ -410,6 +414,8 @@ class VSGLGeneration:
         set_uniform(kernels.uniform_int, "rsm_size", self.layout.size)
         set_uniform(kernels.uniform_int, "vsgl_count", count)
         set_uniform(kernels.uniform_int, "kernel_mode", _KERNEL_MODE_INDEX[kernel])
+        set_uniform(kernels.uniform_int, "positional_distribution",
+                    _POSITIONAL_INDEX[positional_distribution])
         set_uniform(kernels.uniform_float, "kernel_k", k)
         set_uniform(kernels.uniform_int, "lattice_rotation_fixed", rotation_fixed_point(rotation))
         self._bind_levels(kernels)
@@ -425,6 +431,10 @@ class VSGLGeneration:
         return {
             "mean": rows[0, :, :3].copy(),
             "variance": rows[0, :, 3].copy(),
+            "diffuse_mean": rows[8, :, :3].copy(),
+            "diffuse_variance": rows[8, :, 3].copy(),
+            "specular_mean": rows[9, :, :3].copy(),
+            "specular_variance": rows[9, :, 3].copy(),
             "diffuse_amplitude": rows[1, :, :3].copy(),
             "diffuse_axis": rows[2, :, :3].copy(),
             "diffuse_sharpness": rows[1, :, 3].copy(),
@@ -440,7 +450,7 @@ class VSGLGeneration:
 
     def read_mip_chains(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """The mip chains as the reference's ``RSMMipmaps`` holds them (float32 values):
-        ``moments`` (levels of (side, side, 16)) and ``pdf`` (levels of (side, side), the density:
+        ``moments`` (levels of (side, side, 20)) and ``pdf`` (levels of (side, side), the density:
         the PDF plane divided by its top-level mean; 1 everywhere for an all-zero PDF)."""
         layout = self.layout
         size = layout.size
@@ -448,26 +458,28 @@ class VSGLGeneration:
         planes = [[read_texture(texture, size, size) for texture in self.level0]]
         for level in range(1, layout.top_level + 1):
             planes.append([layout.level(atlas, level, plane) for plane in range(ATLAS_PLANES)])
-        moments = [np.concatenate(level[:4], axis=-1) for level in planes]
-        pdf = [level[4][..., 0].astype(np.float64) for level in planes]
+        moments = [np.concatenate(level[:MOMENT_PLANES], axis=-1) for level in planes]
+        pdf = [level[PDF_PLANE][..., 0].astype(np.float64) for level in planes]
         top = pdf[-1][0, 0]
         pdf = [p / top if top > 0.0 else np.ones_like(p) for p in pdf]
         return moments, pdf
 
-    def run(self, rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None, rotation=None):
+    def run(self, rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None, rotation=None,
+            positional_distribution="per-lobe"):
         """Upload (if numpy), build the atlas and generate; returns the table texture."""
-        _check_arguments(vsgl_count, k, kernel)
+        _check_arguments(vsgl_count, k, kernel, positional_distribution)
         textures = rsm if isinstance(rsm, RSMTextures) else upload_rsm(rsm)
-        two_vsgl = kernel == "two-vsgl"
         pdf_texture = None
-        if pdf is not None and not two_vsgl:
+        if pdf is not None and kernel != "two-vsgl":
             pdf_texture = pdf if not isinstance(pdf, np.ndarray) else upload_pdf(pdf, textures.size)
-        self.build_mip_atlas(textures, pdf_texture, two_vsgl=two_vsgl)
-        return self.generate(vsgl_count, k, kernel, reference.lattice_rotation(seed, rotation))
+        self.build_mip_atlas(textures, pdf_texture)
+        return self.generate(vsgl_count, k, kernel, reference.lattice_rotation(seed, rotation),
+                             positional_distribution)
 
 
 def generate_vsgls_gpu(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None, rotation=None,
-                       generation: VSGLGeneration | None = None) -> dict:
+                       generation: VSGLGeneration | None = None,
+                       positional_distribution="per-lobe") -> dict:
     """GPU twin of ``reference.vsgl.generate_vsgls`` (same arguments, same dict of arrays).
 
     rsm         an RSM / mapping of numpy arrays, or :class:`RSMTextures` already on the GPU.
@@ -476,13 +488,14 @@ def generate_vsgls_gpu(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=No
     kernel      'modified' (default), 'original' or 'two-vsgl'.
     seed, rotation  the lattice's Cranley-Patterson shift, as in the reference.
     pdf         optional (H, W) numpy PDF image or a GPU texture (R channel).
+    positional_distribution  "per-lobe" (default) or "shared" (000 app. B.2 as written).
     generation  a :class:`VSGLGeneration` to reuse (its textures stay allocated); by default a
                 temporary one whose textures are released before returning.
     """
     own = generation is None
     generation = VSGLGeneration() if own else generation
     try:
-        generation.run(rsm, vsgl_count, k, kernel, seed, pdf, rotation)
+        generation.run(rsm, vsgl_count, k, kernel, seed, pdf, rotation, positional_distribution)
         return generation.read_table()
     finally:
         if own:

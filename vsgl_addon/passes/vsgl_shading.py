@@ -27,7 +27,7 @@ The ``position`` and ``normal`` textures of :mod:`vsgl_addon.passes.gbuffer` fit
 position)), (x, y, z, 0) = unit direction towards the camera (orthographic), as
 ``GBuffer.camera_vector``.
 
-**VSGLs**: one or more :class:`VSGLTable` (the RGBA32F N x 8 table texture of
+**VSGLs**: one or more :class:`VSGLTable` (the RGBA32F N x 10 table texture of
 :class:`~vsgl_addon.passes.vsgl_generation.VSGLGeneration` and its count, read directly on the GPU;
 :func:`upload_vsgl_table` makes one from a numpy dict). Tables are drawn one after the other and
 added by blending (float32 adds).
@@ -141,7 +141,7 @@ def upload_gbuffer(position, coverage, normal, roughness, diffuse_reflectance, s
 
 @dataclass
 class VSGLTable:
-    """A VSGL table texture (RGBA32F, at least ``count`` x 8, vsgl_generation's layout)."""
+    """A VSGL table texture (RGBA32F, at least ``count`` x 10, vsgl_generation's layout)."""
 
     texture: object
     count: int
@@ -155,13 +155,19 @@ class VSGLTable:
 
 
 def table_array(vsgls) -> np.ndarray:
-    """The (8, N, 4) float32 table of a numpy VSGL dict (rows 0-4 as vsgl_generation writes them)."""
-    count = len(np.asarray(vsgls["variance"]).reshape(-1))
+    """The (10, N, 4) float32 table of a numpy VSGL dict (rows 1-4 and 8-9 as vsgl_generation writes
+    them, and row 0 when the dict has the shared ``mean``/``variance``)."""
+    count = len(np.asarray(vsgls["diffuse_variance"]).reshape(-1))
     table = np.zeros((TABLE_ROWS, max(count, 1), 4), dtype=np.float32)
     if count == 0:
         return table
-    table[0, :count, :3] = vsgls["mean"]
-    table[0, :count, 3] = vsgls["variance"]
+    if "mean" in vsgls:
+        table[0, :count, :3] = vsgls["mean"]
+        table[0, :count, 3] = vsgls["variance"]
+    table[8, :count, :3] = vsgls["diffuse_mean"]
+    table[8, :count, 3] = vsgls["diffuse_variance"]
+    table[9, :count, :3] = vsgls["specular_mean"]
+    table[9, :count, 3] = vsgls["specular_variance"]
     table[1, :count, :3] = vsgls["diffuse_amplitude"]
     table[1, :count, 3] = vsgls["diffuse_sharpness"]
     table[2, :count, :3] = vsgls["diffuse_axis"]
@@ -173,7 +179,7 @@ def table_array(vsgls) -> np.ndarray:
 
 def upload_vsgl_table(vsgls) -> VSGLTable:
     """A :class:`VSGLTable` from a numpy dict (``reference.vsgl.generate_vsgls`` or ``read_table``)."""
-    count = len(np.asarray(vsgls["variance"]).reshape(-1))
+    count = len(np.asarray(vsgls["diffuse_variance"]).reshape(-1))
     if count > MAX_VSGL_COUNT:
         raise ValueError(f"at most {MAX_VSGL_COUNT} VSGLs per table, got {count}")
     return VSGLTable(texture_from_array(table_array(vsgls)), count)
