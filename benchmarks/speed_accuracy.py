@@ -5,8 +5,10 @@
 
 Writes ``benchmarks/results/speed_accuracy.md`` (``..._quick.md`` with --quick), a PNG plot of
 frame time against relative RMSE and a JSON of every figure beside it; prints the same markdown.
-Run time on 2 llvmpipe cores: full ~11 min, --quick ~1 min (plus ~4 min once when the cached
-truth has to be rendered). Needs matplotlib (requirements-dev.txt) for the plot.
+Run time on 2 llvmpipe cores: full ~12 min, --quick ~1 min (plus ~4 min once when the cached
+truth has to be rendered); of these, the flicker decomposition's extra seeds take ~70 s (30 frames ×
+2 modes × 16 seeds, ~75 ms per image at 120x90) and ~5 s with --quick. Needs matplotlib
+(requirements-dev.txt) for the plot.
 
 What is measured (issue 4, items 7-8), all at one image size (default 240x180, demo.blend's camera):
 
@@ -24,7 +26,10 @@ What is measured (issue 4, items 7-8), all at one image size (default 240x180, d
   mean(truth); also the diffuse-only and specular-only relative RMSE against Cycles'
   DiffInd·DiffCol and GlossInd·GlossCol.
 * **Ours**: N ∈ {2-VSGL, 64, 256, 1024, 4096} × K ∈ {1, 4} × kernel {modified, original} × RSM
-  {64², 128², 256²} (2-VSGL has no N/K/kernel choice). The G-buffer and shading inputs are made
+  {64², 128², 256²} (2-VSGL has no N/K/kernel choice), with the add-on's default per-lobe positions;
+  and, to show what that choice does, the paper's shared positions (000 app. B.2) for both kernels,
+  K = 1, RSM 128² (64² with --quick), every N. Per-material breakdown (floor, walls, sphere) of the
+  squared error and mean ratio for the demo settings in both positional distributions. The G-buffer and shading inputs are made
   once; per configuration: RSM + VSGL generation (GPU finished) and VSGL shading (GPU finished,
   median of --repeats). "frame" = that + the fixed passes of a full FrameRenderer frame (scene
   upload, G-buffer, direct light, read-back), measured once.
@@ -48,7 +53,15 @@ What is measured (issue 4, items 7-8), all at one image size (default 240x180, d
   frame-to-frame change (over covered pixels and RGB) per kernel mode (the issue's measure, the
   verdict's), also relative to the mean indirect, and the mean absolute second difference
   |I(t+1) − 2I(t) + I(t−1)| ("jitter": a change smooth in time cancels, jumps remain). Context:
-  2-VSGL and brute force (every texel of a 64² RSM as a VPL).
+  2-VSGL and brute force (every texel of a 64² RSM as a VPL). Decomposition (context, not the
+  verdict): for the modified and original kernels each frame is also rendered with lattice seeds
+  1..S (S = 16), whose mean Ī(t) estimates that mode's expected image over the random lattice
+  rotation (its converged image, blur included; smooth in time); "motion" = mean |Ī(t) − Ī(t−1)|
+  (the lighting's real change as the mode sees it), "flicker proper" = mean |e(t) − e(t−1)| with
+  e = I − Ī (the change of the seed-0 image's sampling error). Ī keeps a residual sampling error of
+  1/√S of one seed's; seed 0 is not in Ī, so e has (1 + 1/S) times the variance of I's own error
+  (flicker proper reads high by about √(1 + 1/S), ~3 % at S = 16, equally for both modes, so it
+  cancels in their ratio); reported, not rescaled.
 * **Peak memory**: a fresh subprocess renders a 1024² frame with N = 4096 (RSM 256²) with the
   FrameRenderer; peak RSS = the process's VmHWM (/proc/self/status), with its value before the
   render. (getrusage's ru_maxrss is not used for the verdict: after fork + exec it carries the
@@ -58,7 +71,8 @@ What is measured (issue 4, items 7-8), all at one image size (default 240x180, d
 
 ``--quick`` (a smoke test): N ∈ {2-VSGL, 64, 256}, K = 1, both kernels, RSM 64² only; brute force
 at 64²; random VPLs (1 seed) at 64²; Cycles up to 16 samples; one EEVEE render (as saved);
-8 flicker frames without the brute force; memory at 1024² with N = 256 (no verdict).
+8 flicker frames without the brute force, decomposition with S = 4 seeds; memory at 1024² with
+N = 256 (no verdict).
 """
 
 from __future__ import annotations
@@ -221,6 +235,24 @@ class Errors:
             out["share_specular"] = float(np.mean(self.glossy)) / self.mean
         return out
 
+    def by_region(self, image, material_index, names) -> dict:
+        """Per material (of covered pixels): share of the noise-corrected squared error, its
+        relative RMSE and mean ratio, and its share of the truth's light."""
+        ours = np.asarray(image, np.float64)[..., :3][self.mask]
+        labels = np.asarray(material_index)[self.mask]
+        squared = (ours - self.seeds[0]) * (ours - self.seeds[1])
+        total_squared = float(squared.sum())
+        out = {}
+        for index in np.unique(labels):
+            m = labels == index
+            truth = float(self.truth[m].mean())
+            out[names[index] if index < len(names) else str(index)] = {
+                "pixels": int(m.sum()), "error_share": float(squared[m].sum()) / total_squared,
+                "rel": math.sqrt(max(float(squared[m].mean()), 0.0)) / truth if truth > 0 else float("nan"),
+                "mean_ratio": float(ours[m].mean()) / truth if truth > 0 else float("nan"),
+                "light_share": float(self.truth[m].sum()) / float(self.truth.sum())}
+        return out
+
 
 # --- Our passes -----------------------------------------------------------------------------------
 
@@ -243,6 +275,7 @@ class Bench:
     """One camera G-buffer (and shading inputs) of a scene description, shaded many times."""
 
     def __init__(self, description, width, height):
+        self.materials = [material.name for material in description.materials]
         from vsgl_addon.passes.gbuffer import render_gbuffer
         from vsgl_addon.passes.rsm import SceneGPU
         from vsgl_addon.passes.shading_inputs import shading_gbuffer
@@ -254,7 +287,9 @@ class Bench:
         self.gbuffer = render_gbuffer(self.scene_gpu, camera.view_matrix(), camera.projection_matrix(),
                                       (width, height))
         self.inputs = shading_gbuffer(self.gbuffer)
-        self.coverage = self.gbuffer.to_numpy()["position"][..., 3]
+        arrays = self.gbuffer.to_numpy()
+        self.coverage = arrays["position"][..., 3]
+        self.material_index = np.rint(arrays["material"][..., 2]).astype(np.int64)
         self.shading = VSGLShading()
 
     def set_scene(self, description) -> None:
@@ -327,9 +362,9 @@ def brute_force_table(rsm_arrays) -> dict:
 def random_vpl_table(rsm_arrays, count: int, seed: int) -> dict:
     """`count` texels drawn with replacement with p ∝ lum(Φ(Rd + Rs)) (VSGL generation's PDF),
     each VSGL from its moments / (count p): an unbiased estimate of the RSM's bounce light."""
-    from vsgl_addon.reference.vsgl import luminance, texel_moments, vsgl_parameters
+    from vsgl_addon.reference.vsgl import MOMENT_CHANNELS, luminance, texel_moments, vsgl_parameters
 
-    moments = np.concatenate([texel_moments(a.rsm).reshape(-1, 16) for a in rsm_arrays])
+    moments = np.concatenate([texel_moments(a.rsm).reshape(-1, MOMENT_CHANNELS) for a in rsm_arrays])
     weight = np.concatenate([luminance(a.rsm.flux_diffuse + a.rsm.flux_specular).reshape(-1) for a in rsm_arrays])
     pdf = weight / weight.sum()
     picks = np.random.default_rng(seed).choice(len(pdf), size=count, replace=True, p=pdf)
@@ -407,7 +442,21 @@ def eevee_runs(scene, width, height, errors: Errors, with_raytracing: bool, rend
 
 
 def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256, k=1.0, rsm_size=128,
-            brute_rsm=64) -> dict:
+            brute_rsm=64, seeds=16) -> dict:
+    """The spot turning 1°/frame: per-mode change and jitter (the issue's measure) and, for the two
+    kernel modes, its decomposition into motion and flicker proper with `seeds` extra lattice seeds.
+
+    Each frame's own image I(t) uses seed 0. For "modified" and "original" the frame is also rendered
+    with seeds 1..S (S = `seeds`, 0 = no decomposition); their mean Ī(t) estimates that mode's expected
+    image over the random lattice rotation (its converged image, blur included), smooth in time.
+    motion = mean_t mean|Ī(t) − Ī(t−1)| (the real change of the lighting as the mode sees it);
+    flicker = mean_t mean|e(t) − e(t−1)| with e = I − Ī (the change of the seed-0 image's sampling
+    error: flicker proper). Ī keeps a residual sampling error of 1/√S of one seed's: seed 0 is not
+    in Ī, so for independent seeds e has (1 + 1/S) times the variance of I's own error (so does
+    e(t) − e(t−1)), i.e. `flicker` reads high by about √(1 + 1/S) (for a Gaussian-like error; the
+    factor is the same for both modes and cancels in their ratio), and `motion` keeps a residual
+    error of variance 1/S of the error's change. Not rescaled: the factor is reported.
+    """
     import bpy
     from mathutils import Matrix
 
@@ -419,8 +468,12 @@ def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256
     location = base.to_translation()
     kernels = ("modified", "original", "two-vsgl")
     images = {kernel: [] for kernel in kernels + (("brute",) if with_brute else ())}
+    # Seed-averaged images Ī(t) (seeds 1..S; two-VSGL has no lattice, brute force no sampling).
+    expected = {kernel: [] for kernel in ("modified", "original")} if seeds > 0 else {}
     bench = None
     finite = True
+    started = time.perf_counter()
+    seed_seconds = 0.0
     try:
         for frame in range(frames):
             spot.matrix_world = (Matrix.Translation(location) @ Matrix.Rotation(math.radians(frame), 4, "Z")
@@ -438,6 +491,18 @@ def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256
                 vsgls.free()
                 finite &= bool(np.all(np.isfinite(d)) and np.all(np.isfinite(s)))
                 images[kernel].append((d + s).astype(np.float64))
+                if kernel in expected:
+                    seed_started = time.perf_counter()
+                    total = np.zeros(images[kernel][-1].shape)
+                    for seed in range(1, seeds + 1):
+                        vsgls, _ = bench.vsgls(VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size,
+                                                            seed=seed))
+                        d, s, _ = bench.shade(vsgls.tables(), diffuse_mode_for_kernel(kernel))
+                        vsgls.free()
+                        finite &= bool(np.all(np.isfinite(d)) and np.all(np.isfinite(s)))
+                        total += d + s
+                    expected[kernel].append(total / seeds)
+                    seed_seconds += time.perf_counter() - seed_started
             if with_brute:
                 arrays, _ = bench.rsm(brute_rsm)
                 d, s, _ = bench.shade(upload(brute_force_table(arrays)))
@@ -450,16 +515,37 @@ def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256
         if bench is not None:
             bench.free()
     out = {"frames": frames, "n": n, "k": k, "rsm": rsm_size, "brute_rsm": brute_rsm, "size": (width, height),
-           "finite": finite}
+           "finite": finite, "seeds": seeds, "error_variance_factor": 1.0 + 1.0 / seeds if seeds else None,
+           "seconds": time.perf_counter() - started, "seed_average_seconds": seed_seconds}
+
+    def mean_abs_step(sequence):
+        return float(np.mean([np.abs(b - a).mean() for a, b in zip(sequence, sequence[1:])]))
+
     for name, seq in images.items():
         seq = [image[mask] for image in seq]
         mean = float(np.mean([image.mean() for image in seq]))
-        change = float(np.mean([np.abs(b - a).mean() for a, b in zip(seq, seq[1:])]))
+        change = mean_abs_step(seq)
         # Second difference: ~0 for a change that is smooth in time (the light's real motion), so
         # what remains is the frame-to-frame jitter.
         jitter = float(np.mean([np.abs(c - 2 * b + a).mean() for a, b, c in zip(seq, seq[1:], seq[2:])]))
         out[name] = {"change": change, "relative": change / mean, "mean": mean, "jitter": jitter,
                      "jitter_relative": jitter / mean}
+        if name in expected:
+            average = [image[mask] for image in expected[name]]
+            errors = [image - avg for image, avg in zip(seq, average)]
+            motion, flicker_proper = mean_abs_step(average), mean_abs_step(errors)
+            out[name].update({
+                "motion": motion, "motion_relative": motion / mean,
+                "flicker": flicker_proper, "flicker_relative": flicker_proper / mean,
+                # mean |I(t) − Ī(t)|: the seed-0 image's deviation from its seed average (per frame).
+                "deviation": float(np.mean([np.abs(e).mean() for e in errors])),
+                "expected_mean": float(np.mean([avg.mean() for avg in average]))})
+    if len(expected) == 2:
+        # How far apart the two modes' expected images are (their different blur), relative to the mean indirect.
+        gap = float(np.mean([np.abs(a[mask] - b[mask]).mean()
+                             for a, b in zip(expected["modified"], expected["original"])]))
+        out["expected_gap"] = gap
+        out["expected_gap_relative"] = gap / out["original"]["mean"]
     return out
 
 
@@ -619,6 +705,7 @@ def main(argv=None) -> int:
     random_seeds = [0] if quick else [0, 1, 2]
     random_rsm = 64 if quick else 128
     flicker_frames = 8 if quick else 30
+    flicker_seeds = 4 if quick else 16
     memory = (1024, 256, 128) if quick else (1024, 4096, 256)
     max_cycles_samples = 16 if quick else 2048
 
@@ -654,20 +741,30 @@ def main(argv=None) -> int:
 
     # Our sweep.
     ours = []
-    configurations = [("two-vsgl", 2, 1.0, s) for s in rsm_sizes]
-    configurations += [(kernel, n, k, s) for s in rsm_sizes for k in ks for kernel in ("modified", "original")
+    default_positions = demo_settings.positional_distribution
+    shared_rsm = 64 if quick else 128
+    configurations = [("two-vsgl", 2, 1.0, s, default_positions) for s in rsm_sizes]
+    configurations += [(kernel, n, k, s, default_positions) for s in rsm_sizes for k in ks
+                       for kernel in ("modified", "original") for n in counts]
+    configurations += [(kernel, n, 1.0, shared_rsm, "shared") for kernel in ("modified", "original")
                        for n in counts]
-    for kernel, n, k, rsm_size in configurations:
-        settings = VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size, seed=0)
+    regions = {}
+    for kernel, n, k, rsm_size, positions in configurations:
+        settings = VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size, seed=0,
+                                positional_distribution=positions)
         vsgls, generation = bench.vsgls(settings)
         d, s, shading = bench.shade(vsgls.tables(), diffuse_mode_for_kernel(kernel), repeats if n <= 1024 else 1)
-        row = {"kernel": kernel, "n": vsgls.vsgl_count, "k": k, "rsm": rsm_size, "generation": generation,
-               "shading": shading, "frame": fixed + generation + shading, **errors(d, s)}
+        row = {"kernel": kernel, "n": vsgls.vsgl_count, "k": k, "rsm": rsm_size, "positions": positions,
+               "generation": generation, "shading": shading, "frame": fixed + generation + shading,
+               **errors(d, s)}
         vsgls.free()
-        finite[f"{kernel} N={n} K={k:g} RSM {rsm_size}"] = row["finite"]
+        finite[f"{kernel} N={n} K={k:g} RSM {rsm_size} {positions}"] = row["finite"]
         ours.append(row)
-        log(f"{kernel:9s} N={n:5d} K={k:g} RSM {rsm_size:3d}: gen {generation * 1e3:.0f} ms, shading "
-            f"{shading * 1e3:.0f} ms, rel RMSE {row['rel']:.3f}, mean ratio {row['mean_ratio']:.3f}")
+        if (kernel, n, k, rsm_size) == (demo_settings.kernel, demo_settings.vsgl_count, demo_settings.k,
+                                        demo_settings.rsm_size):
+            regions[positions] = errors.by_region(d + s, bench.material_index, bench.materials)
+        log(f"{kernel:9s} N={n:5d} K={k:g} RSM {rsm_size:3d} {positions:8s}: gen {generation * 1e3:.0f} ms, "
+            f"shading {shading * 1e3:.0f} ms, rel RMSE {row['rel']:.3f}, mean ratio {row['mean_ratio']:.3f}")
 
     # Brute force and random VPLs.
     brute, random_rows, rsm_time = [], [], {}
@@ -717,7 +814,7 @@ def main(argv=None) -> int:
 
     # Temporal stability, peak memory.
     fw, fh = width // 2, height // 2
-    stability = flicker(scene, flicker_frames, fw, fh, with_brute=not quick)
+    stability = flicker(scene, flicker_frames, fw, fh, with_brute=not quick, seeds=flicker_seeds)
     finite["flicker frames"] = stability["finite"]
     mem = measure_memory(*memory)
     finite["1024² render"] = mem["finite"]
@@ -747,18 +844,30 @@ def main(argv=None) -> int:
                  f"DiffInd·DiffCol / GlossInd·GlossCol (specular is {100 * ours[0]['share_specular']:.0f} % of "
                  "the truth's mean). Cycles time: the time Cycles needs for the same noise-corrected RMSE "
                  "(> : not reached at its largest sample count).\n")
-    lines.append("| kernel | N | K | RSM | RSM+VSGL gen (ms) | shading (ms) | frame (ms) | RMSE | rel RMSE | "
+    lines.append("Positions: where each VSGL's lobes sit, per-lobe (the add-on's default) or shared (000 app. B.2 "
+                 "as written); see `vsgl_addon/reference/vsgl.py` POSITIONAL_DISTRIBUTIONS.\n")
+    lines.append("| kernel | N | K | RSM | positions | RSM+VSGL gen (ms) | shading (ms) | frame (ms) | RMSE | rel RMSE | "
                  "rel RMSE measured | rel RMSE diffuse | rel RMSE specular | mean / Cycles | "
                  "Cycles time to same RMSE (ms) | Cycles time / our frame |")
-    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in ours:
         q = r["cycles_qualifier"]
         k_text = "—" if r["kernel"] == "two-vsgl" else f"{r['k']:g}"
-        lines.append(f"| {r['kernel']} | {r['n']} | {k_text} | "
-                     f"{r['rsm']}² | {fmt_time(r['generation'])} | {fmt_time(r['shading'])} | {fmt_time(r['frame'])} | "
+        lines.append(f"| {r['kernel']} | {r['n']} | {k_text} | {r['rsm']}² | {r['positions']} | "
+                     f"{fmt_time(r['generation'])} | {fmt_time(r['shading'])} | {fmt_time(r['frame'])} | "
                      f"{r['rmse']:.5f} | {r['rel']:.3f} | {r['rel_measured']:.3f} | {r['rel_diffuse']:.3f} | "
                      f"{r['rel_specular']:.3f} | {r['mean_ratio']:.3f} | {q}{fmt_time(r['cycles_time'])} | "
                      f"{q}{r['cycles_time'] / r['frame']:.2f} |")
+    lines.append(f"\n**Where the error is** (demo settings: {demo_settings.kernel}, N = {demo_settings.vsgl_count}, "
+                 f"K = {demo_settings.k:g}, RSM {demo_settings.rsm_size}²), per material of the covered pixels: "
+                 "share of the squared error (noise-corrected), relative RMSE and mean / Cycles on those pixels, "
+                 "and the material's share of the truth's indirect light.\n")
+    lines.append("| positions | material | pixels | share of squared error | rel RMSE | mean / Cycles | share of light |")
+    lines.append("|---|---|---|---|---|---|---|")
+    for positions, table in regions.items():
+        for name, region in table.items():
+            lines.append(f"| {positions} | {name} | {region['pixels']} | {100 * region['error_share']:.1f} % | "
+                         f"{region['rel']:.3f} | {region['mean_ratio']:.3f} | {100 * region['light_share']:.1f} % |")
     lines.append("\n## Baselines\n")
     lines.append("**Brute force**: every lit RSM texel a VPL (its own VSGL), the same shading pass "
                  f"(tables of {TABLE_CHUNK} blended).\n")
@@ -773,18 +882,24 @@ def main(argv=None) -> int:
     lines.append(f"\n**Random VPLs** at equal shading time (same count, same shader): N texels of the {random_rsm}² RSM "
                  "drawn with replacement from VSGL generation's PDF (luminance of Φ(Rd+Rs)), each scaled by 1/(N p); "
                  f"mean over {len(random_seeds)} seed(s) [min–max]. Against ours: modified kernel, K = 1, "
-                 f"RSM {random_rsm}², seed 0.\n")
+                 f"RSM {random_rsm}², seed 0, {default_positions} positions (shared, the paper's, as context).\n")
     lines.append("| N | random shading (ms) | VSGL shading (ms) | random rel RMSE | VSGL rel RMSE | VSGL / random RMSE | "
-                 "random mean / Cycles |")
-    lines.append("|---|---|---|---|---|---|---|")
-    ratios = []
+                 "shared positions: VSGL / random RMSE | random mean / Cycles |")
+    lines.append("|---|---|---|---|---|---|---|---|")
+    ratios, shared_ratios = [], []
+
+    def _ours(n, rsm_size, positions):
+        return next((o for o in ours if o["kernel"] == "modified" and o["k"] == 1.0 and o["rsm"] == rsm_size
+                     and o["n"] == n and o["positions"] == positions), None)
+
     for r in random_rows:
-        mine = next(o for o in ours if o["kernel"] == "modified" and o["k"] == 1.0 and o["rsm"] == r["rsm"]
-                    and o["n"] == r["n"])
+        mine = _ours(r["n"], r["rsm"], default_positions)
         ratios.append(mine["rmse"] / r["rmse"])
+        shared = _ours(r["n"], r["rsm"], "shared")
+        shared_ratios.append(shared["rmse"] / r["rmse"] if shared else float("nan"))
         lines.append(f"| {r['n']} | {fmt_time(r['shading'])} | {fmt_time(mine['shading'])} | {r['rel']:.3f} "
                      f"[{r['rel_min']:.3f}–{r['rel_max']:.3f}] | {mine['rel']:.3f} | {ratios[-1]:.2f} | "
-                     f"{r['mean_ratio']:.3f} |")
+                     f"{shared_ratios[-1]:.2f} | {r['mean_ratio']:.3f} |")
     lines.append("\n**Cycles** at increasing samples (seed 100; render wall time incl. scene sync and EXR write):\n")
     lines.append("| samples | time (ms) | RMSE | rel RMSE | rel RMSE measured | mean / truth |")
     lines.append("|---|---|---|---|---|---|")
@@ -811,15 +926,46 @@ def main(argv=None) -> int:
                  "jitter = mean |I(t+1) − 2 I(t) + I(t−1)| (second difference: a change smooth in time cancels, "
                  "jumps remain). Context rows: 2-VSGL, and brute force = every texel of a "
                  f"{st['brute_rsm']}² RSM as a VPL.\n")
-    lines.append("| | mean change | change / mean indirect | jitter | jitter / mean indirect |")
-    lines.append("|---|---|---|---|---|")
+    decomposed = "motion" in st["modified"]
+    if decomposed:
+        lines.append(f"Decomposition (context, not the verdict's measure): each frame of the two kernel modes is also "
+                     f"rendered with lattice seeds 1..{st['seeds']}; their mean Ī(t) estimates the mode's expected "
+                     "image over the random lattice rotation (its converged image, its blur included). Motion = mean "
+                     "|Ī(t) − Ī(t−1)| (the real change of the lighting as that mode sees it); flicker proper = mean "
+                     "|e(t) − e(t−1)| with e = I − Ī, the seed-0 image's deviation from its seed average. Ī keeps a "
+                     f"residual sampling error of 1/√{st['seeds']} of one seed's; seed 0 is not in Ī, so e has "
+                     f"{st['error_variance_factor']:.4f}× the variance of I's own error (flicker proper reads high by "
+                     f"about √ of that, {math.sqrt(st['error_variance_factor']):.3f}×, the same for both modes: it "
+                     f"cancels in their ratio; not rescaled). Decomposition time: {st['seed_average_seconds']:.0f} s "
+                     f"of the section's {st['seconds']:.0f} s.\n")
+        lines.append("| | mean change | change / mean indirect | jitter | jitter / mean indirect | motion | "
+                     "motion / mean indirect | flicker proper | flicker proper / mean indirect |")
+        lines.append("|---|---|---|---|---|---|---|---|---|")
+    else:
+        lines.append("| | mean change | change / mean indirect | jitter | jitter / mean indirect |")
+        lines.append("|---|---|---|---|---|")
     for name in ("modified", "original", "two-vsgl", "brute"):
         if name in st:
-            lines.append(f"| {name} | {st[name]['change']:.3e} | {100 * st[name]['relative']:.2f} % | "
-                         f"{st[name]['jitter']:.3e} | {100 * st[name]['jitter_relative']:.2f} % |")
+            row = (f"| {name} | {st[name]['change']:.3e} | {100 * st[name]['relative']:.2f} % | "
+                   f"{st[name]['jitter']:.3e} | {100 * st[name]['jitter_relative']:.2f} % |")
+            if decomposed:
+                row += (f" {st[name]['motion']:.3e} | {100 * st[name]['motion_relative']:.2f} % | "
+                        f"{st[name]['flicker']:.3e} | {100 * st[name]['flicker_relative']:.2f} % |"
+                        if "motion" in st[name] else " — | — | — | — |")
+            lines.append(row)
     flicker_ratio = st["modified"]["change"] / st["original"]["change"]
     jitter_ratio = st["modified"]["jitter"] / st["original"]["jitter"]
     lines.append(f"\nModified / original: change {flicker_ratio:.2f}, jitter {jitter_ratio:.2f}.\n")
+    proper_ratio = None
+    if decomposed:
+        proper_ratio = st["modified"]["flicker"] / st["original"]["flicker"]
+        motion_ratio = st["modified"]["motion"] / st["original"]["motion"]
+        lines.append(f"Flicker proper (deviation from the seed-averaged image), modified / original: "
+                     f"{proper_ratio:.2f} (motion {motion_ratio:.2f}; S = {st['seeds']} seeds).\n")
+        lines.append(f"Mean |I − Ī| per frame (the seed-0 image's deviation from its seed average): modified "
+                     f"{st['modified']['deviation']:.3e}, original {st['original']['deviation']:.3e}; the two modes' "
+                     f"seed-averaged images differ by {st['expected_gap']:.3e} = "
+                     f"{100 * st['expected_gap_relative']:.2f} % of the mean indirect (their different blur).\n")
     lines.append(f"## Peak memory\n\nFresh process, FrameRenderer at {mem['size']}² with N = {mem['n']} "
                  f"(RSM {mem['rsm']}²): peak RSS {mem['peak_kb'] / 1024:.0f} MB (VmHWM, the whole process from its "
                  f"start; getrusage's ru_maxrss reads {mem.get('ru_maxrss_kb', 0) / 1024:.0f} MB because after fork + "
@@ -830,7 +976,8 @@ def main(argv=None) -> int:
 
     # Targets.
     demo_row = next((o for o in ours if o["kernel"] == demo_settings.kernel and o["n"] == demo_settings.vsgl_count
-                     and o["k"] == demo_settings.k and o["rsm"] == demo_settings.rsm_size), None)
+                     and o["k"] == demo_settings.k and o["rsm"] == demo_settings.rsm_size
+                     and o["positions"] == default_positions), None)
     if demo_row is None:
         demo_row = next(o for o in ours if o["kernel"] == "modified" and o["n"] == 256 and o["k"] == 1.0)
     lines.append("## Targets (issue 4)\n")
@@ -842,11 +989,16 @@ def main(argv=None) -> int:
                  f"{verdict(abs(demo_row['mean_ratio'] - 1) <= 0.10)} |")
     worst = max(ratios) if ratios else float("nan")
     per_n = ", ".join(f"{r['n']}: {x:.2f}" for r, x in zip(random_rows, ratios))
+    per_n_shared = ", ".join(f"{r['n']}: {x:.2f}" for r, x in zip(random_rows, shared_ratios))
     lines.append(f"| VSGL RMSE ≤ 0.6× random VPLs at equal time | VSGL / random RMSE per N "
-                 f"({per_n}); worst {worst:.2f} | "
+                 f"({per_n}); worst {worst:.2f} ({default_positions} positions; with the paper's shared "
+                 f"positions: {per_n_shared}) | "
                  f"{verdict(bool(ratios) and worst <= 0.6)} |")
+    proper_text = (f"; flicker proper (deviation from the {st['seeds']}-seed average) ratio {proper_ratio:.2f}, "
+                   "context only" if proper_ratio is not None else "")
     lines.append(f"| modified flicker ≤ 0.7× original | mean frame-to-frame change ratio {flicker_ratio:.2f} "
-                 f"(second-difference jitter ratio {jitter_ratio:.2f}) | {verdict(flicker_ratio <= 0.7)} |")
+                 f"(second-difference jitter ratio {jitter_ratio:.2f}{proper_text}) | "
+                 f"{verdict(flicker_ratio <= 0.7)} |")
     faster = demo_row["frame"] < eevee["seconds"]
     lower = demo_row["rmse"] < eevee["default"]["rmse"]
     lines.append(f"| faster than EEVEE with lower indirect RMSE | demo settings frame {fmt_time(demo_row['frame'])} ms vs "
@@ -865,7 +1017,7 @@ def main(argv=None) -> int:
     lines.append(f"\nPlot: `{png.relative_to(REPO)}`.\n")
     text = "\n".join(lines)
     (RESULTS_DIR / f"{stem}.md").write_text(text + "\n", encoding="utf-8")
-    results = {"ours": ours, "brute": brute, "random": random_rows, "cycles": cycles_rows, "eevee": eevee,
+    results = {"ours": ours, "regions": regions, "brute": brute, "random": random_rows, "cycles": cycles_rows, "eevee": eevee,
                "flicker": stability, "memory": mem, "fixed_seconds": fixed, "finite": finite,
                "resolution": [width, height], "renderer": renderer_name, "quick": quick,
                "run_seconds": total_seconds}

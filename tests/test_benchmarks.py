@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -27,4 +28,9 @@ def test_speed_accuracy_benchmark_quick_run_writes_table_plot_and_targets():
     results = REPO / "benchmarks" / "results"
     table = (results / "speed_accuracy_quick.md").read_text()
     assert "Targets" in table and ("PASS" in table or "FAIL" in table)
+    assert "Flicker proper (deviation from the seed-averaged image), modified / original:" in table
+    stability = json.loads((results / "speed_accuracy_quick.json").read_text())["flicker"]
+    assert stability["seeds"] == 4
+    for mode in ("modified", "original"):
+        assert {"motion", "motion_relative", "flicker", "flicker_relative"} <= set(stability[mode])
     assert (results / "speed_accuracy_quick.png").stat().st_size > 10_000
