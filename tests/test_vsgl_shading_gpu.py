@@ -160,11 +160,12 @@ incoming = vec4(axis_in, sharpness_in);
 scale = s;
 VSGLReceiver rc = vsgl_receiver(position, normal, view, roughness);
 vec3 d0 = vec3(0.0), d1 = vec3(0.0), sp = vec3(0.0), fr = vec3(0.0), unused_s = vec3(0.0), unused_f = vec3(0.0);
-vec3 elsewhere = vec3(-7.0, 3.0, 1.0);
-vsgl_accumulate(rc, mean, variance, vec3(1.0), lobe_axis, lobe_sharpness,
-                elsewhere, 0.5, vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0, VSGL_DIFFUSE_COSINE, d0, sp, fr);
-vsgl_accumulate(rc, elsewhere, 0.5, vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0,
-                mean, variance, vec3(1.0), lobe_axis, lobe_sharpness, VSGL_DIFFUSE_SG_CONVOLUTION, d1,
+VSGLPosition here = vsgl_position(position, mean, variance);
+VSGLPosition elsewhere = vsgl_position(position, vec3(-7.0, 3.0, 1.0), 0.5);
+vsgl_accumulate(rc, here, vec3(1.0), lobe_axis, lobe_sharpness,
+                elsewhere, vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0, VSGL_DIFFUSE_COSINE, d0, sp, fr);
+vsgl_accumulate(rc, elsewhere, vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0,
+                here, vec3(1.0), lobe_axis, lobe_sharpness, VSGL_DIFFUSE_SG_CONVOLUTION, d1,
                 unused_s, unused_f);
 diffuse_cosine = d0.x;
 diffuse_convolution = d1.x;
@@ -355,6 +356,28 @@ def test_pass_with_extreme_vsgls_and_several_tables(gpu_context, floor_rsm, diff
     assert_image_matches(gpu_d, ref_d, label=f"diffuse extreme {diffuse_mode}", per_pixel=True)
     assert_image_matches(gpu_s, ref_s, label=f"specular extreme {diffuse_mode}", per_pixel=True)
     np.testing.assert_array_equal(gpu_d[..., 3], gbuffer["coverage"])
+
+
+def test_shared_positions_are_computed_once_with_the_same_result(gpu_context, floor_rsm):
+    """A table whose lobes share their position (the paper's distribution) is shaded with the
+    position terms computed once per VSGL: the same image as computing them per lobe."""
+    shared = shading_pass.upload_vsgl_table(generate_vsgls(floor_rsm, 64, positional_distribution="shared"))
+    per_lobe = shading_pass.upload_vsgl_table(generate_vsgls(floor_rsm, 64))
+    assert shared.shared_positions and not per_lobe.shared_positions
+    gbuffer = upload(extreme_gbuffer(8, 8))
+    once = shading_pass.shade_gpu(gbuffer, CAMERA, shared)
+    twice = shading_pass.shade_gpu(gbuffer, CAMERA, shading_pass.VSGLTable(shared.texture, shared.count, False))
+    for a, b in zip(once, twice):
+        assert np.all(np.isfinite(a))
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-30)
+    generation = VSGLGeneration()
+    try:
+        generation.run(floor_rsm, 16, positional_distribution="shared")
+        assert shading_pass.VSGLTable.from_generation(generation).shared_positions
+        generation.run(floor_rsm, 16)
+        assert not shading_pass.VSGLTable.from_generation(generation).shared_positions
+    finally:
+        generation.free()
 
 
 def test_pass_reads_the_generation_table_on_the_gpu(gpu_context, floor_rsm):

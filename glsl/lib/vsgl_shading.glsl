@@ -143,15 +143,37 @@ void vsgl_accumulate_lobe(VSGLReceiver rc, vec3 mean, float variance, vec3 ampli
   fresnel += c_in * (k * m5);
 }
 
+// What shading needs of one lobe's positional Gaussian seen from the shading point (000 Eqs. 11-12):
+// xi_mu = (mu_v - y_p)/|mu_v - y_p|, lam_sigma = |mu_v - y_p|^2 / sigma_v^2 (dist * (dist / var): no
+// overflow of dist^2 before the division) and 1 / (2 pi sigma_v^2). At y_p = mu_v lam_sigma = 0 and
+// xi_mu drops out of the product (any unit vector would do).
+struct VSGLPosition {
+  vec3 xi_mu;
+  float lam_sigma;
+  float inv_area;
+};
+
+VSGLPosition vsgl_position(vec3 shading_position, vec3 mean, float variance)
+{
+  vec3 r = mean - shading_position;
+  float dist = safe_length(r);
+  float var = max(variance, VSGL_VARIANCE_FLOOR);
+  VSGLPosition p;
+  p.xi_mu = safe_normalize(r, vec3(0.0, 0.0, 1.0));
+  p.lam_sigma = dist * (dist / var);
+  p.inv_area = 1.0 / (TWO_PI * var);
+  return p;
+}
+
 // Adds both lobes of one VSGL (its diffuse and its specular SG), each at its own position
-// (mu_v, sigma_v^2 per lobe: equal in the paper's shared positional distribution, 000 app. B.2;
-// vsgl_addon/reference/vsgl.py POSITIONAL_DISTRIBUTIONS); a lobe without power (amplitude 0: the
-// 2-VSGL mode's rows, empty clusters) is skipped. The same sums as two vsgl_accumulate_lobe calls.
-void vsgl_accumulate(VSGLReceiver rc, vec3 diffuse_mean, float diffuse_variance,
-                     vec3 diffuse_amplitude, vec3 diffuse_axis, float diffuse_sharpness,
-                     vec3 specular_mean, float specular_variance, vec3 specular_amplitude,
-                     vec3 specular_axis, float specular_sharpness, int diffuse_mode,
-                     inout vec3 diffuse, inout vec3 specular, inout vec3 fresnel)
+// (per-lobe positional distribution; with the paper's shared one, 000 app. B.2, the caller passes
+// the same VSGLPosition twice and computes it once: vsgl_addon/reference/vsgl.py
+// POSITIONAL_DISTRIBUTIONS). A lobe without power (amplitude 0: the 2-VSGL mode's rows, empty
+// clusters) is skipped. The same sums as two vsgl_accumulate_lobe calls.
+void vsgl_accumulate(VSGLReceiver rc, VSGLPosition diffuse_position, vec3 diffuse_amplitude,
+                     vec3 diffuse_axis, float diffuse_sharpness, VSGLPosition specular_position,
+                     vec3 specular_amplitude, vec3 specular_axis, float specular_sharpness,
+                     int diffuse_mode, inout vec3 diffuse, inout vec3 specular, inout vec3 fresnel)
 {
   for (int lobe = 0; lobe < 2; lobe++) {
     vec3 amplitude = lobe == 0 ? diffuse_amplitude : specular_amplitude;
@@ -160,13 +182,10 @@ void vsgl_accumulate(VSGLReceiver rc, vec3 diffuse_mean, float diffuse_variance,
     }
     vec3 lobe_axis = -(lobe == 0 ? diffuse_axis : specular_axis);
     float lobe_sharpness = lobe == 0 ? diffuse_sharpness : specular_sharpness;
-    vec3 r = (lobe == 0 ? diffuse_mean : specular_mean) - rc.position;
-    float dist = safe_length(r);
-    float var = max(lobe == 0 ? diffuse_variance : specular_variance, VSGL_VARIANCE_FLOOR);
-    float lam_sigma = dist * (dist / var);
-    float inv_area = 1.0 / (TWO_PI * var);
-    // At dist = 0 lam_sigma = 0 and xi_mu drops out of the product (any unit vector would do).
-    vec3 xi_mu = safe_normalize(r, vec3(0.0, 0.0, 1.0));
+    VSGLPosition at = lobe == 0 ? diffuse_position : specular_position;
+    vec3 xi_mu = at.xi_mu;
+    float lam_sigma = at.lam_sigma;
+    float inv_area = at.inv_area;
     // sg_product(lobe_axis, lobe_sharpness, xi_mu, lam_sigma, ...) with one length.
     vec3 xi_m = sg_product_vector(lobe_axis, lobe_sharpness, xi_mu, lam_sigma);
     // safe_length(xi_m) and safe_normalize(xi_m, lobe_axis) with one scaling (same arithmetic).

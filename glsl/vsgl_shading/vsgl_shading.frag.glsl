@@ -6,7 +6,8 @@
 // vsgl_count x 10, the layout of vsgl_addon/passes/vsgl_generation.py: 1 = (diffuse amplitude,
 // sharpness), 2 = (diffuse axis, -), 3 = (specular amplitude, sharpness), 4 = (specular axis, -),
 // 8 = (diffuse mean, variance), 9 = (specular mean, variance)) both lobes are added, each at its
-// own position (glsl/lib/vsgl_shading.glsl). Outputs: indirect
+// own position (glsl/lib/vsgl_shading.glsl), computed once per VSGL when the table says both lobes
+// share it (`shared_positions`, the paper's positional distribution). Outputs: indirect
 // diffuse = Rd * sum, indirect specular = F0 * sum_s + sum_f (Schlick is linear in F0); alpha =
 // coverage, or 0 when `accumulate` is set (later tables are added by blending).
 // VSGL_DIFFUSE_MODE is a compile-time define (0: cosine pulled out, 1: 003's SG convolution).
@@ -38,7 +39,12 @@ void main()
     vec4 row4 = texelFetch(vsgl_table, ivec2(i, 4), 0);
     vec4 row8 = texelFetch(vsgl_table, ivec2(i, 8), 0);
     vec4 row9 = texelFetch(vsgl_table, ivec2(i, 9), 0);
-    vsgl_accumulate(rc, row8.xyz, row8.w, row1.xyz, row2.xyz, row1.w, row9.xyz, row9.w, row3.xyz,
+    VSGLPosition diffuse_position = vsgl_position(rc.position, row8.xyz, row8.w);
+    VSGLPosition specular_position = diffuse_position;
+    if (shared_positions == 0) {
+      specular_position = vsgl_position(rc.position, row9.xyz, row9.w);
+    }
+    vsgl_accumulate(rc, diffuse_position, row1.xyz, row2.xyz, row1.w, specular_position, row3.xyz,
                     row4.xyz, row3.w, VSGL_DIFFUSE_MODE, diffuse, specular, fresnel);
   }
   vec3 rd = texelFetch(gbuffer_diffuse, pixel, 0).rgb;

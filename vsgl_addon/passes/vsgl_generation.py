@@ -311,6 +311,7 @@ class VSGLGeneration:
         self.table = None
         self.table_width = 0
         self.vsgl_count = 0
+        self.positional_distribution = "per-lobe"  # of the current table
 
     def free(self) -> None:
         """Release the textures (Blender frees a GPUTexture with its last reference)."""
@@ -409,6 +410,7 @@ class VSGLGeneration:
             self.table = gpu.types.GPUTexture((count, TABLE_ROWS), format="RGBA32F")
             self.table_width = count
         self.vsgl_count = count
+        self.positional_distribution = positional_distribution
         kernels = shader("vsgl_kernels")
         kernels.bind()
         set_uniform(kernels.uniform_int, "rsm_size", self.layout.size)

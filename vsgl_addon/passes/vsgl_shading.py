@@ -63,7 +63,7 @@ _batch = None
 def _interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("INT", "vsgl_count"), ("INT", "accumulate"),
-                        ("INT", "roughness_is_perceptual")],
+                        ("INT", "roughness_is_perceptual"), ("INT", "shared_positions")],
         samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal"),
                   ("FLOAT_2D", "gbuffer_diffuse"), ("FLOAT_2D", "gbuffer_specular"),
                   ("FLOAT_2D", "vsgl_table")],
@@ -141,17 +141,23 @@ def upload_gbuffer(position, coverage, normal, roughness, diffuse_reflectance, s
 
 @dataclass
 class VSGLTable:
-    """A VSGL table texture (RGBA32F, at least ``count`` x 10, vsgl_generation's layout)."""
+    """A VSGL table texture (RGBA32F, at least ``count`` x 10, vsgl_generation's layout).
+
+    ``shared_positions``: both lobes of every VSGL sit at the same position (the paper's shared
+    positional distribution, 000 app. B.2), so shading computes the position terms once per VSGL.
+    """
 
     texture: object
     count: int
+    shared_positions: bool = False
 
     @classmethod
     def from_generation(cls, generation) -> "VSGLTable":
         """The current table of a :class:`~vsgl_addon.passes.vsgl_generation.VSGLGeneration`."""
         if generation.table is None:
             raise RuntimeError("the VSGL generation has no table: generate() first")
-        return cls(generation.table, int(generation.vsgl_count))
+        return cls(generation.table, int(generation.vsgl_count),
+                   generation.positional_distribution == "shared")
 
 
 def table_array(vsgls) -> np.ndarray:
@@ -182,7 +188,9 @@ def upload_vsgl_table(vsgls) -> VSGLTable:
     count = len(np.asarray(vsgls["diffuse_variance"]).reshape(-1))
     if count > MAX_VSGL_COUNT:
         raise ValueError(f"at most {MAX_VSGL_COUNT} VSGLs per table, got {count}")
-    return VSGLTable(texture_from_array(table_array(vsgls)), count)
+    shared = (np.array_equal(vsgls["diffuse_mean"], vsgls["specular_mean"])
+              and np.array_equal(vsgls["diffuse_variance"], vsgls["specular_variance"]))
+    return VSGLTable(texture_from_array(table_array(vsgls)), count, bool(shared))
 
 
 def camera_uniform(camera) -> tuple[float, float, float, float]:
@@ -260,6 +268,7 @@ class VSGLShading:
                     gpu.state.blend_set("NONE" if index == 0 else "ADDITIVE_PREMULT")
                     set_uniform(program.uniform_int, "accumulate", 0 if index == 0 else 1)
                     set_uniform(program.uniform_int, "vsgl_count", int(table.count))
+                    set_uniform(program.uniform_int, "shared_positions", 1 if table.shared_positions else 0)
                     program.uniform_sampler("vsgl_table", table.texture)
                     batch.draw(program)
         finally:
