@@ -766,6 +766,23 @@ def main(argv=None) -> int:
         log(f"{kernel:9s} N={n:5d} K={k:g} RSM {rsm_size:3d} {positions:8s}: gen {generation * 1e3:.0f} ms, "
             f"shading {shading * 1e3:.0f} ms, rel RMSE {row['rel']:.3f}, mean ratio {row['mean_ratio']:.3f}")
 
+    # What per-lobe positions cost in shading: one table with shared positions, shaded with the
+    # position terms computed once per VSGL (what "shared" does) and once per lobe (what "per-lobe"
+    # does), alternating, in this process.
+    from vsgl_addon.passes.vsgl_shading import VSGLTable
+
+    cost_n = 256 if quick else 1024
+    vsgls, _ = bench.vsgls(VSGLSettings(vsgl_count=cost_n, rsm_size=shared_rsm, positional_distribution="shared"))
+    once = vsgls.tables()
+    twice = [VSGLTable(table.texture, table.count, False) for table in once]
+    position_cost = {"n": cost_n, "once": [], "twice": []}
+    for _ in range(3 if quick else 7):
+        for name, tables in (("once", once), ("twice", twice)):
+            position_cost[name].append(bench.shade(tables)[2])
+    vsgls.free()
+    position_cost["ratio"] = statistics.median(position_cost["twice"]) / statistics.median(position_cost["once"])
+    log(f"position terms per lobe / once, N = {cost_n}: {position_cost['ratio']:.3f}")
+
     # Brute force and random VPLs.
     brute, random_rows, rsm_time = [], [], {}
     for rsm_size in rsm_sizes:
@@ -868,6 +885,11 @@ def main(argv=None) -> int:
         for name, region in table.items():
             lines.append(f"| {positions} | {name} | {region['pixels']} | {100 * region['error_share']:.1f} % | "
                          f"{region['rel']:.3f} | {region['mean_ratio']:.3f} | {100 * region['light_share']:.1f} % |")
+    pc = position_cost
+    lines.append(f"\n**What per-lobe positions cost**: one table (modified, N = {pc['n']}, RSM {shared_rsm}², shared "
+                 f"positions) shaded {len(pc['once'])} times each way, alternating: position terms once per VSGL "
+                 f"(shared) {fmt_time(statistics.median(pc['once']))} ms, once per lobe (per-lobe) "
+                 f"{fmt_time(statistics.median(pc['twice']))} ms (medians): ×{pc['ratio']:.3f}.\n")
     lines.append("\n## Baselines\n")
     lines.append("**Brute force**: every lit RSM texel a VPL (its own VSGL), the same shading pass "
                  f"(tables of {TABLE_CHUNK} blended).\n")
@@ -1017,7 +1039,7 @@ def main(argv=None) -> int:
     lines.append(f"\nPlot: `{png.relative_to(REPO)}`.\n")
     text = "\n".join(lines)
     (RESULTS_DIR / f"{stem}.md").write_text(text + "\n", encoding="utf-8")
-    results = {"ours": ours, "regions": regions, "brute": brute, "random": random_rows, "cycles": cycles_rows, "eevee": eevee,
+    results = {"ours": ours, "regions": regions, "position_cost": position_cost, "brute": brute, "random": random_rows, "cycles": cycles_rows, "eevee": eevee,
                "flicker": stability, "memory": mem, "fixed_seconds": fixed, "finite": finite,
                "resolution": [width, height], "renderer": renderer_name, "quick": quick,
                "run_seconds": total_seconds}
