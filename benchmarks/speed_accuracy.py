@@ -614,13 +614,16 @@ def verdict(ok: bool) -> str:
 
 def plot(path: Path, ours, brute, random_rows, cycles_rows, eevee, title):
     """Frame time against noise-corrected relative RMSE, log-log. Our lines at the middle RSM size
-    (one per kernel and K); the other RSM sizes as faint markers."""
+    (one per kernel and K, the default per-lobe positions); the other RSM sizes as faint markers;
+    the paper's shared positions (K = 1) as dash-dot lines."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(11, 7), dpi=110)
+    shared = [r for r in ours if r.get("positions") == "shared"]
+    ours = [r for r in ours if r.get("positions") != "shared"]
     sizes = sorted({r["rsm"] for r in ours if r["kernel"] != "two-vsgl"})
     main_size = 128 if 128 in sizes else sizes[0]
     styles = {("modified", 1.0): ("tab:blue", "-", "o"), ("original", 1.0): ("tab:orange", "-", "s"),
@@ -640,6 +643,12 @@ def plot(path: Path, ours, brute, random_rows, cycles_rows, eevee, title):
         if others:
             ax.plot([r["rel"] for r in others], [r["frame"] for r in others], marker, color=color, alpha=0.3, ms=4,
                     mfc="none", label=None)
+    for kernel, color, marker in (("modified", "tab:blue", "o"), ("original", "tab:orange", "s")):
+        rows = sorted((r for r in shared if r["kernel"] == kernel), key=lambda r: r["n"])
+        if rows:
+            ax.plot([r["rel"] for r in rows], [r["frame"] for r in rows], "-.", marker=marker, color=color, ms=5,
+                    alpha=0.6, mfc="white",
+                    label=f"VSGL {kernel}, K=1, RSM {rows[0]['rsm']}², shared positions (000 app. B.2)")
     if len(sizes) > 1:
         ax.plot([], [], "o", color="grey", alpha=0.4, mfc="none",
                 label=f"VSGL, RSM {', '.join(f'{x}²' for x in sizes if x != main_size)} (faint)")
