@@ -61,7 +61,14 @@ What is measured (issue 4, items 7-8), all at one image size (default 240x180, d
   e = I − Ī (the change of the seed-0 image's sampling error). Ī keeps a residual sampling error of
   1/√S of one seed's; seed 0 is not in Ī, so e has (1 + 1/S) times the variance of I's own error
   (flicker proper reads high by about √(1 + 1/S), ~3 % at S = 16, equally for both modes, so it
-  cancels in their ratio); reported, not rescaled.
+  cancels in their ratio); reported, not rescaled. Motion floor = modified motion / original
+  change: the seed-0 image is Ī + e with e of zero mean over the lattice rotation, so (Jensen) its
+  expected change is at least the motion, and the modified kernel's change ratio cannot be expected
+  below that figure however little it flickers.
+  Context sweeps (seed 0, both kernels, no decomposition): the same turn ("pan") at N ∈ {64, 256,
+  1024} with K = 1 and N = 256 with K = 4, and a "spin" of the spot 1°/frame about its own cone axis, which leaves the lighting the
+  same in every frame (a round cone) while the RSM and its PDF rotate under the fixed lattice, so
+  all of its change is flicker.
 * **Peak memory**: a fresh subprocess renders a 1024² frame with N = 4096 (RSM 256²) with the
   FrameRenderer; peak RSS = the process's VmHWM (/proc/self/status), with its value before the
   render. (getrusage's ru_maxrss is not used for the verdict: after fork + exec it carries the
@@ -71,7 +78,7 @@ What is measured (issue 4, items 7-8), all at one image size (default 240x180, d
 
 ``--quick`` (a smoke test): N ∈ {2-VSGL, 64, 256}, K = 1, both kernels, RSM 64² only; brute force
 at 64²; random VPLs (1 seed) at 64²; Cycles up to 16 samples; one EEVEE render (as saved);
-8 flicker frames without the brute force, decomposition with S = 4 seeds; memory at 1024² with
+8 flicker frames without the brute force, decomposition with S = 4 seeds, sweeps at N ∈ {64, 256}, K = 1; memory at 1024² with
 N = 256 (no verdict).
 """
 
@@ -441,6 +448,67 @@ def eevee_runs(scene, width, height, errors: Errors, with_raytracing: bool, rend
 # --- Temporal stability ---------------------------------------------------------------------------
 
 
+def turned(base, degrees: float, motion: str):
+    """The spot's world matrix after turning `degrees` about an axis through its position: "pan" about
+    world Z (the spot on the floor moves: the lighting changes), "spin" about its own cone axis (a round
+    cone: the lighting is the same in every frame, only the RSM rotates under the fixed lattice)."""
+    from mathutils import Matrix, Vector
+
+    location = base.to_translation()
+    axis = Vector((0.0, 0.0, 1.0)) if motion == "pan" else (base.to_3x3() @ Vector((0.0, 0.0, -1.0))).normalized()
+    return Matrix.Translation(location) @ Matrix.Rotation(math.radians(degrees), 4, axis) @ Matrix.Translation(-location) @ base
+
+
+def change_sweep(scene, frames: int, width: int, height: int, motion: str, configurations, rsm_size=128) -> dict:
+    """The issue's measure (mean |I(t) − I(t−1)| over covered pixels and RGB, seed 0) of both kernel
+    modes for each (N, K) in `configurations`, the spot turning 1°/frame by `motion` (see `turned`)."""
+    import bpy
+
+    from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel
+    from vsgl_addon.settings import VSGLSettings
+
+    spot = next(obj for obj in scene.objects if obj.type == "LIGHT")
+    base = spot.matrix_world.copy()
+    images = {(kernel, n, k): [] for n, k in configurations for kernel in ("modified", "original")}
+    bench = None
+    finite = True
+    started = time.perf_counter()
+    try:
+        for frame in range(frames):
+            spot.matrix_world = turned(base, frame, motion)
+            bpy.context.view_layer.update()
+            description = extract()
+            if bench is None:
+                bench = Bench(description, width, height)
+            else:
+                bench.set_scene(description)
+            for (kernel, n, k), sequence in images.items():
+                vsgls, _ = bench.vsgls(VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size, seed=0))
+                d, s, _ = bench.shade(vsgls.tables(), diffuse_mode_for_kernel(kernel))
+                vsgls.free()
+                finite &= bool(np.all(np.isfinite(d)) and np.all(np.isfinite(s)))
+                sequence.append((d + s).astype(np.float64))
+        mask = bench.coverage > COVERED
+    finally:
+        spot.matrix_world = base
+        bpy.context.view_layer.update()
+        if bench is not None:
+            bench.free()
+    rows = []
+    for n, k in configurations:
+        row = {"n": n, "k": k}
+        for kernel in ("modified", "original"):
+            sequence = [image[mask] for image in images[(kernel, n, k)]]
+            mean = float(np.mean([image.mean() for image in sequence]))
+            change = float(np.mean([np.abs(b - a).mean() for a, b in zip(sequence, sequence[1:])]))
+            row[kernel] = {"change": change, "relative": change / mean, "mean": mean}
+        row["ratio"] = row["modified"]["change"] / row["original"]["change"]
+        rows.append(row)
+    log(f"{motion} sweep: " + ", ".join(f"N={r['n']} K={r['k']:g}: {r['ratio']:.2f}" for r in rows))
+    return {"motion": motion, "frames": frames, "rsm": rsm_size, "size": (width, height), "rows": rows,
+            "finite": finite, "seconds": time.perf_counter() - started}
+
+
 def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256, k=1.0, rsm_size=128,
             brute_rsm=64, seeds=16) -> dict:
     """The spot turning 1°/frame: per-mode change and jitter (the issue's measure) and, for the two
@@ -458,14 +526,12 @@ def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256
     error of variance 1/S of the error's change. Not rescaled: the factor is reported.
     """
     import bpy
-    from mathutils import Matrix
 
     from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel
     from vsgl_addon.settings import VSGLSettings
 
     spot = next(obj for obj in scene.objects if obj.type == "LIGHT")
     base = spot.matrix_world.copy()
-    location = base.to_translation()
     kernels = ("modified", "original", "two-vsgl")
     images = {kernel: [] for kernel in kernels + (("brute",) if with_brute else ())}
     # Seed-averaged images Ī(t) (seeds 1..S; two-VSGL has no lattice, brute force no sampling).
@@ -476,8 +542,7 @@ def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256
     seed_seconds = 0.0
     try:
         for frame in range(frames):
-            spot.matrix_world = (Matrix.Translation(location) @ Matrix.Rotation(math.radians(frame), 4, "Z")
-                                 @ Matrix.Translation(-location) @ base)
+            spot.matrix_world = turned(base, frame, "pan")
             bpy.context.view_layer.update()
             description = extract()
             if bench is None:
@@ -842,6 +907,10 @@ def main(argv=None) -> int:
     fw, fh = width // 2, height // 2
     stability = flicker(scene, flicker_frames, fw, fh, with_brute=not quick, seeds=flicker_seeds)
     finite["flicker frames"] = stability["finite"]
+    sweep_configurations = [(64, 1.0), (256, 1.0)] if quick else [(64, 1.0), (256, 1.0), (1024, 1.0), (256, 4.0)]
+    sweeps = [change_sweep(scene, flicker_frames, fw, fh, motion, sweep_configurations) for motion in ("pan", "spin")]
+    for sweep in sweeps:
+        finite[f"{sweep['motion']} sweep frames"] = sweep["finite"]
     mem = measure_memory(*memory)
     finite["1024² render"] = mem["finite"]
     total_seconds = time.perf_counter() - started
@@ -993,10 +1062,30 @@ def main(argv=None) -> int:
         motion_ratio = st["modified"]["motion"] / st["original"]["motion"]
         lines.append(f"Flicker proper (deviation from the seed-averaged image), modified / original: "
                      f"{proper_ratio:.2f} (motion {motion_ratio:.2f}; S = {st['seeds']} seeds).\n")
+        floor = st["modified"]["motion"] / st["original"]["change"]
+        lines.append(f"Motion floor: the modified kernel's motion alone is {floor:.2f}× the original kernel's whole "
+                     "change. The seed-0 image is Ī + e with e of zero mean over the lattice rotation, so by Jensen's "
+                     "inequality its expected change per pixel is at least |Ī(t) − Ī(t−1)|: on this turn the modified "
+                     f"kernel's change ratio cannot be expected below {floor:.2f} however little it flickers (it would "
+                     "take less flicker from the original kernel or less real motion to go lower).\n")
         lines.append(f"Mean |I − Ī| per frame (the seed-0 image's deviation from its seed average): modified "
                      f"{st['modified']['deviation']:.3e}, original {st['original']['deviation']:.3e}; the two modes' "
                      f"seed-averaged images differ by {st['expected_gap']:.3e} = "
                      f"{100 * st['expected_gap_relative']:.2f} % of the mean indirect (their different blur).\n")
+    lines.append("**The issue's measure across N and K, and for a turn that does not move the light**, same "
+                 f"frames, RSM {sweeps[0]['rsm']}², seed 0: *pan* is the turn above (about world Z: the "
+                 "lit spot moves, so every image has the lighting's real motion in it); *spin* turns the spot 1°/frame "
+                 "about its own cone axis: its cone is round, so the lighting is the same in every frame and every "
+                 "change is flicker (the RSM, its PDF and so the kernels rotate under the fixed lattice: the dynamic "
+                 "PDF of 000 §4). More VSGLs flicker less, so the real motion weighs more in the pan's ratio; K > 1 "
+                 "blurs more and flickers less (000 §4).\n")
+    lines.append("| turn | N | K | modified change / mean indirect | original change / mean indirect | modified / original |")
+    lines.append("|---|---|---|---|---|---|")
+    for sweep in sweeps:
+        for row in sweep["rows"]:
+            lines.append(f"| {sweep['motion']} | {row['n']} | {row['k']:g} | {100 * row['modified']['relative']:.2f} % | "
+                         f"{100 * row['original']['relative']:.2f} % | {row['ratio']:.2f} |")
+    lines.append("")
     lines.append(f"## Peak memory\n\nFresh process, FrameRenderer at {mem['size']}² with N = {mem['n']} "
                  f"(RSM {mem['rsm']}²): peak RSS {mem['peak_kb'] / 1024:.0f} MB (VmHWM, the whole process from its "
                  f"start; getrusage's ru_maxrss reads {mem.get('ru_maxrss_kb', 0) / 1024:.0f} MB because after fork + "
@@ -1025,8 +1114,14 @@ def main(argv=None) -> int:
                  f"({per_n}); worst {worst:.2f} ({default_positions} positions; with the paper's shared "
                  f"positions: {per_n_shared}) | "
                  f"{verdict(bool(ratios) and worst <= 0.6)} |")
-    proper_text = (f"; flicker proper (deviation from the {st['seeds']}-seed average) ratio {proper_ratio:.2f}, "
-                   "context only" if proper_ratio is not None else "")
+    proper_text = (f"; flicker proper (deviation from the {st['seeds']}-seed average) ratio {proper_ratio:.2f}; "
+                   f"motion floor {st['modified']['motion'] / st['original']['change']:.2f}"
+                   if proper_ratio is not None else "")
+    spin = next(sweep for sweep in sweeps if sweep["motion"] == "spin")
+    proper_text += ("; context, by (N, K): pan " + ", ".join(f"({r['n']}, {r['k']:g}): {r['ratio']:.2f}"
+                                                        for r in sweeps[0]["rows"])
+                    + "; spin (no real motion) " + ", ".join(f"({r['n']}, {r['k']:g}): {r['ratio']:.2f}"
+                                                             for r in spin["rows"]))
     lines.append(f"| modified flicker ≤ 0.7× original | mean frame-to-frame change ratio {flicker_ratio:.2f} "
                  f"(second-difference jitter ratio {jitter_ratio:.2f}{proper_text}) | "
                  f"{verdict(flicker_ratio <= 0.7)} |")
@@ -1049,7 +1144,7 @@ def main(argv=None) -> int:
     text = "\n".join(lines)
     (RESULTS_DIR / f"{stem}.md").write_text(text + "\n", encoding="utf-8")
     results = {"ours": ours, "regions": regions, "position_cost": position_cost, "brute": brute, "random": random_rows, "cycles": cycles_rows, "eevee": eevee,
-               "flicker": stability, "memory": mem, "fixed_seconds": fixed, "finite": finite,
+               "flicker": stability, "change_sweeps": sweeps, "memory": mem, "fixed_seconds": fixed, "finite": finite,
                "resolution": [width, height], "renderer": renderer_name, "quick": quick,
                "run_seconds": total_seconds}
     (RESULTS_DIR / f"{stem}.json").write_text(json.dumps(results, indent=1, default=str) + "\n", encoding="utf-8")

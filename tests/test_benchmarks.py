@@ -29,8 +29,17 @@ def test_speed_accuracy_benchmark_quick_run_writes_table_plot_and_targets():
     table = (results / "speed_accuracy_quick.md").read_text()
     assert "Targets" in table and ("PASS" in table or "FAIL" in table)
     assert "Flicker proper (deviation from the seed-averaged image), modified / original:" in table
-    stability = json.loads((results / "speed_accuracy_quick.json").read_text())["flicker"]
+    assert "Motion floor:" in table and "| spin | 256 | 1 |" in table
+    figures = json.loads((results / "speed_accuracy_quick.json").read_text())
+    stability = figures["flicker"]
     assert stability["seeds"] == 4
     for mode in ("modified", "original"):
         assert {"motion", "motion_relative", "flicker", "flicker_relative"} <= set(stability[mode])
+    sweeps = {sweep["motion"]: sweep for sweep in figures["change_sweeps"]}
+    assert set(sweeps) == {"pan", "spin"}
+    # The sweep's pan at N = 256 renders the verdict's frames again (seed 0): the same figure, up to
+    # llvmpipe's float32 (measured 5e-5 relative).
+    pan_256 = next(row for row in sweeps["pan"]["rows"] if row["n"] == 256 and row["k"] == 1)
+    for mode in ("modified", "original"):
+        assert abs(pan_256[mode]["change"] - stability[mode]["change"]) <= 1e-3 * stability[mode]["change"]
     assert (results / "speed_accuracy_quick.png").stat().st_size > 10_000
