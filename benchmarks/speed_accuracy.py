@@ -66,7 +66,8 @@ What is measured (issue 4, items 7-8), all at one image size (default 240x180, d
   expected change is at least the motion, and the modified kernel's change ratio cannot be expected
   below that figure however little it flickers.
   Sweeps (seed 0, both kernels, no decomposition), at N ∈ {64, 256, 1024} with K = 1 and RSM 128²,
-  N = 256 with K = 4, and N = 256 with RSM 64² and 256²: the same turn ("pan"), and a "spin" of the spot 1°/frame about its own cone axis, which leaves the lighting the
+  N = 256 with K = 4, N = 256 with RSM 64² and 256², and N = 256 with the paper's shared positions
+  (the rest per-lobe, the add-on's default): the same turn ("pan"), and a "spin" of the spot 1°/frame about its own cone axis, which leaves the lighting the
   same in every frame (a round cone) while the RSM and its PDF rotate under the fixed lattice, so
   all of its change is flicker. The issue's measure has a verdict for each turn at the section's
   settings (N = 256, K = 1, RSM 128²): the median over lattice seeds 0–4 (the original kernel's
@@ -463,8 +464,8 @@ def turned(base, degrees: float, motion: str):
 
 def change_sweep(scene, frames: int, width: int, height: int, motion: str, configurations, seed: int = 0) -> dict:
     """The issue's measure (mean |I(t) − I(t−1)| over covered pixels and RGB, lattice seed `seed`) of both kernel
-    modes for each (N, K, RSM size) in `configurations`, the spot turning 1°/frame by `motion` (see
-    `turned`)."""
+    modes for each (N, K, RSM size, positional distribution) in `configurations`, the spot turning
+    1°/frame by `motion` (see `turned`)."""
     import bpy
 
     from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel
@@ -472,10 +473,10 @@ def change_sweep(scene, frames: int, width: int, height: int, motion: str, confi
 
     spot = next(obj for obj in scene.objects if obj.type == "LIGHT")
     base = spot.matrix_world.copy()
-    images = {(kernel, n, k, rsm_size): [] for n, k, rsm_size in configurations for kernel in ("modified", "original")}
+    images = {(kernel, *configuration): [] for configuration in configurations for kernel in ("modified", "original")}
     # 003's two VSGLs (whole-RSM totals, no lattice, no kernels) at each RSM size: what the RSM's own
     # rasterization of the turned light changes, without any sampling.
-    images.update({("two-vsgl", 2, 1.0, rsm_size): [] for rsm_size in sorted({c[2] for c in configurations})})
+    images.update({("two-vsgl", 2, 1.0, rsm_size, "per-lobe"): [] for rsm_size in sorted({c[2] for c in configurations})})
     bench = None
     finite = True
     started = time.perf_counter()
@@ -488,9 +489,9 @@ def change_sweep(scene, frames: int, width: int, height: int, motion: str, confi
                 bench = Bench(description, width, height)
             else:
                 bench.set_scene(description)
-            for (kernel, n, k, rsm_size), sequence in images.items():
+            for (kernel, n, k, rsm_size, positions), sequence in images.items():
                 vsgls, _ = bench.vsgls(VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size,
-                                                    seed=seed))
+                                                    seed=seed, positional_distribution=positions))
                 d, s, _ = bench.shade(vsgls.tables(), diffuse_mode_for_kernel(kernel))
                 vsgls.free()
                 finite &= bool(np.all(np.isfinite(d)) and np.all(np.isfinite(s)))
@@ -508,13 +509,15 @@ def change_sweep(scene, frames: int, width: int, height: int, motion: str, confi
         return {"change": change, "relative": change / mean, "mean": mean}
 
     rows = []
-    for n, k, rsm_size in configurations:
-        row = {"n": n, "k": k, "rsm": rsm_size, "two-vsgl": change_of(("two-vsgl", 2, 1.0, rsm_size))}
+    for n, k, rsm_size, positions in configurations:
+        row = {"n": n, "k": k, "rsm": rsm_size, "positions": positions,
+               "two-vsgl": change_of(("two-vsgl", 2, 1.0, rsm_size, "per-lobe"))}
         for kernel in ("modified", "original"):
-            row[kernel] = change_of((kernel, n, k, rsm_size))
+            row[kernel] = change_of((kernel, n, k, rsm_size, positions))
         row["ratio"] = row["modified"]["change"] / row["original"]["change"]
         rows.append(row)
-    log(f"{motion} sweep: " + ", ".join(f"N={r['n']} K={r['k']:g} RSM {r['rsm']}: {r['ratio']:.2f}" for r in rows))
+    log(f"{motion} sweep: " + ", ".join(f"N={r['n']} K={r['k']:g} RSM {r['rsm']} {r['positions']}: {r['ratio']:.2f}"
+                                        for r in rows))
     return {"motion": motion, "seed": seed, "frames": frames, "size": (width, height), "rows": rows,
             "finite": finite, "seconds": time.perf_counter() - started}
 
@@ -917,13 +920,14 @@ def main(argv=None) -> int:
     fw, fh = width // 2, height // 2
     stability = flicker(scene, flicker_frames, fw, fh, with_brute=not quick, seeds=flicker_seeds)
     finite["flicker frames"] = stability["finite"]
-    sweep_configurations = ([(64, 1.0, 128), (256, 1.0, 128)] if quick else
-                            [(64, 1.0, 128), (256, 1.0, 128), (1024, 1.0, 128), (256, 4.0, 128), (256, 1.0, 64),
-                             (256, 1.0, 256)])
+    sweep_configurations = ([(64, 1.0, 128, "per-lobe"), (256, 1.0, 128, "per-lobe")] if quick else
+                            [(64, 1.0, 128, "per-lobe"), (256, 1.0, 128, "per-lobe"), (1024, 1.0, 128, "per-lobe"),
+                             (256, 4.0, 128, "per-lobe"), (256, 1.0, 64, "per-lobe"), (256, 1.0, 256, "per-lobe"),
+                             (256, 1.0, 128, "shared")])
     sweeps = [change_sweep(scene, flicker_frames, fw, fh, motion, sweep_configurations) for motion in ("pan", "spin")]
     # The verdict's setting with other lattice seeds: a seed is an arbitrary rotation of the lattice
     # (and the original kernel's spikes come and go with it), so the verdict takes the median seed.
-    verdict_configuration = (stability["n"], stability["k"], stability["rsm"])
+    verdict_configuration = (stability["n"], stability["k"], stability["rsm"], "per-lobe")
     extra_seeds = range(1, 3) if quick else range(1, 5)
     seed_runs = {motion: [change_sweep(scene, flicker_frames, fw, fh, motion, [verdict_configuration], seed=seed)
                           for seed in extra_seeds] for motion in ("pan", "spin")}
@@ -1097,12 +1101,12 @@ def main(argv=None) -> int:
                  "change is flicker (the RSM, its PDF and so the kernels rotate under the fixed lattice: the dynamic "
                  "PDF of 000 §4). 2-VSGL has no lattice and no kernels: its change is the RSM's own rasterization of "
                  "the turned light (and, in the pan, the real motion). K > 1 blurs more and flickers less (000 §4).\n")
-    lines.append("| turn | N | K | RSM | 2-VSGL change / mean indirect (no sampling) | modified change / mean "
-                 "indirect | original change / mean indirect | modified / original |")
-    lines.append("|---|---|---|---|---|---|---|---|")
+    lines.append("| turn | N | K | RSM | positions | 2-VSGL change / mean indirect (no sampling) | modified change "
+                 "/ mean indirect | original change / mean indirect | modified / original |")
+    lines.append("|---|---|---|---|---|---|---|---|---|")
     for sweep in sweeps:
         for row in sweep["rows"]:
-            lines.append(f"| {sweep['motion']} | {row['n']} | {row['k']:g} | {row['rsm']}² | "
+            lines.append(f"| {sweep['motion']} | {row['n']} | {row['k']:g} | {row['rsm']}² | {row['positions']} | "
                          f"{100 * row['two-vsgl']['relative']:.2f} % | {100 * row['modified']['relative']:.2f} % | "
                          f"{100 * row['original']['relative']:.2f} % | {row['ratio']:.2f} |")
     lines.append("")
@@ -1138,13 +1142,13 @@ def main(argv=None) -> int:
     # settings: the pan (real motion in every image) and the spin (no real motion: all change is flicker).
     def sweep_text(motion):
         sweep = next(sweep for sweep in sweeps if sweep["motion"] == motion)
-        return ", ".join(f"(N {r['n']}, K {r['k']:g}, RSM {r['rsm']}²): {r['ratio']:.2f}" for r in sweep["rows"]
-                         if (r["n"], r["k"], r["rsm"]) != verdict_configuration)
+        return ", ".join(f"(N {r['n']}, K {r['k']:g}, RSM {r['rsm']}², {r['positions']}): {r['ratio']:.2f}"
+                         for r in sweep["rows"] if (r["n"], r["k"], r["rsm"], r["positions"]) != verdict_configuration)
 
     def seed_ratios(motion):
         """The verdict setting's ratio per lattice seed, seed 0 (the sweep's) first."""
         seed_0 = next(r for sweep in sweeps if sweep["motion"] == motion for r in sweep["rows"]
-                      if (r["n"], r["k"], r["rsm"]) == verdict_configuration)
+                      if (r["n"], r["k"], r["rsm"], r["positions"]) == verdict_configuration)
         return [seed_0["ratio"]] + [run["rows"][0]["ratio"] for run in seed_runs[motion]]
 
     seed_names = f"seeds 0–{len(extra_seeds)}"
