@@ -5,9 +5,10 @@
 
 Writes ``benchmarks/results/speed_accuracy.md`` (``..._quick.md`` with --quick), a PNG plot of
 frame time against relative RMSE and a JSON of every figure beside it; prints the same markdown.
-Run time on 2 llvmpipe cores: full ~12 min, --quick ~1 min (plus ~4 min once when the cached
-truth has to be rendered); of these, the flicker decomposition's extra seeds take ~70 s (30 frames ×
-2 modes × 16 seeds, ~75 ms per image at 120x90) and ~5 s with --quick. Needs matplotlib
+Run time on 2 llvmpipe cores: full 12–22 min (it follows the shared machine's load), --quick ~2 min
+(plus ~4 min once when the cached truth has to be rendered); of these, the flicker decomposition's
+extra seeds take 70–110 s (30 frames × 2 modes × 16 seeds, 75–115 ms per image at 120x90) and the
+flicker sweeps and seeds about 2 min, with --quick about 5 s and 20 s. Needs matplotlib
 (requirements-dev.txt) for the plot.
 
 What is measured (issue 4, items 7-8), all at one image size (default 240x180, demo.blend's camera):
