@@ -89,6 +89,7 @@ N = 256 (no verdict).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import json
 import math
@@ -463,24 +464,15 @@ def turned(base, degrees: float, motion: str):
     return Matrix.Translation(location) @ Matrix.Rotation(math.radians(degrees), 4, axis) @ Matrix.Translation(-location) @ base
 
 
-def change_sweep(scene, frames: int, width: int, height: int, motion: str, configurations, seed: int = 0) -> dict:
-    """The issue's measure (mean |I(t) − I(t−1)| over covered pixels and RGB, lattice seed `seed`) of both kernel
-    modes for each (N, K, RSM size, positional distribution) in `configurations`, the spot turning
-    1°/frame by `motion` (see `turned`)."""
+def turning_frames(scene, frames: int, width: int, height: int, motion: str):
+    """Yields (frame, bench) while the scene's spot turns 1°/frame by `motion` (see `turned`): one Bench
+    (the camera's G-buffer stays, the lights change), the spot restored and the bench freed at the end.
+    Use it inside contextlib.closing so that an error in the caller's loop restores the spot at once."""
     import bpy
-
-    from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel
-    from vsgl_addon.settings import VSGLSettings
 
     spot = next(obj for obj in scene.objects if obj.type == "LIGHT")
     base = spot.matrix_world.copy()
-    images = {(kernel, *configuration): [] for configuration in configurations for kernel in ("modified", "original")}
-    # 003's two VSGLs (whole-RSM totals, no lattice, no kernels) at each RSM size: what the RSM's own
-    # rasterization of the turned light changes, without any sampling.
-    images.update({("two-vsgl", 2, 1.0, rsm_size, "per-lobe"): [] for rsm_size in sorted({c[2] for c in configurations})})
     bench = None
-    finite = True
-    started = time.perf_counter()
     try:
         for frame in range(frames):
             spot.matrix_world = turned(base, frame, motion)
@@ -490,19 +482,45 @@ def change_sweep(scene, frames: int, width: int, height: int, motion: str, confi
                 bench = Bench(description, width, height)
             else:
                 bench.set_scene(description)
-            for (kernel, n, k, rsm_size, positions), sequence in images.items():
-                vsgls, _ = bench.vsgls(VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size,
-                                                    seed=seed, positional_distribution=positions))
-                d, s, _ = bench.shade(vsgls.tables(), diffuse_mode_for_kernel(kernel))
-                vsgls.free()
-                finite &= bool(np.all(np.isfinite(d)) and np.all(np.isfinite(s)))
-                sequence.append((d + s).astype(np.float64))
-        mask = bench.coverage > COVERED
+            yield frame, bench
     finally:
         spot.matrix_world = base
         bpy.context.view_layer.update()
         if bench is not None:
             bench.free()
+
+
+def shaded_image(bench, settings) -> tuple[np.ndarray, bool]:
+    """Diffuse + specular indirect (float64) of `settings`' VSGLs on the bench, and whether it is finite."""
+    from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel
+
+    vsgls, _ = bench.vsgls(settings)
+    d, s, _ = bench.shade(vsgls.tables(), diffuse_mode_for_kernel(settings.kernel))
+    vsgls.free()
+    return (d + s).astype(np.float64), bool(np.all(np.isfinite(d)) and np.all(np.isfinite(s)))
+
+
+def change_sweep(scene, frames: int, width: int, height: int, motion: str, configurations, seed: int = 0) -> dict:
+    """The issue's measure (mean |I(t) − I(t−1)| over covered pixels and RGB, lattice seed `seed`) of both kernel
+    modes for each (N, K, RSM size, positional distribution) in `configurations`, the spot turning
+    1°/frame by `motion` (see `turned`)."""
+    from vsgl_addon.settings import VSGLSettings
+
+    images = {(kernel, *configuration): [] for configuration in configurations for kernel in ("modified", "original")}
+    # 003's two VSGLs (whole-RSM totals, no lattice, no kernels) at each RSM size: what the RSM's own
+    # rasterization of the turned light changes, without any sampling.
+    images.update({("two-vsgl", 2, 1.0, rsm_size, "per-lobe"): [] for rsm_size in sorted({c[2] for c in configurations})})
+    finite = True
+    started = time.perf_counter()
+    with contextlib.closing(turning_frames(scene, frames, width, height, motion)) as turning:
+        for _, bench in turning:
+            for (kernel, n, k, rsm_size, positions), sequence in images.items():
+                image, ok = shaded_image(bench, VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size,
+                                                             seed=seed, positional_distribution=positions))
+                finite &= ok
+                sequence.append(image)
+    mask = bench.coverage > COVERED
+
     def change_of(key):
         sequence = [image[mask] for image in images[key]]
         mean = float(np.mean([image.mean() for image in sequence]))
@@ -539,47 +557,30 @@ def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256
     factor is the same for both modes and cancels in their ratio), and `motion` keeps a residual
     error of variance 1/S of the error's change. Not rescaled: the factor is reported.
     """
-    import bpy
-
-    from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel
     from vsgl_addon.settings import VSGLSettings
 
-    spot = next(obj for obj in scene.objects if obj.type == "LIGHT")
-    base = spot.matrix_world.copy()
     kernels = ("modified", "original", "two-vsgl")
     images = {kernel: [] for kernel in kernels + (("brute",) if with_brute else ())}
     # Seed-averaged images Ī(t) (seeds 1..S; two-VSGL has no lattice, brute force no sampling).
     expected = {kernel: [] for kernel in ("modified", "original")} if seeds > 0 else {}
-    bench = None
     finite = True
     started = time.perf_counter()
     seed_seconds = 0.0
-    try:
-        for frame in range(frames):
-            spot.matrix_world = turned(base, frame, "pan")
-            bpy.context.view_layer.update()
-            description = extract()
-            if bench is None:
-                bench = Bench(description, width, height)
-            else:
-                bench.set_scene(description)
+    with contextlib.closing(turning_frames(scene, frames, width, height, "pan")) as turning:
+        for frame, bench in turning:
             for kernel in kernels:
-                settings = VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size, seed=0)
-                vsgls, _ = bench.vsgls(settings)
-                d, s, _ = bench.shade(vsgls.tables(), diffuse_mode_for_kernel(kernel))
-                vsgls.free()
-                finite &= bool(np.all(np.isfinite(d)) and np.all(np.isfinite(s)))
-                images[kernel].append((d + s).astype(np.float64))
+                image, ok = shaded_image(bench, VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size,
+                                                             seed=0))
+                finite &= ok
+                images[kernel].append(image)
                 if kernel in expected:
                     seed_started = time.perf_counter()
-                    total = np.zeros(images[kernel][-1].shape)
+                    total = np.zeros(image.shape)
                     for seed in range(1, seeds + 1):
-                        vsgls, _ = bench.vsgls(VSGLSettings(vsgl_count=n, k=k, kernel=kernel, rsm_size=rsm_size,
-                                                            seed=seed))
-                        d, s, _ = bench.shade(vsgls.tables(), diffuse_mode_for_kernel(kernel))
-                        vsgls.free()
-                        finite &= bool(np.all(np.isfinite(d)) and np.all(np.isfinite(s)))
-                        total += d + s
+                        image, ok = shaded_image(bench, VSGLSettings(vsgl_count=n, k=k, kernel=kernel,
+                                                                     rsm_size=rsm_size, seed=seed))
+                        finite &= ok
+                        total += image
                     expected[kernel].append(total / seeds)
                     seed_seconds += time.perf_counter() - seed_started
             if with_brute:
@@ -587,12 +588,7 @@ def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256
                 d, s, _ = bench.shade(upload(brute_force_table(arrays)))
                 images["brute"].append((d + s).astype(np.float64))
             log(f"flicker frame {frame + 1}/{frames}")
-        mask = bench.coverage > COVERED
-    finally:
-        spot.matrix_world = base
-        bpy.context.view_layer.update()
-        if bench is not None:
-            bench.free()
+    mask = bench.coverage > COVERED
     out = {"frames": frames, "n": n, "k": k, "rsm": rsm_size, "brute_rsm": brute_rsm, "size": (width, height),
            "finite": finite, "seeds": seeds, "error_variance_factor": 1.0 + 1.0 / seeds if seeds else None,
            "seconds": time.perf_counter() - started, "seed_average_seconds": seed_seconds}
