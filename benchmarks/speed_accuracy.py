@@ -68,8 +68,8 @@ What is measured (issue 4, items 7-8), all at one image size (default 240x180, d
   below that figure however little it flickers.
   Sweeps (seed 0, both kernels, no decomposition), at N ∈ {64, 256, 1024} with K = 1 and RSM 128²,
   N = 256 with K = 4, N = 256 with RSM 64² and 256², and N = 256 with the paper's shared positions
-  (the rest per-lobe, the add-on's default): the same turn ("pan"), and a "spin" of the spot 1°/frame about its own cone axis, which leaves the lighting the
-  same in every frame (a round cone) while the RSM and its PDF rotate under the fixed lattice, so
+  (the rest per-lobe, the add-on's default): the same turn ("pan"), and a "spin" of the spot
+  1°/frame about its own cone axis, which leaves the lighting the same in every frame (a round cone) while the RSM and its PDF rotate under the fixed lattice, so
   all of its change is flicker. The issue's measure has a verdict for each turn at the section's
   settings (N = 256, K = 1, RSM 128²): the median over lattice seeds 0–4 (the original kernel's
   spikes come and go with the seed).
@@ -82,8 +82,8 @@ What is measured (issue 4, items 7-8), all at one image size (default 240x180, d
 
 ``--quick`` (a smoke test): N ∈ {2-VSGL, 64, 256}, K = 1, both kernels, RSM 64² only; brute force
 at 64²; random VPLs (1 seed) at 64²; Cycles up to 16 samples; one EEVEE render (as saved);
-8 flicker frames without the brute force, decomposition with S = 4 seeds, sweeps at N ∈ {64, 256}, K = 1, seeds 0–2; memory at 1024² with
-N = 256 (no verdict).
+8 flicker frames without the brute force, decomposition with S = 4 seeds, sweeps at N ∈ {64, 256},
+K = 1, seeds 0–2; memory at 1024² with N = 256 (no verdict).
 """
 
 from __future__ import annotations
@@ -500,6 +500,11 @@ def shaded_image(bench, settings) -> tuple[np.ndarray, bool]:
     return (d + s).astype(np.float64), bool(np.all(np.isfinite(d)) and np.all(np.isfinite(s)))
 
 
+def mean_abs_step(sequence) -> float:
+    """mean_t mean|x(t) − x(t−1)|: the issue's frame-to-frame change of a sequence of images."""
+    return float(np.mean([np.abs(b - a).mean() for a, b in zip(sequence, sequence[1:])]))
+
+
 def change_sweep(scene, frames: int, width: int, height: int, motion: str, configurations, seed: int = 0) -> dict:
     """The issue's measure (mean |I(t) − I(t−1)| over covered pixels and RGB, lattice seed `seed`) of both kernel
     modes for each (N, K, RSM size, positional distribution) in `configurations`, the spot turning
@@ -509,7 +514,9 @@ def change_sweep(scene, frames: int, width: int, height: int, motion: str, confi
     images = {(kernel, *configuration): [] for configuration in configurations for kernel in ("modified", "original")}
     # 003's two VSGLs (whole-RSM totals, no lattice, no kernels) at each RSM size: what the RSM's own
     # rasterization of the turned light changes, without any sampling.
-    images.update({("two-vsgl", 2, 1.0, rsm_size, "per-lobe"): [] for rsm_size in sorted({c[2] for c in configurations})})
+    two_vsgl = {rsm_size: ("two-vsgl", 2, 1.0, rsm_size, VSGLSettings.positional_distribution)
+                for rsm_size in sorted({c[2] for c in configurations})}
+    images.update({key: [] for key in two_vsgl.values()})
     finite = True
     started = time.perf_counter()
     with contextlib.closing(turning_frames(scene, frames, width, height, motion)) as turning:
@@ -524,13 +531,13 @@ def change_sweep(scene, frames: int, width: int, height: int, motion: str, confi
     def change_of(key):
         sequence = [image[mask] for image in images[key]]
         mean = float(np.mean([image.mean() for image in sequence]))
-        change = float(np.mean([np.abs(b - a).mean() for a, b in zip(sequence, sequence[1:])]))
+        change = mean_abs_step(sequence)
         return {"change": change, "relative": change / mean, "mean": mean}
 
     rows = []
     for n, k, rsm_size, positions in configurations:
         row = {"n": n, "k": k, "rsm": rsm_size, "positions": positions,
-               "two-vsgl": change_of(("two-vsgl", 2, 1.0, rsm_size, "per-lobe"))}
+               "two-vsgl": change_of(two_vsgl[rsm_size])}
         for kernel in ("modified", "original"):
             row[kernel] = change_of((kernel, n, k, rsm_size, positions))
         row["ratio"] = row["modified"]["change"] / row["original"]["change"]
@@ -592,9 +599,6 @@ def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256
     out = {"frames": frames, "n": n, "k": k, "rsm": rsm_size, "brute_rsm": brute_rsm, "size": (width, height),
            "finite": finite, "seeds": seeds, "error_variance_factor": 1.0 + 1.0 / seeds if seeds else None,
            "seconds": time.perf_counter() - started, "seed_average_seconds": seed_seconds}
-
-    def mean_abs_step(sequence):
-        return float(np.mean([np.abs(b - a).mean() for a, b in zip(sequence, sequence[1:])]))
 
     for name, seq in images.items():
         seq = [image[mask] for image in seq]
@@ -924,7 +928,7 @@ def main(argv=None) -> int:
     sweeps = [change_sweep(scene, flicker_frames, fw, fh, motion, sweep_configurations) for motion in ("pan", "spin")]
     # The verdict's setting with other lattice seeds: a seed is an arbitrary rotation of the lattice
     # (and the original kernel's spikes come and go with it), so the verdict takes the median seed.
-    verdict_configuration = (stability["n"], stability["k"], stability["rsm"], "per-lobe")
+    verdict_configuration = (stability["n"], stability["k"], stability["rsm"], VSGLSettings.positional_distribution)
     extra_seeds = range(1, 3) if quick else range(1, 5)
     seed_runs = {motion: [change_sweep(scene, flicker_frames, fw, fh, motion, [verdict_configuration], seed=seed)
                           for seed in extra_seeds] for motion in ("pan", "spin")}
@@ -1076,12 +1080,13 @@ def main(argv=None) -> int:
     jitter_ratio = st["modified"]["jitter"] / st["original"]["jitter"]
     lines.append(f"\nModified / original: change {flicker_ratio:.2f}, jitter {jitter_ratio:.2f}.\n")
     proper_ratio = None
+    motion_floor = st["modified"]["motion"] / st["original"]["change"] if decomposed else None
     if decomposed:
         proper_ratio = st["modified"]["flicker"] / st["original"]["flicker"]
         motion_ratio = st["modified"]["motion"] / st["original"]["motion"]
         lines.append(f"Flicker proper (deviation from the seed-averaged image), modified / original: "
                      f"{proper_ratio:.2f} (motion {motion_ratio:.2f}; S = {st['seeds']} seeds).\n")
-        floor = st["modified"]["motion"] / st["original"]["change"]
+        floor = motion_floor
         lines.append(f"Motion floor: the modified kernel's motion alone is {floor:.2f}× the original kernel's whole "
                      "change. The seed-0 image is Ī + e with e of zero mean over the lattice rotation, so by Jensen's "
                      "inequality its expected change per pixel is at least |Ī(t) − Ī(t−1)|: on this turn the modified "
@@ -1152,7 +1157,7 @@ def main(argv=None) -> int:
     pan_ratios, spin_ratios = seed_ratios("pan"), seed_ratios("spin")
     pan_median, spin_median = statistics.median(pan_ratios), statistics.median(spin_ratios)
     proper_text = (f"; flicker proper (deviation from the {st['seeds']}-seed average) ratio {proper_ratio:.2f}; "
-                   f"motion floor {st['modified']['motion'] / st['original']['change']:.2f}: no renderer with the "
+                   f"motion floor {motion_floor:.2f}: no renderer with the "
                    "modified kernel's expected image can be expected below it on this turn"
                    if proper_ratio is not None else "")
     settings_text = f"N = {st['n']}, K = {st['k']:g}, RSM {st['rsm']}²"

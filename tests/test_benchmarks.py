@@ -40,7 +40,8 @@ def test_speed_accuracy_benchmark_quick_run_writes_table_plot_and_targets():
     assert set(sweeps) == {"pan", "spin"}
     # The sweep's pan at N = 256 renders the verdict's frames again (seed 0): the same figure, up to
     # llvmpipe's float32 (measured 5e-5 relative).
-    pan_256 = next(row for row in sweeps["pan"]["rows"] if (row["n"], row["k"], row["rsm"], row["positions"]) == (256, 1, 128, "per-lobe"))
+    pan_256 = next(row for row in sweeps["pan"]["rows"]
+                   if (row["n"], row["k"], row["rsm"], row["positions"]) == (256, 1, 128, "per-lobe"))
     for mode in ("modified", "original"):
         assert abs(pan_256[mode]["change"] - stability[mode]["change"]) <= 1e-3 * stability[mode]["change"]
     assert (results / "speed_accuracy_quick.png").stat().st_size > 10_000
