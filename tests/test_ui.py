@@ -17,7 +17,7 @@ import pytest
 import vsgl_addon
 from vsgl_addon import engine, overlay, ui
 from vsgl_addon.operators import settings_image_name
-from vsgl_addon.settings import VSGLSettings
+from vsgl_addon.settings import OVERLAY_DISPLAYS, VSGLSettings
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -132,7 +132,7 @@ def test_overlay_properties_defaults_ranges_tooltips(registered):
     properties = settings.bl_rna.properties
     assert settings.show_overlay is False
     assert settings.overlay_mode == "INDIRECT"
-    assert {item.identifier for item in properties["overlay_mode"].enum_items} == set(overlay.MODE_INDEX)
+    assert {item.identifier for item in properties["overlay_mode"].enum_items} == set(OVERLAY_DISPLAYS.identifiers)
     scale = properties["overlay_resolution_scale"]
     assert (scale.default, scale.hard_min, scale.hard_max) == pytest.approx((0.25, 0.02, 1.0))
     intensity = properties["overlay_intensity"]
