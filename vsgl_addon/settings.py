@@ -42,6 +42,9 @@ class Choices(tuple):
                 raise ValueError(f"duplicate {attribute} in {values}")
         return super().__new__(cls, choices)
 
+    def __getnewargs__(self):  # copy and pickle call __new__ with the choices, not one tuple
+        return tuple(self)
+
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(choice.name for choice in self)
