@@ -66,7 +66,8 @@ class Choices(tuple):
         raise KeyError(identifier)
 
     def number(self, name: str) -> int:
-        """The option's position: its enum item number in the .blend, and the shader's constant."""
+        """The option's position: its enum item number in the .blend (properties.enum_items), and
+        for OVERLAY_DISPLAYS the overlay shader's `mode`."""
         return self.names.index(name)
 
 
