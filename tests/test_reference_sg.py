@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from vsgl_addon.reference import accuracy, quadrature, sg
+from vsgl_addon.reference import accuracy, numerics, quadrature, sg
 
 RTOL = accuracy.EXACT_BOUND  # exact identities: 1e-9 relative
 X = np.array([1.0, 0.0, 0.0])
@@ -206,7 +206,7 @@ def test_sg_product_integral_vs_quadrature():
         return np.exp(log - d[:, None, None])
 
     quad = quadrature.sphere_quadrature(scaled, pole, n_phi=8)
-    np.testing.assert_allclose(4.0 * np.pi * sg._one_minus_exp_ratio(2.0 * m), quad, rtol=RTOL)
+    np.testing.assert_allclose(4.0 * np.pi * numerics.one_minus_exp_ratio(2.0 * m), quad, rtol=RTOL)
 
 
 def test_sg_product_integral_pole_on_one_lobe():

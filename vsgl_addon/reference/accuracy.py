@@ -22,11 +22,9 @@ import numpy as np
 from .asg import asg_evaluate, asg_integral, asg_specular_lobe, sg_asg_convolution
 from .ggx import ggx_ndf, microfacet_brdf
 from .quadrature import sphere_quadrature
+from .numerics import dot, f64, norm
 from .sg import (
     DIFFUSE_SHARPNESS,
-    _dot,
-    _f64,
-    _norm,
     ndf_sharpness,
     sg_evaluate,
     sg_integral,
@@ -84,8 +82,8 @@ def golden_section_minimize(fn, lo, hi, iterations=60):
 
 def direction(theta, beta, x_axis=_X, y_axis=_Y, z_axis=_Z):
     """z rotated by theta towards cos(beta) x + sin(beta) y (broadcasts)."""
-    theta = _f64(theta)[..., None]
-    beta = _f64(beta)[..., None]
+    theta = f64(theta)[..., None]
+    beta = f64(beta)[..., None]
     return np.cos(theta) * z_axis + np.sin(theta) * (np.cos(beta) * x_axis + np.sin(beta) * y_axis)
 
 
@@ -99,8 +97,8 @@ def asg_integral_1d(eta_x, eta_y):
     ``(integral, integral of e^-k / (2k))``: the second is exactly Eq. 34 minus the integral, so the
     relative error of Eq. 34 is their ratio with no cancellation.
     """
-    eta_x = _f64(eta_x)[..., None]
-    eta_y = _f64(eta_y)[..., None]
+    eta_x = f64(eta_x)[..., None]
+    eta_y = f64(eta_y)[..., None]
     t, w = np.polynomial.legendre.leggauss(20)
     half = 0.25 * np.pi * np.concatenate(([0.0], np.logspace(-14.0, 0.0, 57)))
     edges = np.concatenate((half, 0.5 * np.pi - half[::-1][1:]))
@@ -117,7 +115,7 @@ def asg_integral_1d(eta_x, eta_y):
 
 def _log_sg_asg(omega, lam, p, eta_x, eta_y):
     cz = np.maximum(omega[..., 2], 1e-300)
-    return lam * _dot(omega, p) + np.log(cz) - eta_x * omega[..., 0] ** 2 - eta_y * omega[..., 1] ** 2
+    return lam * dot(omega, p) + np.log(cz) - eta_x * omega[..., 0] ** 2 - eta_y * omega[..., 1] ** 2
 
 
 def sg_asg_peak(p, lam, eta_x, eta_y, iterations=40):
@@ -127,25 +125,25 @@ def sg_asg_peak(p, lam, eta_x, eta_y, iterations=40):
     estimate (nu p_x / (nu + eta_x), nu p_y / (nu + eta_y)). Only used to place the quadrature's
     pole at the peak of the integrand; any point near the peak would do.
     """
-    p = _f64(p)
-    lam, eta_x, eta_y = np.broadcast_arrays(_f64(lam), _f64(eta_x), _f64(eta_y))
+    p = f64(p)
+    lam, eta_x, eta_y = np.broadcast_arrays(f64(lam), f64(eta_x), f64(eta_y))
     nu = 0.5 * lam
     a = nu * p[..., 0] / (nu + eta_x)
     b = nu * p[..., 1] / (nu + eta_y)
     omega = np.stack((a, b, np.sqrt(np.maximum(1.0 - a * a - b * b, 1e-4))), axis=-1)
-    omega = omega / _norm(omega)[..., None]
+    omega = omega / norm(omega)[..., None]
     g = _log_sg_asg(omega, lam, p, eta_x, eta_y)
     for _ in range(iterations):
         cx, cy, cz = omega[..., 0], omega[..., 1], omega[..., 2]
         grad = lam[..., None] * p + np.stack((-2.0 * eta_x * cx, -2.0 * eta_y * cy, 1.0 / cz), axis=-1)
         # Tangent basis at omega: x (or y near the x axis) projected.
         t1 = _X - cx[..., None] * omega
-        t1 = np.where((_norm(t1) < 0.5)[..., None], _Y - cy[..., None] * omega, t1)
-        t1 = t1 / _norm(t1)[..., None]
+        t1 = np.where((norm(t1) < 0.5)[..., None], _Y - cy[..., None] * omega, t1)
+        t1 = t1 / norm(t1)[..., None]
         t2 = np.cross(omega, t1)
         basis = (t1, t2)
-        radial = _dot(omega, grad)
-        g_t = np.stack([_dot(t, grad) for t in basis], axis=-1)
+        radial = dot(omega, grad)
+        g_t = np.stack([dot(t, grad) for t in basis], axis=-1)
         hess = np.empty(g_t.shape + (2,))
         for i in range(2):
             for j in range(2):
@@ -173,7 +171,7 @@ def sg_asg_peak(p, lam, eta_x, eta_y, iterations=40):
             trial = (
                 omega + (length[..., None] * step[..., :1]) * t1 + (length[..., None] * step[..., 1:]) * t2
             )
-            trial = trial / _norm(trial)[..., None]
+            trial = trial / norm(trial)[..., None]
             g_trial = _log_sg_asg(trial, lam, p, eta_x, eta_y)
             better = g_trial >= g
             if better.all():
@@ -192,8 +190,8 @@ def sg_asg_convolution_quadrature(p, lam, eta_x, eta_y, n_phi=64, order=16):
     (min(eta) + lam/2 < 40, where e^-40 is below the target precision no longer holds): there the
     pole is z, so the <w, z> kink lies on the quadrature's u = 1 breakpoint.
     """
-    p = _f64(p)
-    lam, eta_x, eta_y = (np.broadcast_to(_f64(v), p.shape[:-1]) for v in (lam, eta_x, eta_y))
+    p = f64(p)
+    lam, eta_x, eta_y = (np.broadcast_to(f64(v), p.shape[:-1]) for v in (lam, eta_x, eta_y))
     nu = 0.5 * lam
     pole = sg_asg_peak(p, lam, eta_x, eta_y)
     pole = np.where((np.minimum(eta_x, eta_y) + nu < 40.0)[..., None], _Z, pole)
@@ -274,7 +272,7 @@ def _identity_rows():
         )
     )
     alpha = ROUGHNESS
-    norm = sphere_quadrature(
+    normalization = sphere_quadrature(
         lambda w: ggx_ndf(w[..., 2], alpha[:, None, None]) * w[..., 2],
         np.broadcast_to(_Z, alpha.shape + (3,)),
         n_phi=1,
@@ -284,7 +282,7 @@ def _identity_rows():
             "GGX NDF normalization ∫D(h·n)(h·n)dh = 1 (004 Eq. 6)",
             "α ∈ [1e-3, 1]",
             "max absolute error vs quadrature",
-            float(np.max(np.abs(norm - 1.0))),
+            float(np.max(np.abs(normalization - 1.0))),
             exact=True,
         )
     )
@@ -434,8 +432,8 @@ def specular_quadrature(f, incoming, roughness, n_phi=128, order=16):
     geometrically from both sides. Accuracy: ~1e-9 away from grazing; the horizon cut limits it to
     ~1e-3 at 85 deg incidence (measured against 4096 azimuth points).
     """
-    incoming = _f64(incoming)
-    alpha = np.broadcast_to(_f64(roughness), incoming.shape[:-1])
+    incoming = f64(incoming)
+    alpha = np.broadcast_to(f64(roughness), incoming.shape[:-1])
     x_axis, _, z_axis, _, _ = asg_specular_lobe(incoming, _Z, alpha)
     cos = np.abs(incoming[..., 2])
     lam_h = ndf_sharpness(alpha)
@@ -463,8 +461,8 @@ def specular_lobe_errors(alpha, incidence_deg, n_phi=128):
     / E, its peak error S(xi_s)/T(xi_s) - 1, its energy below the horizon / E, and the ASG lobe's L1
     error / E (ASG scaled by E / integral of the ASG).
     """
-    alpha = _f64(alpha)
-    theta = np.radians(_f64(incidence_deg))
+    alpha = f64(alpha)
+    theta = np.radians(f64(incidence_deg))
     alpha, theta = np.broadcast_arrays(alpha, theta)
     incoming = direction(theta, 0.0)
     x_axis, y_axis, z_axis, eta_x, eta_y = asg_specular_lobe(incoming, _Z, alpha)

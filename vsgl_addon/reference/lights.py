@@ -20,12 +20,10 @@ import math
 
 import numpy as np
 
+from .numerics import f64
+
 #: Light type codes, ``params[0]`` (the numbering of lights.glsl's LIGHT_* constants).
 LIGHT_TYPE_CODES = {"POINT": 0, "SPOT": 1, "SUN": 2, "AREA": 3}
-
-
-def _f64(x):
-    return np.asarray(x, dtype=np.float64)
 
 
 def light_params(light) -> tuple[float, float, float, float]:
@@ -48,7 +46,7 @@ def light_params(light) -> tuple[float, float, float, float]:
 
 def smoothstep(x):
     """Cycles' smoothstepf: 0 for x <= 0, 1 for x >= 1, 3x² − 2x³ between."""
-    x = np.clip(_f64(x), 0.0, 1.0)
+    x = np.clip(f64(x), 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
 
 
@@ -58,7 +56,7 @@ def spot_attenuation(cos_axis, spot_size: float, spot_blend: float):
     smoothstep((cos θ − cos(spot_size/2)) / ((1 − cos(spot_size/2)) · spot_blend)), θ the angle off
     the spot axis in the light's local frame (object scale divided out); a hard edge for blend 0.
     """
-    cos_axis = _f64(cos_axis)
+    cos_axis = f64(cos_axis)
     cos_half = math.cos(0.5 * spot_size)
     if spot_blend <= 0.0:
         return np.where(cos_axis > cos_half, 1.0, 0.0)
@@ -77,8 +75,8 @@ def light_spot_attenuation(light, directions):
     """The cone of a spot ``light`` for rays leaving it along ``directions`` (..., 3, world): the
     rays in the light's local frame with the object scale divided out (lights.glsl's
     light_spot_attenuation)."""
-    to_local = np.linalg.inv(_f64(light.matrix_world)[:3, :3])
-    local = _f64(directions) @ to_local.T
+    to_local = np.linalg.inv(f64(light.matrix_world)[:3, :3])
+    local = f64(directions) @ to_local.T
     local = local / np.linalg.norm(local, axis=-1, keepdims=True)
     return spot_attenuation(-local[..., 2], light.spot_size, light.spot_blend)  # lights point down -Z
 
@@ -87,11 +85,11 @@ def radiant_intensity(light, directions) -> np.ndarray:
     """Intensity per unit light colour (W/sr) of a point, spot or area light towards ``directions``
     (..., 3, unit, leaving the light); for a sun the irradiance S (W/m²), whatever the direction
     (lights.glsl's light_intensity)."""
-    directions = _f64(directions)
+    directions = f64(directions)
     intensity = np.full(directions.shape[:-1], light_params(light)[3])
     if light.type == "SPOT":
         intensity = intensity * light_spot_attenuation(light, directions)
     elif light.type == "AREA":
-        axis = _f64(light.direction)
+        axis = f64(light.direction)
         intensity = intensity * np.maximum(directions @ (axis / np.linalg.norm(axis)), 0.0)
     return intensity

@@ -41,12 +41,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .numerics import f64
 from .principled import alpha_from_roughness, material_terms
 from .sg import specular_lobe_warp
-
-
-def _f64(x):
-    return np.asarray(x, dtype=np.float64)
 
 
 def principled_reflectances(base_color, metallic, specular_ior_level, ior, roughness, cos_incidence):
@@ -80,15 +77,15 @@ def texel_rays(size: int, half_extent, view_to_world) -> np.ndarray:
     u, v = np.meshgrid(centres * hx, centres * hy)
     local = np.stack([u, v, -np.ones_like(u)], axis=-1)
     local /= np.linalg.norm(local, axis=-1, keepdims=True)
-    return local @ _f64(view_to_world)[:3, :3].T
+    return local @ f64(view_to_world)[:3, :3].T
 
 
 def incoming_directions(light, positions) -> np.ndarray:
     """ω' per texel (..., 3): unit, from the surface towards the light (a sun: −its direction)."""
-    positions = _f64(positions)
+    positions = f64(positions)
     if light.type == "SUN":
-        return np.broadcast_to(-_f64(light.direction), positions.shape).copy()
-    towards = _f64(light.position) - positions
+        return np.broadcast_to(-f64(light.direction), positions.shape).copy()
+    towards = f64(light.position) - positions
     return towards / np.linalg.norm(towards, axis=-1, keepdims=True)
 
 
