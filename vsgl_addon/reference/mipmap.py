@@ -154,6 +154,19 @@ def fibonacci_lattice(count: int, rotation=(0.0, 0.0)) -> np.ndarray:
     return np.minimum(points, _BELOW_ONE)
 
 
+def _warp_split(u, first, total):
+    """One binary choice of the warp: (u < P, u rescaled to [0, 1) inside the chosen side) with
+    P = first / total (1/2 for a block of zero mass)."""
+    p_first = np.divide(first, total, out=np.full_like(first, 0.5), where=total > 0.0)
+    go_first = u < p_first
+    u = np.where(
+        go_first,
+        u / np.where(go_first, p_first, 1.0),
+        (u - p_first) / np.where(go_first, 1.0, 1.0 - p_first),
+    )
+    return go_first, np.clip(u, 0.0, _BELOW_ONE)
+
+
 def warp_hierarchical(pdf_chain, samples) -> tuple[np.ndarray, np.ndarray]:
     """Hierarchical sample warping through a PDF mipmap (000 §2.2, §3.2, [12]: Clarberg et al.).
 
@@ -185,26 +198,9 @@ def warp_hierarchical(pdf_chain, samples) -> tuple[np.ndarray, np.ndarray]:
         m10 = img[r0 + 1, c0]
         m11 = img[r0 + 1, c0 + 1]
         left = m00 + m10
-        total = left + m01 + m11
-        p_left = np.divide(left, total, out=np.full_like(left, 0.5), where=total > 0.0)
-        go_left = u < p_left
-        u = np.where(
-            go_left,
-            u / np.where(go_left, p_left, 1.0),
-            (u - p_left) / np.where(go_left, 1.0, 1.0 - p_left),
-        )
-        u = np.clip(u, 0.0, _BELOW_ONE)
+        go_left, u = _warp_split(u, left, left + m01 + m11)
         col = np.where(go_left, c0, c0 + 1)
-        upper = np.where(go_left, m00, m01)
-        column = np.where(go_left, left, m01 + m11)
-        p_upper = np.divide(upper, column, out=np.full_like(upper, 0.5), where=column > 0.0)
-        go_upper = v < p_upper
-        v = np.where(
-            go_upper,
-            v / np.where(go_upper, p_upper, 1.0),
-            (v - p_upper) / np.where(go_upper, 1.0, 1.0 - p_upper),
-        )
-        v = np.clip(v, 0.0, _BELOW_ONE)
+        go_upper, v = _warp_split(v, np.where(go_left, m00, m01), np.where(go_left, left, m01 + m11))
         row = np.where(go_upper, r0, r0 + 1)
     size = f64(pdf_chain[0]).shape[0]
     uv = np.stack([(col + u) / size, (row + v) / size], axis=-1)

@@ -39,6 +39,15 @@ from .asg import asg_any_tangent
 from .numerics import dot, f64, norm
 
 
+def composite_gauss_legendre(edges, order):
+    """Nodes and weights of ``order``-point Gauss-Legendre on each panel [edges[i], edges[i+1]]."""
+    t, w = np.polynomial.legendre.leggauss(order)
+    a, b = edges[:-1, None], edges[1:, None]
+    nodes = (0.5 * (b - a) * t + 0.5 * (b + a)).ravel()
+    weights = (0.5 * (b - a) * w).ravel()
+    return nodes, weights
+
+
 @functools.lru_cache(maxsize=None)
 def _geometric_rule(order, u_min, ratio, length):
     """Gauss-Legendre nodes x in (0, length) and weights, panels geometric towards x = 0."""
@@ -48,12 +57,7 @@ def _geometric_rule(order, u_min, ratio, length):
         edges.append(edge)
         edge *= ratio
     edges.append(length)
-    edges = np.array(edges)
-    t, w = np.polynomial.legendre.leggauss(order)
-    a, b = edges[:-1, None], edges[1:, None]
-    nodes = (0.5 * (b - a) * t + 0.5 * (b + a)).ravel()
-    weights = (0.5 * (b - a) * w).ravel()
-    return nodes, weights
+    return composite_gauss_legendre(np.array(edges), order)
 
 
 def u_rule(order=16, u_min=1e-12, ratio=4.0, equator=False):

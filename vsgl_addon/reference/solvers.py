@@ -17,7 +17,7 @@ import numpy as np
 from .asg import asg_evaluate, asg_specular_lobe, sg_asg_convolution
 from .ggx import ggx_ndf, microfacet_brdf
 from .numerics import dot, f64, norm
-from .quadrature import sphere_quadrature
+from .quadrature import composite_gauss_legendre, sphere_quadrature
 from .sg import ndf_sharpness, sg_evaluate, sg_lobe_normalized, specular_lobe, specular_lobe_warp
 
 #: The frame the measurements place their lobes in: z is the surface normal or the ASG axis.
@@ -70,12 +70,9 @@ def asg_integral_1d(eta_x, eta_y):
     """
     eta_x = f64(eta_x)[..., None]
     eta_y = f64(eta_y)[..., None]
-    t, w = np.polynomial.legendre.leggauss(20)
     half = 0.25 * np.pi * np.concatenate(([0.0], np.logspace(-14.0, 0.0, 57)))
     edges = np.concatenate((half, 0.5 * np.pi - half[::-1][1:]))
-    a, b = edges[:-1, None], edges[1:, None]
-    phi = (0.5 * (b - a) * t + 0.5 * (b + a)).ravel()
-    weights = (0.5 * (b - a) * w).ravel()
+    phi, weights = composite_gauss_legendre(edges, 20)
     k = eta_x * np.cos(phi) ** 2 + eta_y * np.sin(phi) ** 2
     safe = np.where(k > 0.0, k, 1.0)
     kept = np.where(k > 0.0, -np.expm1(-safe) / safe, 1.0)

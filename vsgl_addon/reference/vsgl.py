@@ -371,6 +371,12 @@ def vsgl_position(weight, position_sum, position_squared_sum, fallback_mean, fal
     return mean, np.maximum(variance, np.where(has, floor, VARIANCE_FLOOR_ABSOLUTE))
 
 
+def _check_positional_distribution(positional_distribution):
+    if positional_distribution not in POSITIONAL_DISTRIBUTIONS:
+        raise ValueError(f"positional_distribution must be one of {POSITIONAL_DISTRIBUTIONS}, "
+                         f"got {positional_distribution!r}")
+
+
 def vsgl_parameters(totals, fallback_mean=None, fallback_variance=None,
                     positional_distribution="per-lobe") -> dict:
     """VSGL parameters from cluster totals (..., 20) of ``texel_moments`` (000 app. B.1-B.3).
@@ -384,9 +390,7 @@ def vsgl_parameters(totals, fallback_mean=None, fallback_variance=None,
     power takes the combined position. Any common positive scale of the totals cancels except in
     c_v and ``power``.
     """
-    if positional_distribution not in POSITIONAL_DISTRIBUTIONS:
-        raise ValueError(f"positional_distribution must be one of {POSITIONAL_DISTRIBUTIONS}, "
-                         f"got {positional_distribution!r}")
+    _check_positional_distribution(positional_distribution)
     totals = f64(totals)
     if fallback_mean is None:
         fallback_mean = np.zeros(3)
@@ -523,9 +527,7 @@ def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
     """
     if kernel not in KERNEL_MODES:
         raise ValueError(f"kernel must be one of {KERNEL_MODES}, got {kernel!r}")
-    if positional_distribution not in POSITIONAL_DISTRIBUTIONS:
-        raise ValueError(f"positional_distribution must be one of {POSITIONAL_DISTRIBUTIONS}, "
-                         f"got {positional_distribution!r}")
+    _check_positional_distribution(positional_distribution)
     rsm = RSM.coerce(rsm)
     if kernel == "two-vsgl":
         return two_vsgls(rsm)

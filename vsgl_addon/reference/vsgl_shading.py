@@ -135,8 +135,16 @@ def specular_factor(axis_in, sharpness_in, view, normal, roughness, f0, specular
     half = axis_in + view
     half = safe_normalize(half, normal, norm(half))
     d1 = 1.0 / (np.pi * a2)
-    k = np.where(co_raw > 0.0, conv * d1 / (ggx_g1_denominator(ci, a2) * ggx_g1_denominator(co, a2)), 0.0)
+    masking = ggx_g1_denominator(ci, a2) * ggx_g1_denominator(co, a2)
+    k = np.where(co_raw > 0.0, conv * d1 / masking, 0.0)
     return k[..., None] * fresnel_schlick(dot(axis_in, half)[..., None], f0)
+
+
+def _receivers(position, normal, view, diffuse_reflectance, specular_f0, roughness):
+    """The shading points as flat float64 rows: (P, 3) vectors and colours, (P,) roughness."""
+    return (f64(position).reshape(-1, 3), f64(normal).reshape(-1, 3), f64(view).reshape(-1, 3),
+            f64(diffuse_reflectance).reshape(-1, 3), f64(specular_f0).reshape(-1, 3),
+            f64(roughness).reshape(-1))
 
 
 def _chunks(count, per_chunk):
@@ -156,12 +164,8 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
     """
     if diffuse_mode not in DIFFUSE_MODES:
         raise ValueError(f"diffuse mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
-    position = f64(position).reshape(-1, 3)
-    normal = f64(normal).reshape(-1, 3)
-    view = f64(view).reshape(-1, 3)
-    rd = f64(diffuse_reflectance).reshape(-1, 3)
-    f0 = f64(specular_f0).reshape(-1, 3)
-    alpha = f64(roughness).reshape(-1)
+    position, normal, view, rd, f0, alpha = _receivers(position, normal, view, diffuse_reflectance,
+                                                       specular_f0, roughness)
     count = len(f64(vsgls["diffuse_variance"]).reshape(-1))
     diffuse = np.zeros((len(position), 3))
     specular = np.zeros((len(position), 3))
@@ -263,12 +267,9 @@ def brute_force_shading(vpls: VPLs, position, normal, view, diffuse_reflectance,
     (α clamped to ``ALPHA_MIN`` as in shading). No visibility (VSGL shading has none either).
     VPLs at the shading point are skipped."""
     v = vpls.flat()
-    position = f64(position).reshape(-1, 3)
-    normal = f64(normal).reshape(-1, 3)
-    view = f64(view).reshape(-1, 3)
-    rd = f64(diffuse_reflectance).reshape(-1, 3)
-    f0 = f64(specular_f0).reshape(-1, 3)
-    alpha = np.maximum(f64(roughness).reshape(-1), ALPHA_MIN)
+    position, normal, view, rd, f0, alpha = _receivers(position, normal, view, diffuse_reflectance,
+                                                       specular_f0, roughness)
+    alpha = np.maximum(alpha, ALPHA_MIN)
     diffuse = np.zeros((len(position), 3))
     specular = np.zeros((len(position), 3))
     for p in range(len(position)):
