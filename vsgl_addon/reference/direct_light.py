@@ -16,13 +16,13 @@ from __future__ import annotations
 import numpy as np
 
 from . import principled
-from .lights import light_params, radiant_intensity
+from .lights import light_params, light_intensity
 from .numerics import f64, safe_normalize
 
 MIN_DISTANCE2 = 1e-12
 
 
-def light_irradiance(light, positions, normals):
+def direct_light_irradiance(light, positions, normals):
     """(E, incoming): irradiance per unit light colour (W/m²) at ``positions`` (..., 3) with unit
     ``normals``, and the unit directions towards the light."""
     p, n = f64(positions), f64(normals)
@@ -36,7 +36,7 @@ def light_irradiance(light, positions, normals):
     distance2 = np.maximum(np.sum(towards * towards, axis=-1), MIN_DISTANCE2)
     length = np.linalg.norm(towards, axis=-1)
     incoming = safe_normalize(towards, n, length)
-    intensity = radiant_intensity(light, -incoming)
+    intensity = light_intensity(light, -incoming)
     return intensity * np.maximum(np.sum(n * incoming, axis=-1), 0.0) / distance2, incoming
 
 
@@ -59,7 +59,7 @@ def shade(gbuffer: dict, camera_vector, lights, visibility=None):
     diffuse = np.zeros(p.shape)
     glossy = np.zeros(p.shape)
     for index, light in enumerate(lights):
-        e, incoming = light_irradiance(light, p, n_safe)
+        e, incoming = direct_light_irradiance(light, p, n_safe)
         if visibility is not None:
             e = e * visibility[index]
         fd, fs = principled.principled_brdf(incoming, outgoing, n_safe, base, rough, metallic, level, ior)

@@ -33,7 +33,7 @@ point); a VPL carries one Rd for every receiver, and by reciprocity the incidenc
 energy the texel actually reflects of the light it receives.
 
 The specular lobe of a texel is 000 Eq. 7's spherical warp (``sg.specular_lobe_warp``) for the
-incoming direction ω' with GGX α = max(roughness², 1e-6) (``principled.alpha_from_roughness``: the
+incoming direction ω' with GGX α = max(roughness², 1e-6) (``principled.principled_alpha``: the
 roughness 1e-3 keeps λh = 2/α² finite for a roughness of 0).
 """
 
@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from .numerics import f64
-from .principled import alpha_from_roughness, material_terms
+from .principled import principled_alpha, principled_terms
 from .sg import specular_lobe_warp
 
 
@@ -50,7 +50,7 @@ def principled_reflectances(base_color, metallic, specular_ior_level, ior, rough
     """(Rd, Rs) RGB of a texel whose surface (Principled base layer) is lit at μ' = n·ω'
     (``cos_incidence``; see the module documentation): the diffuse reflectance and the specular
     lobes' directional albedo. Numpy broadcasting over texels."""
-    terms = material_terms(base_color, metallic, specular_ior_level, ior, roughness, cos_incidence)
+    terms = principled_terms(base_color, metallic, specular_ior_level, ior, roughness, cos_incidence)
     return terms["diffuse"], terms["specular_albedo"]
 
 
@@ -90,5 +90,5 @@ def incoming_directions(light, positions) -> np.ndarray:
 
 
 def specular_lobes(incoming, normal, roughness):
-    """(ξs, λs) of the texels: 000 Eq. 7's warp with α = ``principled.alpha_from_roughness``."""
-    return specular_lobe_warp(incoming, normal, alpha_from_roughness(roughness))
+    """(ξs, λs) of the texels: 000 Eq. 7's warp with α = ``principled.principled_alpha``."""
+    return specular_lobe_warp(incoming, normal, principled_alpha(roughness))

@@ -87,7 +87,7 @@ def diffuse_mode_for_kernel(kernel: str) -> str:
     return "sg-convolution" if kernel == "two-vsgl" else "cosine"
 
 
-def incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
+def vsgl_incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
     """Incoming radiance SG of one VSGL lobe at shading points (000 Eq. 12), without cv.
 
     Returns ``(axis_in, sharpness_in, scale)`` with cin = cv · scale,
@@ -106,7 +106,7 @@ def incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
     return axis_in, lam_in, scale / (2.0 * np.pi * var)
 
 
-def diffuse_factor(axis_in, sharpness_in, normal, mode="cosine"):
+def vsgl_diffuse_factor(axis_in, sharpness_in, normal, mode="cosine"):
     """Ld / (cin Rd): A(λin)/π ⟨ξin, n⟩ ("cosine", 000 app. C) or
     ∫ G(ξin, λin) G(n, λd) dω / A(λd) ("sg-convolution", 003)."""
     if mode == "cosine":
@@ -117,7 +117,7 @@ def diffuse_factor(axis_in, sharpness_in, normal, mode="cosine"):
     raise ValueError(f"diffuse mode must be one of {DIFFUSE_MODES}, got {mode!r}")
 
 
-def specular_factor(axis_in, sharpness_in, view, normal, roughness, f0, specular_cosine="normal"):
+def vsgl_specular_factor(axis_in, sharpness_in, view, normal, roughness, f0, specular_cosine="normal"):
     """Ls / cin, RGB (..., 3): C(ξin) · SG × ASG convolution (see the module documentation)."""
     axis_in = f64(axis_in)
     view = f64(view)
@@ -179,14 +179,14 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
             mean = f64(vsgls[f"{lobe}_mean"]).reshape(-1, 3)[rows][None]
             variance = f64(vsgls[f"{lobe}_variance"]).reshape(-1)[rows][None]
             amplitude = f64(vsgls[amp_key]).reshape(-1, 3)[rows][None]
-            axis_in, lam_in, scale = incoming_sg(
+            axis_in, lam_in, scale = vsgl_incoming_sg(
                 position[:, None], mean, variance,
                 f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
                 f64(vsgls[sharp_key]).reshape(-1)[rows][None])
             c_in = amplitude * scale[..., None]
-            ld = c_in * diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
+            ld = c_in * vsgl_diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
                 * rd[:, None]
-            ls = c_in * specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
+            ls = c_in * vsgl_specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
                                         alpha[:, None], f0[:, None], specular_cosine)
             diffuse += ld.sum(axis=1)
             specular += ls.sum(axis=1)
