@@ -17,7 +17,7 @@ import numpy as np
 
 from . import principled
 from .lights import light_params, light_intensity
-from .numerics import f64, safe_normalize
+from .numerics import dot, f64, norm, safe_normalize
 
 MIN_DISTANCE2 = 1e-12
 
@@ -31,13 +31,13 @@ def direct_light_irradiance(light, positions, normals):
     _, _, _, scale = light_params(light)
     if light.type == "SUN":
         incoming = np.broadcast_to(-axis, p.shape).copy()
-        return scale * np.maximum(np.sum(n * incoming, axis=-1), 0.0), incoming
+        return scale * np.maximum(dot(n, incoming), 0.0), incoming
     towards = f64(light.position) - p
-    distance2 = np.maximum(np.sum(towards * towards, axis=-1), MIN_DISTANCE2)
-    length = np.linalg.norm(towards, axis=-1)
+    distance2 = np.maximum(dot(towards, towards), MIN_DISTANCE2)
+    length = norm(towards)
     incoming = safe_normalize(towards, n, length)
     intensity = light_intensity(light, -incoming)
-    return intensity * np.maximum(np.sum(n * incoming, axis=-1), 0.0) / distance2, incoming
+    return intensity * np.maximum(dot(n, incoming), 0.0) / distance2, incoming
 
 
 def shade(gbuffer: dict, camera_vector, lights, visibility=None):
@@ -54,7 +54,7 @@ def shade(gbuffer: dict, camera_vector, lights, visibility=None):
     ior = np.where(covered, f64(gbuffer["material"])[..., 1], 1.5)
     camera = f64(camera_vector)
     outgoing = camera[:3] - p if camera[3] > 0.5 else np.broadcast_to(camera[:3], p.shape)
-    outgoing = outgoing / np.maximum(np.linalg.norm(outgoing, axis=-1, keepdims=True), 1e-300)
+    outgoing = outgoing / np.maximum(norm(outgoing)[..., None], 1e-300)
     n_safe = np.where(covered[..., None], n, np.array([0.0, 0.0, 1.0]))
     diffuse = np.zeros(p.shape)
     glossy = np.zeros(p.shape)

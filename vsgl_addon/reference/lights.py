@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from .numerics import f64
+from .numerics import f64, norm
 
 #: Light type codes, ``params[0]`` (the numbering of lights.glsl's LIGHT_* constants).
 LIGHT_TYPE_CODES = {"POINT": 0, "SPOT": 1, "SUN": 2, "AREA": 3}
@@ -77,7 +77,7 @@ def light_spot_attenuation(light, directions):
     light_spot_attenuation)."""
     to_local = np.linalg.inv(f64(light.matrix_world)[:3, :3])
     local = f64(directions) @ to_local.T
-    local = local / np.linalg.norm(local, axis=-1, keepdims=True)
+    local = local / norm(local)[..., None]
     return spot_attenuation(-local[..., 2], light.spot_size, light.spot_blend)  # lights point down -Z
 
 

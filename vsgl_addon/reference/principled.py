@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from .ggx import fresnel_schlick, ggx_ndf
-from .numerics import dot, f64, safe_normalize, safe_ratio
+from .numerics import dot, f64, norm, safe_normalize, safe_ratio
 
 #: Smallest GGX α (roughness 1e-3), also the RSM's (``reference/rsm.py``).
 ALPHA_MIN = 1e-6
@@ -208,7 +208,7 @@ def principled_brdf(incoming, outgoing, normal, base_color, roughness, metallic,
     above = (ci > 0.0) & (co > 0.0)
     diffuse = np.where(above[..., None], terms["diffuse"] / np.pi, 0.0)
     h = wi + wo
-    length = np.linalg.norm(h, axis=-1)
+    length = norm(h)
     ok = above & (length > 0.0)
     h = safe_normalize(h, 0.0, length)
     ch = dot(h, n)

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .numerics import f64
+from .numerics import f64, norm
 from .principled import principled_alpha, principled_terms
 from .sg import specular_lobe_warp
 
@@ -76,7 +76,7 @@ def texel_rays(size: int, half_extent, view_to_world) -> np.ndarray:
     centres = (np.arange(size) + 0.5) / size * 2.0 - 1.0
     u, v = np.meshgrid(centres * hx, centres * hy)
     local = np.stack([u, v, -np.ones_like(u)], axis=-1)
-    local /= np.linalg.norm(local, axis=-1, keepdims=True)
+    local /= norm(local)[..., None]
     return local @ f64(view_to_world)[:3, :3].T
 
 
@@ -86,7 +86,7 @@ def incoming_directions(light, positions) -> np.ndarray:
     if light.type == "SUN":
         return np.broadcast_to(-f64(light.direction), positions.shape).copy()
     towards = f64(light.position) - positions
-    return towards / np.linalg.norm(towards, axis=-1, keepdims=True)
+    return towards / norm(towards)[..., None]
 
 
 def specular_lobes(incoming, normal, roughness):

@@ -66,7 +66,7 @@ from typing import Mapping
 import numpy as np
 
 from . import mipmap
-from .numerics import f64, norm, safe_normalize, safe_ratio
+from .numerics import dot, f64, norm, safe_normalize, safe_ratio
 from .sg import DIFFUSE_SHARPNESS, sg_integral  # λ_d ≈ 2 (000 Eq. 6); A(λ) (000 app. A)
 
 #: Rec. 709 luminance (Blender's scene-linear RGB): scalar weight of an RGB power.
@@ -205,7 +205,7 @@ class RSM:
 def unit_or_zero(vectors, mask):
     """Normalize where mask and the length is positive and finite; zero elsewhere."""
     vectors = np.where(mask[..., None], vectors, 0.0)
-    length = np.sqrt(np.sum(vectors * vectors, axis=-1))
+    length = norm(vectors)
     ok = mask & (length > 0.0) & np.isfinite(length)
     return np.where(ok[..., None], vectors / np.where(ok, length, 1.0)[..., None], 0.0)
 
@@ -246,7 +246,7 @@ def texel_moments(rsm: RSM) -> np.ndarray:
     out[..., CH_SPECULAR_DIRECTION] = w_s[..., None] * toksvig_mean_direction(
         spec_axis, spec_sharpness
     )
-    squared = np.sum(position * position, axis=-1)
+    squared = dot(position, position)
     out[..., CH_DIFFUSE_POSITION] = w_d[..., None] * position
     out[..., CH_DIFFUSE_POSITION_SQUARED] = w_d * squared
     out[..., CH_SPECULAR_POSITION] = w_s[..., None] * position
@@ -366,7 +366,7 @@ def vsgl_position(weight, position_sum, position_squared_sum, fallback_mean, fal
     has = weight > 0.0
     mean = np.where(has[..., None], safe_ratio(position_sum, weight), fallback_mean)
     second = safe_ratio(position_squared_sum, weight)
-    variance = np.where(has, second - np.sum(mean * mean, axis=-1), fallback_variance)
+    variance = np.where(has, second - dot(mean, mean), fallback_variance)
     floor = np.maximum(VARIANCE_FLOOR_RELATIVE * second, VARIANCE_FLOOR_ABSOLUTE)
     return mean, np.maximum(variance, np.where(has, floor, VARIANCE_FLOOR_ABSOLUTE))
 
