@@ -84,7 +84,7 @@ def sg_product(axis1, sharpness1, axis2, sharpness2):
     unit vector (no NaN) and any axis is correct for sharpness 0.
     """
     xi_m, length, exponent = _product_parts(axis1, sharpness1, axis2, sharpness2)
-    axis = safe_normalize(xi_m, np.broadcast_to(f64(axis1), xi_m.shape), length)
+    axis = safe_normalize(xi_m, f64(axis1), length)
     return axis, length, np.exp(exponent)
 
 
