@@ -9,6 +9,7 @@ masked lanes never compute 0/0 (no NaN, no floating-point warning).
 ``safe_normalize`` keeps the name and the fallback of its GLSL twin but not the GLSL's rescaling
 by the largest component: that guards float32's range (|v| < 1e-19 underflows its squares), which
 float64 reaches only below 1e-154, far outside the scenes and the tests.
+
 The error-free transformations of math.glsl (``two_sum``, ``two_product``, ``dot_accurate``) and its
 series ``expm1`` have no twin here: float64 holds the digits they recover in float32, and numpy has
 ``np.expm1``.
