@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""docs/accuracy.md is current: every figure recomputed by vsgl_addon.reference.accuracy.measure()
+"""docs/accuracy.md is current: every figure recomputed by vsgl_addon.reference.measurements.measure()
 matches the committed one (numbers compared with a tolerance, not text).
 
 Regenerate with: python -m vsgl_addon.reference.accuracy --write docs/accuracy.md
@@ -11,7 +11,7 @@ import pathlib
 
 import pytest
 
-from vsgl_addon.reference import accuracy
+from vsgl_addon.reference import accuracy, measurements
 
 DOC = pathlib.Path(__file__).resolve().parents[1] / "docs" / "accuracy.md"
 # The table prints 4 significant digits; platform differences in exp/log are far below that.
@@ -21,7 +21,7 @@ REGENERATE = "python -m vsgl_addon.reference.accuracy --write docs/accuracy.md"
 
 @pytest.fixture(scope="module")
 def rows():
-    return accuracy.measure()
+    return measurements.measure()
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +50,7 @@ def test_figures_current(rows, committed):
         assert exact == row.exact
         if row.exact:
             # Noise of a closed form against the quadrature: only the bound is reproducible.
-            if not (row.value <= accuracy.EXACT_BOUND and value <= accuracy.EXACT_BOUND):
+            if not (row.value <= measurements.EXACT_BOUND and value <= measurements.EXACT_BOUND):
                 wrong.append((_key(row), value, row.value))
         elif abs(value - row.value) > RTOL * abs(row.value):
             wrong.append((_key(row), value, row.value))

@@ -83,7 +83,7 @@ def test_light_irradiance_glsl_matches_numpy(kind):
         " p, n, incoming); result = vec4(e, incoming);",
         {k: as_gpu_floats(v) for k, v in inputs.items()}, 4, libraries=["direct_light/lights.glsl"])
     light.position = as_gpu_floats(light.position)
-    e, incoming = ref.light_irradiance(light, p, n)
+    e, incoming = ref.direct_light_irradiance(light, p, n)
     assert np.all(np.isfinite(out))
     assert np.all(out[:50, 0] <= 1e-4 * np.max(e)), "light in the surface plane must give ~0"
     # The point exactly at the light (distance clamped, direction a fallback) is left out.

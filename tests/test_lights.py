@@ -56,7 +56,7 @@ def test_light_intensity_glsl_matches_numpy(kind, spot_blend):
               "r1": np.tile(to_local[1], (count, 1)), "r2": np.tile(to_local[2], (count, 1))}
     out = evaluate_glsl("light_intensity(params, direction, axis, transpose(mat3(r0, r1, r2)))",
                         {k: as_gpu_floats(v) for k, v in inputs.items()}, libraries=["lib/lights.glsl"])
-    expected = ref.radiant_intensity(light, directions)
+    expected = ref.light_intensity(light, directions)
     # A hard spot edge flips between 0 and 1 where float32 rounding decides: leave out the
     # directions within 1e-5 of it.
     keep = np.ones(count, bool)

@@ -18,9 +18,9 @@ def _unit(v):
 
 
 def test_fresnel_limits_and_f0():
-    f0 = P.dielectric_f0(1.5, 0.5)
+    f0 = P.principled_dielectric_f0(1.5, 0.5)
     assert f0 == pytest.approx(0.04)
-    assert P.dielectric_f0(1.5, 0.0) == 0.0
+    assert P.principled_dielectric_f0(1.5, 0.0) == 0.0
     c = np.array([0.0, 1e-6, 0.5, 1.0])
     f = P.fresnel_dielectric_f0(c, f0)
     assert f[0] == pytest.approx(1.0) and f[-1] == pytest.approx(0.04)
@@ -33,8 +33,8 @@ def test_albedo_quadrature_converges():
     mu = np.array([0.1, 0.3, 0.6, 1.0])
     for r in ROUGHNESS:
         rough = np.full(4, r)
-        coarse = P.directional_albedos(mu, rough, 0.04, np.array([0.9, 0.5, 0.1]))
-        fine = P.directional_albedos(mu, rough, 0.04, np.array([0.9, 0.5, 0.1]), samples=48)
+        coarse = P.principled_directional_albedos(mu, rough, 0.04, np.array([0.9, 0.5, 0.1]))
+        fine = P.principled_directional_albedos(mu, rough, 0.04, np.array([0.9, 0.5, 0.1]), samples=48)
         # The dielectric albedo (what scales the diffuse layer) to 0.01 absolute.
         np.testing.assert_allclose(coarse[1], fine[1], atol=0.01)
         np.testing.assert_allclose(coarse[0], fine[0], atol=0.06)
@@ -83,7 +83,7 @@ albedo = t.specular_albedo;
     out = evaluate_glsl(body, gpu_in, {"diffuse": 3, "specular": 3, "rd": 3, "albedo": 3},
                         libraries=["lib/principled.glsl"])
     mu_o = np.sum(gpu_in["normal"] * gpu_in["outgoing"], axis=-1)
-    terms = P.material_terms(gpu_in["base"], gpu_in["metallic"], gpu_in["params"][:, 0],
+    terms = P.principled_terms(gpu_in["base"], gpu_in["metallic"], gpu_in["params"][:, 0],
                              gpu_in["params"][:, 1], gpu_in["roughness"], mu_o)
     diffuse, specular = P.principled_brdf(gpu_in["incoming"], gpu_in["outgoing"], gpu_in["normal"],
                                           gpu_in["base"], gpu_in["roughness"], gpu_in["metallic"],
@@ -136,7 +136,7 @@ def test_colour_passes_match_cycles(material):
     towards = camera[:3] - p
     mu = np.sum(n * towards, axis=-1) / np.linalg.norm(towards, axis=-1)
     m = scene.materials[1]
-    terms = P.material_terms(np.broadcast_to(m.base_color, p.shape), m.metallic, m.specular_ior_level,
+    terms = P.principled_terms(np.broadcast_to(m.base_color, p.shape), m.metallic, m.specular_ior_level,
                              m.ior, m.roughness, mu)
     diffuse_colour = passes["DiffCol"][::-1][coverage]
     glossy_colour = passes["GlossCol"][::-1][coverage]

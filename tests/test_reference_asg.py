@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from vsgl_addon.reference import accuracy, asg, quadrature, sg
+from vsgl_addon.reference import asg, measurements, quadrature, sg, solvers
 
 X = np.array([1.0, 0.0, 0.0])
 Y = np.array([0.0, 1.0, 0.0])
 Z = np.array([0.0, 0.0, 1.0])
-RTOL = accuracy.EXACT_BOUND
+RTOL = measurements.EXACT_BOUND
 
 
 def unit(v):
@@ -23,7 +23,7 @@ def unit(v):
 
 
 def test_asg_evaluate():
-    omega = accuracy.direction(np.array([0.0, 0.3, 1.0, 2.0]), 0.6)
+    omega = solvers.direction(np.array([0.0, 0.3, 1.0, 2.0]), 0.6)
     got = asg.asg_evaluate(omega, X, Y, Z, 3.0, 7.0)
     expected = np.maximum(omega[:, 2], 0.0) * np.exp(-3.0 * omega[:, 0] ** 2 - 7.0 * omega[:, 1] ** 2)
     np.testing.assert_allclose(got, expected, rtol=1e-15)
@@ -100,14 +100,14 @@ def test_asg_integral_1d_reference_vs_sphere_quadrature():
         bandwidths=(ex, ey),
         n_phi=128,
     )
-    np.testing.assert_allclose(accuracy.asg_integral_1d(ex, ey)[0], quad, rtol=RTOL)
+    np.testing.assert_allclose(solvers.asg_integral_1d(ex, ey)[0], quad, rtol=RTOL)
 
 
 def test_asg_integral_isotropic_closed_form():
     # eta_x = eta_y = eta: integral = pi (1 - e^-eta) / eta exactly; Eq. 34 drops the e^-eta.
     eta = np.logspace(-6.0, 7.0, 14)
     exact = np.pi * -np.expm1(-eta) / eta
-    np.testing.assert_allclose(accuracy.asg_integral_1d(eta, eta)[0], exact, rtol=1e-13)
+    np.testing.assert_allclose(solvers.asg_integral_1d(eta, eta)[0], exact, rtol=1e-13)
     quad = quadrature.sphere_quadrature(
         lambda w: asg.asg_evaluate(w, X, Y, Z, eta[:, None, None], eta[:, None, None]),
         np.broadcast_to(Z, eta.shape + (3,)),
@@ -121,13 +121,13 @@ def test_asg_integral_eq34_accuracy():
     """Eq. 34 overestimates by (1/2) int e^-k / k dphi: nothing for min(eta) >= 50 (e^-50), 58% at
     eta = 1, and without bound as eta -> 0 (the ASG becomes a clamped cosine, integral pi)."""
     ex, ey = (v.ravel() for v in np.meshgrid(np.logspace(-6, 7, 14), np.logspace(-6, 7, 14)))
-    exact, dropped = accuracy.asg_integral_1d(ex, ey)
+    exact, dropped = solvers.asg_integral_1d(ex, ey)
     eq34 = asg.asg_integral(ex, ey)
     np.testing.assert_allclose(eq34, exact + dropped, rtol=RTOL)
     assert np.all(eq34 >= exact * (1.0 - RTOL))
     sharp = np.minimum(ex, ey) >= 50.0
     assert np.all(dropped[sharp] / exact[sharp] < 1e-20)
-    assert asg.asg_integral(1.0, 1.0) / accuracy.asg_integral_1d(1.0, 1.0)[0] - 1.0 == pytest.approx(
+    assert asg.asg_integral(1.0, 1.0) / solvers.asg_integral_1d(1.0, 1.0)[0] - 1.0 == pytest.approx(
         1.0 / math.expm1(1.0), rel=1e-12
     )
     assert asg.asg_integral(1e-6, 1e-6) / np.pi > 1e5
@@ -179,17 +179,17 @@ def test_convolution_quadrature_on_a_1d_integral():
     lam = np.array([1e-3, 1.0, 100.0, 1e5, 1.0, 1e4])
     eta = np.array([1e-3, 1.0, 100.0, 1e5, 1e4, 1.0])
     p = np.broadcast_to(Z, lam.shape + (3,))
-    got = accuracy.sg_asg_convolution_quadrature(p, lam, eta, eta)
+    got = solvers.sg_asg_convolution_quadrature(p, lam, eta, eta)
     expected = np.array([_axisymmetric_conv(l, e) for l, e in zip(lam, eta)])
     np.testing.assert_allclose(got, expected, rtol=RTOL)
 
 
 def test_convolution_quadrature_converged():
-    lam, ex, ey, p, _ = accuracy.conv_grid(
+    lam, ex, ey, p, _ = solvers.conv_grid(
         sharpness=(1.0, 30.0, 1e4), bandwidth=(2.0, 80.0, 5e3), offsets=(0.0, 1.5)
     )
-    coarse = accuracy.sg_asg_convolution_quadrature(p, lam, ex, ey)
-    fine = accuracy.sg_asg_convolution_quadrature(p, lam, ex, ey, n_phi=160, order=24)
+    coarse = solvers.sg_asg_convolution_quadrature(p, lam, ex, ey)
+    fine = solvers.sg_asg_convolution_quadrature(p, lam, ex, ey, n_phi=160, order=24)
     np.testing.assert_allclose(coarse, fine, rtol=1e-6)
 
 
@@ -200,7 +200,7 @@ def test_convolution_nu_is_half_the_sg_sharpness():
     at the ASG axis or one predicted width off it: nu = lam/2 is within 7% everywhere and 0.2% in
     the median; nu = lam is off by up to a factor 2 at p = z (the prefactor pi/sqrt((eta+nu)^2)
     with nu doubled) and by 25% or more in the median; nu = kappa lam is best at kappa = 0.50."""
-    grid, true, half, full = accuracy.conv_errors(
+    grid, true, half, full = solvers.conv_errors(
         sharpness=(10.0, 1e3, 1e5), bandwidth=(50.0, 1e3, 1e4), offsets=(0.0, 1.0)
     )
     err_half = np.abs(half / true - 1.0)
@@ -211,7 +211,7 @@ def test_convolution_nu_is_half_the_sg_sharpness():
     assert (full / true).min() < 0.55
     assert np.all(err_half <= err_full + 1e-12)
     selection = np.ones(true.shape, bool)
-    assert accuracy.best_nu_factor(grid, true, selection) == pytest.approx(0.5, abs=0.015)
+    assert solvers.best_nu_factor(grid, true, selection) == pytest.approx(0.5, abs=0.015)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from vsgl_addon.reference import accuracy, ggx, quadrature, sg
+from vsgl_addon.reference import ggx, quadrature, sg, solvers
 
 X = np.array([1.0, 0.0, 0.0])
 Z = np.array([0.0, 0.0, 1.0])
@@ -17,7 +17,7 @@ ROUGHNESS = np.logspace(-3.0, 0.0, 13)
 
 
 def direction(theta, beta=0.0):
-    return accuracy.direction(theta, beta)
+    return solvers.direction(theta, beta)
 
 
 def test_ndf_normalized():
@@ -128,7 +128,7 @@ def _albedo(theta, alpha, n_phi=128):
             w[..., 2], 0.0
         )
 
-    return accuracy.specular_quadrature(f, wi, alpha, n_phi=n_phi)
+    return solvers.specular_quadrature(f, wi, alpha, n_phi=n_phi)
 
 
 def test_white_furnace():

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from vsgl_addon.reference import accuracy, quadrature, sg
+from vsgl_addon.reference import measurements, numerics, quadrature, sg, solvers
 
-RTOL = accuracy.EXACT_BOUND  # exact identities: 1e-9 relative
+RTOL = measurements.EXACT_BOUND  # exact identities: 1e-9 relative
 X = np.array([1.0, 0.0, 0.0])
 Y = np.array([0.0, 1.0, 0.0])
 Z = np.array([0.0, 0.0, 1.0])
@@ -25,7 +25,7 @@ def unit(v):
 
 
 def rotated(theta, beta=0.0):
-    return accuracy.direction(theta, beta)
+    return solvers.direction(theta, beta)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -206,7 +206,7 @@ def test_sg_product_integral_vs_quadrature():
         return np.exp(log - d[:, None, None])
 
     quad = quadrature.sphere_quadrature(scaled, pole, n_phi=8)
-    np.testing.assert_allclose(4.0 * np.pi * sg._one_minus_exp_ratio(2.0 * m), quad, rtol=RTOL)
+    np.testing.assert_allclose(4.0 * np.pi * numerics.one_minus_exp_ratio(2.0 * m), quad, rtol=RTOL)
 
 
 def test_sg_product_integral_pole_on_one_lobe():
@@ -256,12 +256,12 @@ def test_diffuse_lobe_is_eq6_with_lambda_d_2():
 def test_diffuse_lobe_approximates_lambert():
     """Tolerances from the measured errors (docs/accuracy.md): LS-optimal lam_d 2.29 (normalized
     lobe) / 2.14 (free amplitude), relative L2 error 0.208 at lam_d = 2, leak 0.119."""
-    lam_norm, lam_free = accuracy.diffuse_fit()
+    lam_norm, lam_free = solvers.diffuse_fit()
     assert 2.2 < lam_norm < 2.4
     assert 2.05 < lam_free < 2.25
     # 2 is within ~15% of either optimum, and its L2 error is close to the optimum's.
-    l2 = math.sqrt(accuracy._diffuse_objective(2.0)) / (math.sqrt(2.0 * np.pi / 3.0) / np.pi)
-    l2_best = math.sqrt(accuracy._diffuse_objective(lam_norm)) / (math.sqrt(2.0 * np.pi / 3.0) / np.pi)
+    l2 = math.sqrt(solvers.diffuse_objective(2.0)) / (math.sqrt(2.0 * np.pi / 3.0) / np.pi)
+    l2_best = math.sqrt(solvers.diffuse_objective(lam_norm)) / (math.sqrt(2.0 * np.pi / 3.0) / np.pi)
     assert 0.19 < l2 < 0.22
     assert l2_best < l2 < 1.15 * l2_best
     leak = quadrature.sphere_quadrature(lambda w: sg.diffuse_lobe(w, Z) * (w[..., 2] < 0.0), Z, n_phi=2)

@@ -84,7 +84,7 @@ def test_incoming_sg_is_the_product_of_eq_12():
     variance = 0.02
     axis = np.array([0.0, 0.6, 0.8])
     for sharpness in (0.0, 0.5, 2.0, 50.0):
-        axis_in, lam_in, scale = vs.incoming_sg(position, mean, variance, axis, sharpness)
+        axis_in, lam_in, scale = vs.vsgl_incoming_sg(position, mean, variance, axis, sharpness)
         r = mean - position
         xi_mu = r / np.linalg.norm(r)
         direct = (sg_evaluate(omega, -axis, sharpness) * sg_evaluate(omega, xi_mu, r @ r / variance)
@@ -181,7 +181,7 @@ def diffuse_quadrature(vsgls, points, normals, view, rd, f0, alpha, samples=100_
     for p in range(len(points)):
         cos = np.maximum(omega @ normals[p], 0.0)
         for lobe in ("diffuse", "specular"):
-            axis_in, lam_in, scale = vs.incoming_sg(points[p], vsgls["mean"], vsgls["variance"],
+            axis_in, lam_in, scale = vs.vsgl_incoming_sg(points[p], vsgls["mean"], vsgls["variance"],
                                                     vsgls[f"{lobe}_axis"], vsgls[f"{lobe}_sharpness"])
             c_in = vsgls[f"{lobe}_amplitude"] * scale[:, None]
             for j in range(len(lam_in)):
@@ -238,9 +238,9 @@ def test_two_vsgl_mode_convolves_with_the_diffuse_sg():
     axis_in = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [0.6, 0.0, 0.8]])
     lam_in = np.array([5.0, 5.0, 0.3])
     normal = np.array([0.0, 0.0, 1.0])
-    conv = vs.diffuse_factor(axis_in, lam_in, normal, "sg-convolution")
+    conv = vs.vsgl_diffuse_factor(axis_in, lam_in, normal, "sg-convolution")
     np.testing.assert_allclose(conv, sg_product_integral(axis_in, lam_in, normal, 2.0) / sg_integral(2.0))
-    cosine = vs.diffuse_factor(axis_in, lam_in, normal, "cosine")
+    cosine = vs.vsgl_diffuse_factor(axis_in, lam_in, normal, "cosine")
     assert cosine[1] == 0.0 and conv[1] > 0.0  # the SG convolution leaks light from below
     assert vs.diffuse_mode_for_kernel("two-vsgl") == "sg-convolution"
     assert vs.diffuse_mode_for_kernel("modified") == "cosine"

@@ -391,7 +391,7 @@ def test_texel_quantities_match_the_numpy_reference():
             rays = ref.texel_rays(64, spec.half_extent, spec.view_to_world)
             measure = ref.texel_solid_angles(64, spec.half_extent)
             np.testing.assert_allclose(a.texel_measure[lit], measure[lit], rtol=2e-6)
-            flux_white = lights.radiant_intensity(light, rays) * measure
+            flux_white = lights.light_intensity(light, rays) * measure
             np.testing.assert_allclose(a.flux_white[lit], flux_white[lit], rtol=1e-4,
                                        atol=1e-5 * flux_white.max())
             position = a.rsm.position[lit]
@@ -739,7 +739,7 @@ def test_flux_spot_with_non_uniform_scale():
     gx, gy = np.meshgrid(s, s)
     offsets = np.stack([gx, gy, -np.full_like(gx, h)], -1)
     r = np.linalg.norm(offsets, axis=-1)
-    intensity = lights.radiant_intensity(light, offsets / r[..., None])
+    intensity = lights.light_intensity(light, offsets / r[..., None])
     expected = np.sum(intensity * h / r**3) * (2 * half / n) ** 2
     check_power(scene, expected, "spot, non-uniform scale")
 

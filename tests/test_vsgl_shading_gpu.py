@@ -94,12 +94,12 @@ def lobe_reference(g):
     """Reference outputs of one lobe (amplitude 1): incoming (axis, λin), scale, both diffuse
     factors, the specular for F0 = 1 and F0 = 0.04 (the GLSL accumulates k (1 - m⁵) and k m⁵
     apart; each alone cancels where the other dominates, their F0-weighted sum does not)."""
-    axis_in, lam_in, scale = vs.incoming_sg(g["position"], g["mean"], g["variance"], g["lobe_axis"],
+    axis_in, lam_in, scale = vs.vsgl_incoming_sg(g["position"], g["mean"], g["variance"], g["lobe_axis"],
                                             g["lobe_sharpness"])
-    cosine = scale * vs.diffuse_factor(axis_in, lam_in, g["normal"], "cosine")
-    conv = scale * vs.diffuse_factor(axis_in, lam_in, g["normal"], "sg-convolution")
-    k1 = vs.specular_factor(axis_in, lam_in, g["view"], g["normal"], g["roughness"], np.ones((len(lam_in), 3)))[:, 0]
-    k0 = vs.specular_factor(axis_in, lam_in, g["view"], g["normal"], g["roughness"], np.zeros((len(lam_in), 3)))[:, 0]
+    cosine = scale * vs.vsgl_diffuse_factor(axis_in, lam_in, g["normal"], "cosine")
+    conv = scale * vs.vsgl_diffuse_factor(axis_in, lam_in, g["normal"], "sg-convolution")
+    k1 = vs.vsgl_specular_factor(axis_in, lam_in, g["view"], g["normal"], g["roughness"], np.ones((len(lam_in), 3)))[:, 0]
+    k0 = vs.vsgl_specular_factor(axis_in, lam_in, g["view"], g["normal"], g["roughness"], np.zeros((len(lam_in), 3)))[:, 0]
     return {"incoming": np.concatenate([axis_in, lam_in[:, None]], -1), "scale": scale,
             "diffuse_cosine": cosine, "diffuse_convolution": conv,
             "specular_f0_1": scale * k1, "specular_f0_004": scale * (0.04 * k1 + 0.96 * k0)}

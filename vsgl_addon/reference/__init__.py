@@ -9,8 +9,10 @@ functions are tested against numerical quadrature over the sphere (``quadrature`
 * ``asg``: anisotropic spherical Gaussians, the ASG specular lobe (003), the SG x ASG convolution
   (000 app. C, 001 Eq. 11) and the ASG integral (001 Eq. 34).
 * ``ggx``: GGX NDF, Smith masking and the microfacet BRDF (004 Eqs. 6-8, 001 Eq. 16).
+* ``numerics``: the guarded float64 forms every module shares (twin of ``glsl/lib/math.glsl``).
 * ``quadrature``: the sphere quadrature used to check them.
-* ``accuracy``: measures every approximation; ``python -m vsgl_addon.reference.accuracy --write
+* ``solvers``: quadrature comparisons and fits of every approximation; ``measurements``: their
+  figures as rows; ``accuracy``: the report, ``python -m vsgl_addon.reference.accuracy --write
   docs/accuracy.md`` regenerates the committed table.
 """
 

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .sg import COSINE_FLOOR, _dot, _f64, _norm, ndf_sharpness
+from .numerics import dot, f64, norm, safe_ratio
+from .sg import COSINE_FLOOR, ndf_sharpness
 
 # Below this sine between view and normal the plane of incidence is undefined in float64 (n x w_o
 # is rounding noise), and the lobe is isotropic anyway: 1/cos^2 - 1 < 1e-14.
@@ -22,14 +23,14 @@ _PARALLEL_SINE = 1e-7
 
 def asg_evaluate(omega, x_axis, y_axis, z_axis, eta_x, eta_y):
     """Ga(w) = max(w.z, 0) exp(-eta_x (w.x)^2 - eta_y (w.y)^2) (000 app. C; 001 Eq. 2)."""
-    omega = _f64(omega)
-    cx = _dot(omega, _f64(x_axis))
-    cy = _dot(omega, _f64(y_axis))
-    cz = _dot(omega, _f64(z_axis))
-    return np.maximum(cz, 0.0) * np.exp(-_f64(eta_x) * cx * cx - _f64(eta_y) * cy * cy)
+    omega = f64(omega)
+    cx = dot(omega, f64(x_axis))
+    cy = dot(omega, f64(y_axis))
+    cz = dot(omega, f64(z_axis))
+    return np.maximum(cz, 0.0) * np.exp(-f64(eta_x) * cx * cx - f64(eta_y) * cy * cy)
 
 
-def _any_tangent(z):
+def asg_any_tangent(z):
     """A unit vector perpendicular to z, a smooth function of z except at z.z = 0 (sign flip).
 
     Duff et al., "Building an orthonormal basis, revisited" (JCGT 2017): branchless and exact for
@@ -55,17 +56,17 @@ def asg_specular_lobe(view, normal, roughness):
 
     Returns ``(x_axis, y_axis, z_axis, eta_x, eta_y)``; the frame is right-handed (x cross y = z).
     """
-    view = _f64(view)
-    normal = _f64(normal)
+    view = f64(view)
+    normal = f64(normal)
     view, normal = np.broadcast_arrays(view, normal)
-    cos_o = _dot(view, normal)
+    cos_o = dot(view, normal)
     z_axis = 2.0 * cos_o[..., None] * normal - view
     x_raw = np.cross(normal, view)
-    parallel = (_norm(x_raw) <= _PARALLEL_SINE)[..., None]
-    x_raw = np.where(parallel, _any_tangent(z_axis), x_raw)
+    parallel = (norm(x_raw) <= _PARALLEL_SINE)[..., None]
+    x_raw = np.where(parallel, asg_any_tangent(z_axis), x_raw)
     # Gram-Schmidt against z: near normal incidence n x w_o has only a few correct digits.
-    x_raw = x_raw - _dot(x_raw, z_axis)[..., None] * z_axis
-    x_axis = x_raw / _norm(x_raw)[..., None]
+    x_raw = x_raw - dot(x_raw, z_axis)[..., None] * z_axis
+    x_axis = x_raw / norm(x_raw)[..., None]
     y_axis = np.cross(z_axis, x_axis)
     lam_h = ndf_sharpness(roughness)
     cos2 = np.maximum(cos_o * cos_o, COSINE_FLOOR * COSINE_FLOOR)
@@ -88,14 +89,14 @@ def sg_asg_convolution(sg_axis, sg_sharpness, x_axis, y_axis, z_axis, eta_x, eta
     reaches ~1e27 for grazing glossy lobes and overflows float32 in the GLSL twin. Finite whenever
     eta_x + nu > 0 and eta_y + nu > 0.
     """
-    nu = 0.5 * _f64(sg_sharpness)
-    eta_x = _f64(eta_x)
-    eta_y = _f64(eta_y)
+    nu = 0.5 * f64(sg_sharpness)
+    eta_x = f64(eta_x)
+    eta_y = f64(eta_y)
     sum_x = eta_x + nu
     sum_y = eta_y + nu
     # eta nu / (eta + nu) -> 0 when both are 0 (a constant times a constant).
-    reduced_x = np.where(sum_x > 0.0, eta_x * nu / np.where(sum_x > 0.0, sum_x, 1.0), 0.0)
-    reduced_y = np.where(sum_y > 0.0, eta_y * nu / np.where(sum_y > 0.0, sum_y, 1.0), 0.0)
+    reduced_x = safe_ratio(eta_x * nu, sum_x)
+    reduced_y = safe_ratio(eta_y * nu, sum_y)
     scale = np.pi / (np.sqrt(sum_x) * np.sqrt(sum_y))
     return scale * asg_evaluate(sg_axis, x_axis, y_axis, z_axis, reduced_x, reduced_y)
 
@@ -109,4 +110,4 @@ def asg_integral(eta_x, eta_y, amplitude=1.0):
     overestimates for small bandwidths (docs/accuracy.md). sqrt(eta_x) sqrt(eta_y) for the same
     float32 reason as ``sg_asg_convolution``.
     """
-    return np.pi * _f64(amplitude) / (np.sqrt(_f64(eta_x)) * np.sqrt(_f64(eta_y)))
+    return np.pi * f64(amplitude) / (np.sqrt(f64(eta_x)) * np.sqrt(f64(eta_y)))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .sg import _dot, _f64, _norm
+from .numerics import dot, f64, norm, safe_normalize, safe_ratio
 
 
 def ggx_ndf(cos_theta_m, roughness):
@@ -23,15 +23,15 @@ def ggx_ndf(cos_theta_m, roughness):
     for small alpha (it is alpha^2 = 1e-6 at alpha = 1e-3, below float32's epsilon); alpha^2 c^2 +
     (1 - c)(1 + c) only adds positive terms. sin^2 is clamped at 0 for |c| > 1 from rounding.
     """
-    c = _f64(cos_theta_m)
-    a2 = _f64(roughness) ** 2
+    c = f64(cos_theta_m)
+    a2 = f64(roughness) ** 2
     sin2 = np.maximum((1.0 - c) * (1.0 + c), 0.0)
     denominator = a2 * c * c + sin2
     value = a2 / (np.pi * denominator * denominator)
     return np.where(c > 0.0, value, 0.0)
 
 
-def _g1_denominator(abs_cos, a2):
+def ggx_g1_denominator(abs_cos, a2):
     """|c| + sqrt((1 - alpha^2) c^2 + alpha^2): 2|c| / G1dist (004 Eq. 8)."""
     return abs_cos + np.sqrt((1.0 - a2) * abs_cos * abs_cos + a2)
 
@@ -41,25 +41,25 @@ def g1_distant(cos_theta, roughness):
 
     In [0, 1], = 1 at |c| = 1, = 0 at c = 0 (for alpha > 0).
     """
-    abs_cos = np.abs(_f64(cos_theta))
-    denominator = _g1_denominator(abs_cos, _f64(roughness) ** 2)
-    return np.where(denominator > 0.0, 2.0 * abs_cos / np.where(denominator > 0.0, denominator, 1.0), 0.0)
+    abs_cos = np.abs(f64(cos_theta))
+    denominator = ggx_g1_denominator(abs_cos, f64(roughness) ** 2)
+    return safe_ratio(2.0 * abs_cos, denominator)
 
 
 def fresnel_schlick(cos_theta, f0):
     """Schlick's Fresnel F = f0 + (1 - f0)(1 - c)^5, c clamped to [0, 1] (rounding, back faces)."""
-    c = np.clip(_f64(cos_theta), 0.0, 1.0)
-    return _f64(f0) + (1.0 - _f64(f0)) * (1.0 - c) ** 5
+    c = np.clip(f64(cos_theta), 0.0, 1.0)
+    return f64(f0) + (1.0 - f64(f0)) * (1.0 - c) ** 5
 
 
 def ggx_half_vector_ndf(incoming, outgoing, normal, roughness):
     """D(wh.n) (004 Eq. 6) of the half vector wh = (wi + wo)/|wi + wo| of directions above the
     surface; 0 when wi = -wo (no half vector). The GLSL twin keeps sin² of wh in twice the
     precision near the peak of a sharp lobe."""
-    half = _f64(incoming) + _f64(outgoing)
-    half_length = _norm(half)
-    half = half / np.where(half_length > 0.0, half_length, 1.0)[..., None]
-    return np.where(half_length > 0.0, ggx_ndf(_dot(half, _f64(normal)), _f64(roughness)), 0.0)
+    half = f64(incoming) + f64(outgoing)
+    half_length = norm(half)
+    half = safe_normalize(half, 0.0, half_length)
+    return np.where(half_length > 0.0, ggx_ndf(dot(half, f64(normal)), f64(roughness)), 0.0)
 
 
 def microfacet_brdf(incoming, outgoing, normal, roughness, f0):
@@ -70,20 +70,20 @@ def microfacet_brdf(incoming, outgoing, normal, roughness, f0):
     (c -> 0, where f -> F D / (alpha (c + s))) stays finite. 0 when either cosine is <= 0 (chi+), and
     when wi = -wo (no half vector).
     """
-    incoming = _f64(incoming)
-    outgoing = _f64(outgoing)
-    normal = _f64(normal)
-    alpha = _f64(roughness)
+    incoming = f64(incoming)
+    outgoing = f64(outgoing)
+    normal = f64(normal)
+    alpha = f64(roughness)
     a2 = alpha * alpha
-    cos_i = _dot(incoming, normal)
-    cos_o = _dot(outgoing, normal)
+    cos_i = dot(incoming, normal)
+    cos_o = dot(outgoing, normal)
     half = incoming + outgoing
-    half_length = _norm(half)
+    half_length = norm(half)
     valid = (cos_i > 0.0) & (cos_o > 0.0) & (half_length > 0.0)
-    half = half / np.where(half_length > 0.0, half_length, 1.0)[..., None]
+    half = safe_normalize(half, 0.0, half_length)
     d = ggx_half_vector_ndf(incoming, outgoing, normal, alpha)
-    f = fresnel_schlick(_dot(incoming, half), f0)
+    f = fresnel_schlick(dot(incoming, half), f0)
     ci = np.maximum(cos_i, 0.0)
     co = np.maximum(cos_o, 0.0)
-    value = f * d / (_g1_denominator(ci, a2) * _g1_denominator(co, a2))
+    value = f * d / (ggx_g1_denominator(ci, a2) * ggx_g1_denominator(co, a2))
     return np.where(valid, value, 0.0)

@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .numerics import f64
+
 #: Golden-ratio conjugate (sqrt(5) - 1) / 2 = 1/phi: the irrational stand-in for the ratio
 #: F_(k-1)/F_k of consecutive Fibonacci numbers, which makes the Fibonacci lattice work for any
 #: point count N (000 §5, "Fibonacci lattice point set using a golden ratio approximation").
@@ -40,10 +42,6 @@ GOLDEN_RATIO_CONJUGATE = (np.sqrt(5.0) - 1.0) / 2.0
 
 #: Largest float64 below 1: samples live in [0, 1) and rescaled samples are clamped to it.
 _BELOW_ONE = float(np.nextafter(1.0, 0.0))
-
-
-def _f64(x):
-    return np.asarray(x, dtype=np.float64)
 
 
 def mip_level_count(size: int) -> int:
@@ -67,7 +65,7 @@ def build_mip_chain(image) -> list[np.ndarray]:
     Means rather than sums: a level-l mean times 4^l is the sum of the texels it covers, and a mean
     is what a GPU mipmap holds (000 §4.1, Fig. 4).
     """
-    image = _f64(image)
+    image = f64(image)
     size = check_square_power_of_two(image.shape)
     chain = [image]
     while size > 1:
@@ -81,8 +79,8 @@ def build_mip_chain(image) -> list[np.ndarray]:
 
 def bilinear(level_image, uv) -> np.ndarray:
     """Bilinear lookup of one mip level at uv (N, 2), CLAMP_TO_EDGE; returns (N, ...)."""
-    level_image = _f64(level_image)
-    uv = _f64(uv)
+    level_image = f64(level_image)
+    uv = f64(uv)
     height, width = level_image.shape[:2]
     s = uv[:, 0] * width - 0.5
     t = uv[:, 1] * height - 0.5
@@ -118,9 +116,9 @@ def interpolate_levels(per_level, level) -> np.ndarray:
 
     ``level`` is clamped to [0, top]; at an integer level the result is that level's lookup.
     """
-    per_level = _f64(per_level)
+    per_level = f64(per_level)
     top = per_level.shape[0] - 1
-    level = np.clip(_f64(level), 0.0, float(top))
+    level = np.clip(f64(level), 0.0, float(top))
     lower = np.minimum(np.floor(level).astype(np.int64), top)
     upper = np.minimum(lower + 1, top)
     frac = level - lower
@@ -148,12 +146,25 @@ def fibonacci_lattice(count: int, rotation=(0.0, 0.0)) -> np.ndarray:
     count = int(count)
     if count < 1:
         raise ValueError(f"need at least one lattice point, got {count}")
-    rotation = _f64(rotation).reshape(2)
+    rotation = f64(rotation).reshape(2)
     i = np.arange(count, dtype=np.float64)
     points = np.stack([(i + 0.5) / count, i * GOLDEN_RATIO_CONJUGATE], axis=-1) + rotation
     points -= np.floor(points)
     # x - floor(x) can round up to exactly 1.0 for x just below an integer.
     return np.minimum(points, _BELOW_ONE)
+
+
+def _warp_split(u, first, total):
+    """One binary choice of the warp: (u < P, u rescaled to [0, 1) inside the chosen side) with
+    P = first / total (1/2 for a block of zero mass)."""
+    p_first = np.divide(first, total, out=np.full_like(first, 0.5), where=total > 0.0)
+    go_first = u < p_first
+    u = np.where(
+        go_first,
+        u / np.where(go_first, p_first, 1.0),
+        (u - p_first) / np.where(go_first, 1.0, 1.0 - p_first),
+    )
+    return go_first, np.clip(u, 0.0, _BELOW_ONE)
 
 
 def warp_hierarchical(pdf_chain, samples) -> tuple[np.ndarray, np.ndarray]:
@@ -173,13 +184,13 @@ def warp_hierarchical(pdf_chain, samples) -> tuple[np.ndarray, np.ndarray]:
     Returns ``(uv, texel)``: positions (N, 2) in [0, 1)^2 and the level-0 texel (N, 2) as
     (row, column) each point landed in.
     """
-    samples = _f64(samples)
+    samples = f64(samples)
     u = samples[:, 0].copy()
     v = samples[:, 1].copy()
     row = np.zeros(u.shape, dtype=np.int64)
     col = np.zeros(u.shape, dtype=np.int64)
     for level in range(len(pdf_chain) - 2, -1, -1):
-        img = _f64(pdf_chain[level])
+        img = f64(pdf_chain[level])
         r0 = 2 * row
         c0 = 2 * col
         m00 = img[r0, c0]
@@ -187,27 +198,10 @@ def warp_hierarchical(pdf_chain, samples) -> tuple[np.ndarray, np.ndarray]:
         m10 = img[r0 + 1, c0]
         m11 = img[r0 + 1, c0 + 1]
         left = m00 + m10
-        total = left + m01 + m11
-        p_left = np.divide(left, total, out=np.full_like(left, 0.5), where=total > 0.0)
-        go_left = u < p_left
-        u = np.where(
-            go_left,
-            u / np.where(go_left, p_left, 1.0),
-            (u - p_left) / np.where(go_left, 1.0, 1.0 - p_left),
-        )
-        u = np.clip(u, 0.0, _BELOW_ONE)
+        go_left, u = _warp_split(u, left, left + m01 + m11)
         col = np.where(go_left, c0, c0 + 1)
-        upper = np.where(go_left, m00, m01)
-        column = np.where(go_left, left, m01 + m11)
-        p_upper = np.divide(upper, column, out=np.full_like(upper, 0.5), where=column > 0.0)
-        go_upper = v < p_upper
-        v = np.where(
-            go_upper,
-            v / np.where(go_upper, p_upper, 1.0),
-            (v - p_upper) / np.where(go_upper, 1.0, 1.0 - p_upper),
-        )
-        v = np.clip(v, 0.0, _BELOW_ONE)
+        go_upper, v = _warp_split(v, np.where(go_left, m00, m01), np.where(go_left, left, m01 + m11))
         row = np.where(go_upper, r0, r0 + 1)
-    size = _f64(pdf_chain[0]).shape[0]
+    size = f64(pdf_chain[0]).shape[0]
     uv = np.stack([(col + u) / size, (row + v) / size], axis=-1)
     return np.minimum(uv, _BELOW_ONE), np.stack([row, col], axis=-1)

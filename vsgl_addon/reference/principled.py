@@ -21,7 +21,7 @@ The model (Cycles ``kernel/svm/closure.h`` Principled branch, ``closure/bsdf_mic
 * **Masking-shadowing**: Smith height-correlated G2 = 1/(1 + Λi + Λo) (Cycles ``bsdf_G``), so
   f = F D G2 / (4 μi μo) = F D / (2 (μo s_i + μi s_o)), s = √(μ² + α² (1 − μ²)): finite at grazing.
 
-Directional albedos are not tabulated (Cycles reads precomputed tables): :func:`directional_albedos`
+Directional albedos are not tabulated (Cycles reads precomputed tables): :func:`principled_directional_albedos`
 integrates them per point by a deterministic 8×8 NDF-importance quadrature of half vectors (smooth
 integrand, within ~1e-3 of a converged integral), once per pixel, not per light; E_avg = 2∫E μ dμ by
 4-point Gauss-Legendre in μ with 4×4 half vectors each. E_spec is 0.04–0.25 for dielectrics and
@@ -35,7 +35,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .ggx import ggx_ndf
+from .ggx import fresnel_schlick, ggx_ndf
+from .numerics import dot, f64, norm, safe_normalize, safe_ratio
 
 #: Smallest GGX α (roughness 1e-3), also the RSM's (``reference/rsm.py``).
 ALPHA_MIN = 1e-6
@@ -53,32 +54,24 @@ _GAUSS_NODES = np.array([0.0694318442029737, 0.3300094782075719, 0.6699905217924
 _GAUSS_WEIGHTS = np.array([0.1739274225687269, 0.3260725774312731, 0.3260725774312731, 0.1739274225687269])
 
 
-def _f64(x):
-    return np.asarray(x, dtype=np.float64)
-
-
-def _dot(a, b):
-    return np.sum(_f64(a) * _f64(b), axis=-1)
-
-
-def alpha_from_roughness(roughness):
+def principled_alpha(roughness):
     """GGX α = roughness² (roughness clamped to [0, 1]), at least ALPHA_MIN."""
-    r = np.clip(_f64(roughness), 0.0, 1.0)
+    r = np.clip(f64(roughness), 0.0, 1.0)
     return np.maximum(r * r, ALPHA_MIN)
 
 
-def dielectric_f0(ior, specular_ior_level):
+def principled_dielectric_f0(ior, specular_ior_level):
     """F0 = ((ior − 1)/(ior + 1))² · 2 · level, clamped to [0, F0_MAX]."""
-    ior = _f64(ior)
+    ior = f64(ior)
     ratio = (ior - 1.0) / (ior + 1.0)
-    return np.clip(ratio * ratio * 2.0 * np.maximum(_f64(specular_ior_level), 0.0), 0.0, F0_MAX)
+    return np.clip(ratio * ratio * 2.0 * np.maximum(f64(specular_ior_level), 0.0), 0.0, F0_MAX)
 
 
 def fresnel_dielectric_f0(cos_theta, f0):
     """Unpolarised Fresnel reflectance of a dielectric whose normal-incidence reflectance is f0
     (η = (1 + √f0)/(1 − √f0) ≥ 1, seen from outside); 1 at grazing, f0 at normal incidence."""
-    c = np.clip(np.abs(_f64(cos_theta)), 0.0, 1.0)
-    f0 = np.clip(_f64(f0), 0.0, F0_MAX)
+    c = np.clip(np.abs(f64(cos_theta)), 0.0, 1.0)
+    f0 = np.clip(f64(f0), 0.0, F0_MAX)
     root = np.sqrt(f0)
     eta = (1.0 + root) / (1.0 - root)
     g2 = eta * eta - 1.0 + c * c
@@ -88,17 +81,17 @@ def fresnel_dielectric_f0(cos_theta, f0):
     return np.clip(0.5 * a * a * (1.0 + b * b), 0.0, 1.0)
 
 
-def fresnel_schlick(cos_theta, f0):
-    """Schlick F = f0 + (1 − f0)(1 − c)⁵ (c clamped to [0, 1]); numpy broadcasting."""
-    m = 1.0 - np.clip(_f64(cos_theta), 0.0, 1.0)
-    return _f64(f0) + (1.0 - _f64(f0)) * m ** 5
-
-
-def _g2_ratio(ci, co, a2):
-    """2 μi / (μo s_i + μi s_o): the height-correlated Smith G2 divided by μo."""
+def _correlated_denominator(ci, co, a2):
+    """μo s_i + μi s_o, s = √(μ² + α² (1 − μ²)): 2 μi μo (1 + Λi + Λo) of the height-correlated
+    Smith G2 (Cycles ``bsdf_G``)."""
     si = np.sqrt(ci * ci + a2 * (1.0 - ci * ci))
     so = np.sqrt(co * co + a2 * (1.0 - co * co))
-    return 2.0 * ci / (co * si + ci * so)
+    return co * si + ci * so
+
+
+def principled_g2_ratio(ci, co, a2):
+    """2 μi / (μo s_i + μi s_o): the height-correlated Smith G2 divided by μo."""
+    return 2.0 * ci / _correlated_denominator(ci, co, a2)
 
 
 def albedo_quadrature(mu, roughness, samples: int = ALBEDO_GRID):
@@ -108,11 +101,11 @@ def albedo_quadrature(mu, roughness, samples: int = ALBEDO_GRID):
 
     Returns per point the weights of the three Fresnel laws, as (E_white, cos_oh, weight) arrays of
     shape (..., samples²): E = Σ weight · F(cos_oh). Shared by the white, dielectric and metal
-    albedos (:func:`directional_albedos`).
+    albedos (:func:`principled_directional_albedos`).
     """
-    mu = np.clip(_f64(mu), MU_MIN, 1.0)[..., None]
-    alpha = alpha_from_roughness(roughness)
-    a2 = (_f64(alpha) ** 2)[..., None]
+    mu = np.clip(f64(mu), MU_MIN, 1.0)[..., None]
+    alpha = principled_alpha(roughness)
+    a2 = (f64(alpha) ** 2)[..., None]
     u = (np.arange(samples) + 0.5) / samples
     u1, u2 = (g.ravel() for g in np.meshgrid(u, u, indexing="ij"))
     cos2 = (1.0 - u1) / (1.0 + (a2 - 1.0) * u1)
@@ -125,26 +118,26 @@ def albedo_quadrature(mu, roughness, samples: int = ALBEDO_GRID):
     ci = 2.0 * oh * ch - mu
     valid = (ci > 0.0) & (oh > 0.0)
     ci_ = np.where(valid, ci, 1.0)
-    weight = np.where(valid, _g2_ratio(ci_, mu, a2) * oh / ch / (samples * samples), 0.0)
+    weight = np.where(valid, principled_g2_ratio(ci_, mu, a2) * oh / ch / (samples * samples), 0.0)
     return weight, np.where(valid, oh, 1.0)
 
 
-def directional_albedos(mu, roughness, f0_dielectric, f0_metal, samples: int = ALBEDO_GRID):
+def principled_directional_albedos(mu, roughness, f0_dielectric, f0_metal, samples: int = ALBEDO_GRID):
     """(E_white, E_dielectric, E_metal RGB): single-scattering directional albedos of GGX at μo with
     Fresnel 1, the dielectric Fresnel of f0_dielectric, and Schlick of f0_metal (RGB)."""
     weight, oh = albedo_quadrature(mu, roughness, samples)
-    f_d = fresnel_dielectric_f0(oh, _f64(f0_dielectric)[..., None])
+    f_d = fresnel_dielectric_f0(oh, f64(f0_dielectric)[..., None])
     m = (1.0 - np.clip(oh, 0.0, 1.0)) ** 5
     e_white = weight.sum(axis=-1)
     e_schlick = (weight * m).sum(axis=-1)  # E_metal = f0 (E_white - e_schlick) + e_schlick
-    f0m = _f64(f0_metal)
+    f0m = f64(f0_metal)
     e_metal = f0m * (e_white - e_schlick)[..., None] + e_schlick[..., None]
     return e_white, (weight * f_d).sum(axis=-1), e_metal
 
 
-def average_albedo(roughness, samples: int = AVERAGE_GRID):
+def principled_average_albedo(roughness, samples: int = AVERAGE_GRID):
     """E_avg = 2 ∫ E_white(μ) μ dμ: 4-point Gauss-Legendre in μ, ``samples``² half vectors each."""
-    r = _f64(roughness)
+    r = f64(roughness)
     total = np.zeros(np.shape(r))
     for node, weight in zip(_GAUSS_NODES, _GAUSS_WEIGHTS):
         w, _ = albedo_quadrature(np.full(np.shape(r), node), r, samples)
@@ -152,22 +145,22 @@ def average_albedo(roughness, samples: int = AVERAGE_GRID):
     return total
 
 
-def mean_schlick(f0):
+def principled_mean_schlick(f0):
     """Hemispherical cosine-weighted mean of Schlick's Fresnel: f0 + (1 − f0)/21."""
-    return _f64(f0) + (1.0 - _f64(f0)) / 21.0
+    return f64(f0) + (1.0 - f64(f0)) / 21.0
 
 
-def multiscatter_factor(e_white, e_avg, fss):
+def principled_multiscatter(e_white, e_avg, fss):
     """1 + F_ms (1 − E)/E, F_ms = F_ss E_avg / (1 − F_ss (1 − E_avg)) (Cycles' energy preservation);
     numpy broadcasting (``fss`` RGB with e's [..., None])."""
-    e = np.clip(_f64(e_white), 1e-3, 1.0)
-    e_avg = np.clip(_f64(e_avg), 0.0, 1.0)
-    fss = _f64(fss)
+    e = np.clip(f64(e_white), 1e-3, 1.0)
+    e_avg = np.clip(f64(e_avg), 0.0, 1.0)
+    fss = f64(fss)
     fms = fss * e_avg / (1.0 - fss * (1.0 - e_avg))
     return 1.0 + fms * (1.0 - e) / e
 
 
-def material_terms(base_color, metallic, specular_ior_level, ior, roughness, mu_o):
+def principled_terms(base_color, metallic, specular_ior_level, ior, roughness, mu_o):
     """The per-pixel terms the shading needs (view-dependent through μo = n·ωo):
 
     ``diffuse`` Rd = base (1 − m)(1 − E_spec(μo)) (RGB), ``f0_dielectric`` (scalar),
@@ -175,13 +168,13 @@ def material_terms(base_color, metallic, specular_ior_level, ior, roughness, mu_
     factors, ``specular_albedo`` (RGB) the specular lobes' albedo (what Cycles' Glossy Color holds),
     ``alpha``.
     """
-    base = np.maximum(_f64(base_color), 0.0)
-    m = np.clip(_f64(metallic), 0.0, 1.0)
-    f0 = dielectric_f0(ior, specular_ior_level)
-    e_white, e_d, e_m = directional_albedos(mu_o, roughness, f0, base)
-    e_avg = average_albedo(roughness)
-    ms_d = multiscatter_factor(e_white, e_avg, mean_schlick(f0))
-    ms_m = multiscatter_factor(_f64(e_white)[..., None], _f64(e_avg)[..., None], mean_schlick(base))
+    base = np.maximum(f64(base_color), 0.0)
+    m = np.clip(f64(metallic), 0.0, 1.0)
+    f0 = principled_dielectric_f0(ior, specular_ior_level)
+    e_white, e_d, e_m = principled_directional_albedos(mu_o, roughness, f0, base)
+    e_avg = principled_average_albedo(roughness)
+    ms_d = principled_multiscatter(e_white, e_avg, principled_mean_schlick(f0))
+    ms_m = principled_multiscatter(f64(e_white)[..., None], f64(e_avg)[..., None], principled_mean_schlick(base))
     e_dielectric = np.clip(e_d * ms_d, 0.0, 1.0)
     e_metal = np.clip(e_m * ms_m, 0.0, 1.0)
     m3 = m[..., None]
@@ -192,41 +185,36 @@ def material_terms(base_color, metallic, specular_ior_level, ior, roughness, mu_
         "ms_dielectric": ms_d,
         "ms_metal": ms_m,
         "specular_albedo": (1.0 - m3) * e_dielectric[..., None] + m3 * e_metal,
-        "alpha": alpha_from_roughness(roughness),
+        "alpha": principled_alpha(roughness),
     }
 
 
-def ggx_correlated(cos_i, cos_o, cos_h, alpha):
-    """D G2 / (4 μi μo) with Smith height-correlated G2: D / (2 (μo s_i + μi s_o)); 0 unless both
-    cosines are > 0."""
-    ci, co = _f64(cos_i), _f64(cos_o)
-    a2 = _f64(alpha) ** 2
+def principled_ggx_correlated(ci, co, d, a2):
+    """D G2 / (4 μi μo) with Smith height-correlated G2: D / (2 (μo s_i + μi s_o)) for the NDF
+    value ``d``; 0 unless both cosines are > 0."""
+    ci, co = f64(ci), f64(co)
     valid = (ci > 0.0) & (co > 0.0)
-    ci_, co_ = np.maximum(ci, 0.0), np.maximum(co, 0.0)
-    si = np.sqrt(ci_ * ci_ + a2 * (1.0 - ci_ * ci_))
-    so = np.sqrt(co_ * co_ + a2 * (1.0 - co_ * co_))
-    denominator = 2.0 * (co_ * si + ci_ * so)
-    d = ggx_ndf(cos_h, alpha)
-    return np.where(valid & (denominator > 0.0), d / np.where(denominator > 0.0, denominator, 1.0), 0.0)
+    denominator = 2.0 * _correlated_denominator(np.maximum(ci, 0.0), np.maximum(co, 0.0), f64(a2))
+    return np.where(valid, safe_ratio(f64(d), denominator), 0.0)
 
 
 def principled_brdf(incoming, outgoing, normal, base_color, roughness, metallic,
                     specular_ior_level, ior):
     """(diffuse, specular) BRDF values (RGB, 1/sr, no cosine) of the Principled base layer for light
     arriving from ``incoming``, seen from ``outgoing``. 0 when either is below the surface."""
-    wi, wo, n = _f64(incoming), _f64(outgoing), _f64(normal)
-    ci, co = _dot(wi, n), _dot(wo, n)
-    terms = material_terms(base_color, metallic, specular_ior_level, ior, roughness, co)
+    wi, wo, n = f64(incoming), f64(outgoing), f64(normal)
+    ci, co = dot(wi, n), dot(wo, n)
+    terms = principled_terms(base_color, metallic, specular_ior_level, ior, roughness, co)
     above = (ci > 0.0) & (co > 0.0)
     diffuse = np.where(above[..., None], terms["diffuse"] / np.pi, 0.0)
     h = wi + wo
-    length = np.linalg.norm(h, axis=-1)
+    length = norm(h)
     ok = above & (length > 0.0)
-    h = h / np.where(length > 0.0, length, 1.0)[..., None]
-    ch = _dot(h, n)
-    ih = _dot(wi, h)
-    lobe = ggx_correlated(ci, co, ch, terms["alpha"])
-    m = np.clip(_f64(metallic), 0.0, 1.0)[..., None]
+    h = safe_normalize(h, 0.0, length)
+    ch = dot(h, n)
+    ih = dot(wi, h)
+    lobe = principled_ggx_correlated(ci, co, ggx_ndf(ch, terms["alpha"]), f64(terms["alpha"]) ** 2)
+    m = np.clip(f64(metallic), 0.0, 1.0)[..., None]
     f_dielectric = fresnel_dielectric_f0(ih, terms["f0_dielectric"])[..., None] * terms["ms_dielectric"][..., None]
     f_metal = fresnel_schlick(ih[..., None], terms["f0_metal"]) * terms["ms_metal"]
     specular = ((1.0 - m) * f_dielectric + m * f_metal) * lobe[..., None]

@@ -35,8 +35,17 @@ import functools
 
 import numpy as np
 
-from .asg import _any_tangent
-from .sg import _dot, _f64, _norm
+from .asg import asg_any_tangent
+from .numerics import dot, f64, norm
+
+
+def composite_gauss_legendre(edges, order):
+    """Nodes and weights of ``order``-point Gauss-Legendre on each panel [edges[i], edges[i+1]]."""
+    t, w = np.polynomial.legendre.leggauss(order)
+    a, b = edges[:-1, None], edges[1:, None]
+    nodes = (0.5 * (b - a) * t + 0.5 * (b + a)).ravel()
+    weights = (0.5 * (b - a) * w).ravel()
+    return nodes, weights
 
 
 @functools.lru_cache(maxsize=None)
@@ -48,12 +57,7 @@ def _geometric_rule(order, u_min, ratio, length):
         edges.append(edge)
         edge *= ratio
     edges.append(length)
-    edges = np.array(edges)
-    t, w = np.polynomial.legendre.leggauss(order)
-    a, b = edges[:-1, None], edges[1:, None]
-    nodes = (0.5 * (b - a) * t + 0.5 * (b + a)).ravel()
-    weights = (0.5 * (b - a) * w).ravel()
-    return nodes, weights
+    return composite_gauss_legendre(np.array(edges), order)
 
 
 def u_rule(order=16, u_min=1e-12, ratio=4.0, equator=False):
@@ -83,7 +87,7 @@ def _phi_rule(n_phi, stretch):
     """Trapezoid in psi, tan(phi) = stretch tan(psi): (cos phi, sin phi, weights) of shape
     stretch.shape + (n_phi,)."""
     psi = 2.0 * np.pi * (np.arange(n_phi) + 0.5) / n_phi
-    s = _f64(stretch)[..., None]
+    s = f64(stretch)[..., None]
     cp, sp = np.cos(psi), np.sin(psi)
     # (cos phi, sin phi) = (cos psi, s sin psi) / |.|, dphi/dpsi = s / (cos^2 psi + s^2 sin^2 psi).
     r2 = cp * cp + s * s * sp * sp
@@ -94,13 +98,13 @@ def _phi_rule(n_phi, stretch):
 def frame(axis, tangent=None):
     """(t1, t2) completing ``axis`` to a right-handed orthonormal frame; t1 along ``tangent``
     projected perpendicular to ``axis`` (any deterministic tangent when None)."""
-    axis = _f64(axis)
+    axis = f64(axis)
     if tangent is None:
-        t1 = _any_tangent(axis)
+        t1 = asg_any_tangent(axis)
     else:
-        tangent = np.broadcast_to(_f64(tangent), axis.shape)
-        t1 = tangent - _dot(tangent, axis)[..., None] * axis
-        t1 = t1 / _norm(t1)[..., None]
+        tangent = np.broadcast_to(f64(tangent), axis.shape)
+        t1 = tangent - dot(tangent, axis)[..., None] * axis
+        t1 = t1 / norm(t1)[..., None]
     return t1, np.cross(axis, t1)
 
 
@@ -124,7 +128,7 @@ def sphere_quadrature(
     ``param[..., None, None]``. n_u is a chunk of the u nodes (memory stays below ~max_points
     directions per call), so f must not rely on it. Returns an array of shape ``batch``.
     """
-    axis = _f64(axis)
+    axis = f64(axis)
     batch = axis.shape[:-1]
     t1, t2 = frame(axis, tangent)
     cos_t, sin_t, w_u = u_rule(order, u_min, ratio, equator)
@@ -132,7 +136,7 @@ def sphere_quadrature(
     if bandwidths is None:
         stretch = np.ones(batch + (n_u,))
     else:
-        bx, by = (np.broadcast_to(_f64(b), batch)[..., None] for b in bandwidths)
+        bx, by = (np.broadcast_to(f64(b), batch)[..., None] for b in bandwidths)
         s2 = sin_t * sin_t
         stretch = np.sqrt((1.0 + bx * s2) / (1.0 + by * s2))
     n_batch = int(np.prod(batch, dtype=np.int64))
@@ -145,6 +149,6 @@ def sphere_quadrature(
         ct = cos_t[sl, None, None]
         st = sin_t[sl, None, None]
         omega = ct * ax + st * (cphi[..., None] * e1 + sphi[..., None] * e2)
-        values = _f64(f(omega))
+        values = f64(f(omega))
         total = total + np.sum(values * (w_u[sl, None] * w_phi), axis=(-2, -1))
     return total

@@ -33,7 +33,7 @@ point); a VPL carries one Rd for every receiver, and by reciprocity the incidenc
 energy the texel actually reflects of the light it receives.
 
 The specular lobe of a texel is 000 Eq. 7's spherical warp (``sg.specular_lobe_warp``) for the
-incoming direction ω' with GGX α = max(roughness², 1e-6) (``principled.alpha_from_roughness``: the
+incoming direction ω' with GGX α = max(roughness², 1e-6) (``principled.principled_alpha``: the
 roughness 1e-3 keeps λh = 2/α² finite for a roughness of 0).
 """
 
@@ -41,19 +41,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from .principled import alpha_from_roughness, material_terms
+from .numerics import f64, norm
+from .principled import principled_alpha, principled_terms
 from .sg import specular_lobe_warp
-
-
-def _f64(x):
-    return np.asarray(x, dtype=np.float64)
 
 
 def principled_reflectances(base_color, metallic, specular_ior_level, ior, roughness, cos_incidence):
     """(Rd, Rs) RGB of a texel whose surface (Principled base layer) is lit at μ' = n·ω'
     (``cos_incidence``; see the module documentation): the diffuse reflectance and the specular
     lobes' directional albedo. Numpy broadcasting over texels."""
-    terms = material_terms(base_color, metallic, specular_ior_level, ior, roughness, cos_incidence)
+    terms = principled_terms(base_color, metallic, specular_ior_level, ior, roughness, cos_incidence)
     return terms["diffuse"], terms["specular_albedo"]
 
 
@@ -79,19 +76,19 @@ def texel_rays(size: int, half_extent, view_to_world) -> np.ndarray:
     centres = (np.arange(size) + 0.5) / size * 2.0 - 1.0
     u, v = np.meshgrid(centres * hx, centres * hy)
     local = np.stack([u, v, -np.ones_like(u)], axis=-1)
-    local /= np.linalg.norm(local, axis=-1, keepdims=True)
-    return local @ _f64(view_to_world)[:3, :3].T
+    local /= norm(local)[..., None]
+    return local @ f64(view_to_world)[:3, :3].T
 
 
 def incoming_directions(light, positions) -> np.ndarray:
     """ω' per texel (..., 3): unit, from the surface towards the light (a sun: −its direction)."""
-    positions = _f64(positions)
+    positions = f64(positions)
     if light.type == "SUN":
-        return np.broadcast_to(-_f64(light.direction), positions.shape).copy()
-    towards = _f64(light.position) - positions
-    return towards / np.linalg.norm(towards, axis=-1, keepdims=True)
+        return np.broadcast_to(-f64(light.direction), positions.shape).copy()
+    towards = f64(light.position) - positions
+    return towards / norm(towards)[..., None]
 
 
 def specular_lobes(incoming, normal, roughness):
-    """(ξs, λs) of the texels: 000 Eq. 7's warp with α = ``principled.alpha_from_roughness``."""
-    return specular_lobe_warp(incoming, normal, alpha_from_roughness(roughness))
+    """(ξs, λs) of the texels: 000 Eq. 7's warp with α = ``principled.principled_alpha``."""
+    return specular_lobe_warp(incoming, normal, principled_alpha(roughness))

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .numerics import dot, f64, norm, one_minus_exp_ratio, safe_normalize, safe_ratio
+
 #: Sharpness of the diffuse SG lobe, lambda_d ~= 2 (000 Eq. 6, "obtained by the least square
 #: method"; see docs/accuracy.md for the measured optimum).
 DIFFUSE_SHARPNESS = 2.0
@@ -29,28 +31,6 @@ _TWO_PI = 2.0 * np.pi
 _FOUR_PI = 4.0 * np.pi
 
 
-def _f64(x):
-    return np.asarray(x, dtype=np.float64)
-
-
-def _dot(a, b):
-    return np.sum(a * b, axis=-1)
-
-
-def _norm(a):
-    return np.sqrt(_dot(a, a))
-
-
-def _one_minus_exp_ratio(x):
-    """(1 - e^-x) / x for x >= 0, = 1 at x = 0.
-
-    expm1 keeps full relative precision for tiny x, where 1 - exp(-x) would be all rounding.
-    """
-    x = _f64(x)
-    safe = np.where(x > 0.0, x, 1.0)
-    return np.where(x > 0.0, -np.expm1(-safe) / safe, 1.0)
-
-
 def sg_evaluate(omega, axis, sharpness):
     """G(w; xi, lam) = exp(lam (w.xi - 1)) (000 app. A), evaluated as exp(-lam/2 |w - xi|^2).
 
@@ -58,10 +38,10 @@ def sg_evaluate(omega, axis, sharpness):
     precision of small angles: w.xi - 1 rounds to 0 in float32 once the angle is below ~2.4e-4 rad,
     which is the whole lobe at lam = 1e6.
     """
-    omega = _f64(omega)
-    axis = _f64(axis)
+    omega = f64(omega)
+    axis = f64(axis)
     d = omega - axis
-    return np.exp(-0.5 * _f64(sharpness) * _dot(d, d))
+    return np.exp(-0.5 * f64(sharpness) * dot(d, d))
 
 
 def sg_integral(sharpness):
@@ -70,7 +50,7 @@ def sg_integral(sharpness):
     Written 4 pi * (-expm1(-2 lam)) / (2 lam): exact to rounding for lam = 1e-6 and equal to the
     limit 4 pi at lam = 0.
     """
-    return _FOUR_PI * _one_minus_exp_ratio(2.0 * _f64(sharpness))
+    return _FOUR_PI * one_minus_exp_ratio(2.0 * f64(sharpness))
 
 
 def _product_parts(axis1, sharpness1, axis2, sharpness2):
@@ -81,19 +61,15 @@ def _product_parts(axis1, sharpness1, axis2, sharpness2):
     2 lam1 lam2 xi1.xi2 for unit axes. The direct difference cancels catastrophically for close,
     sharp lobes (two numbers ~2e6 whose difference is ~1).
     """
-    axis1 = _f64(axis1)
-    axis2 = _f64(axis2)
-    lam1 = _f64(sharpness1)
-    lam2 = _f64(sharpness2)
+    axis1 = f64(axis1)
+    axis2 = f64(axis2)
+    lam1 = f64(sharpness1)
+    lam2 = f64(sharpness2)
     xi_m = lam1[..., None] * axis1 + lam2[..., None] * axis2
-    length = _norm(xi_m)
+    length = norm(xi_m)
     diff = axis1 - axis2
     denominator = length + lam1 + lam2
-    exponent = np.where(
-        denominator > 0.0,
-        -lam1 * lam2 * _dot(diff, diff) / np.where(denominator > 0.0, denominator, 1.0),
-        0.0,
-    )
+    exponent = safe_ratio(-lam1 * lam2 * dot(diff, diff), denominator)
     return xi_m, length, exponent
 
 
@@ -108,9 +84,7 @@ def sg_product(axis1, sharpness1, axis2, sharpness2):
     unit vector (no NaN) and any axis is correct for sharpness 0.
     """
     xi_m, length, exponent = _product_parts(axis1, sharpness1, axis2, sharpness2)
-    axis1 = np.broadcast_to(_f64(axis1), xi_m.shape)
-    nonzero = (length > 0.0)[..., None]
-    axis = np.where(nonzero, xi_m / np.where(nonzero, length[..., None], 1.0), axis1)
+    axis = safe_normalize(xi_m, f64(axis1), length)
     return axis, length, np.exp(exponent)
 
 
@@ -122,7 +96,7 @@ def sg_product_integral(axis1, sharpness1, axis2, sharpness2):
     (see ``sg_product``); the limit |xi_m| -> 0 is 4 pi e^(-lam1 - lam2).
     """
     _, length, exponent = _product_parts(axis1, sharpness1, axis2, sharpness2)
-    return _FOUR_PI * np.exp(exponent) * _one_minus_exp_ratio(2.0 * length)
+    return _FOUR_PI * np.exp(exponent) * one_minus_exp_ratio(2.0 * length)
 
 
 def sg_lobe_normalized(omega, axis, sharpness):
@@ -131,8 +105,8 @@ def sg_lobe_normalized(omega, axis, sharpness):
     A(lam) in its expm1 form (``sg_integral``) is exact at lam = 0 (4 pi) and only underflows
     (2 pi / lam < 2.2e-308) for lam > ~2.8e308, so the density is finite for lam from 0 to ~1e308.
     """
-    lam = _f64(sharpness)
-    return sg_evaluate(omega, axis, lam) / (_FOUR_PI * _one_minus_exp_ratio(2.0 * lam))
+    lam = f64(sharpness)
+    return sg_evaluate(omega, axis, lam) / (_FOUR_PI * one_minus_exp_ratio(2.0 * lam))
 
 
 def diffuse_lobe(omega, normal):
@@ -148,7 +122,7 @@ def ndf_sharpness(roughness):
 
     Roughness alpha in (0, 1]; alpha = 0 gives inf (a mirror), callers clamp.
     """
-    alpha = _f64(roughness)
+    alpha = f64(roughness)
     return 2.0 / (alpha * alpha)
 
 
@@ -159,9 +133,9 @@ def specular_lobe_warp(incoming, normal, roughness):
     the surface), lam_s = lam_h / (4 max(|w'.n|, COSINE_FLOOR)). (000 writes |xi_s.n|, which is
     |w'.n| for unit vectors.) Returns ``(axis, sharpness)``.
     """
-    incoming = _f64(incoming)
-    normal = _f64(normal)
-    cos_n = _dot(incoming, normal)
+    incoming = f64(incoming)
+    normal = f64(normal)
+    cos_n = dot(incoming, normal)
     axis = 2.0 * cos_n[..., None] * normal - incoming
     # The floor keeps lam_s finite at grazing incidence (see COSINE_FLOOR).
     sharpness = ndf_sharpness(roughness) / (4.0 * np.maximum(np.abs(cos_n), COSINE_FLOOR))

@@ -67,6 +67,7 @@ import numpy as np
 
 from .. import settings  # the choices' one table (plain Python, no bpy)
 from . import mipmap
+from .numerics import dot, f64, norm, safe_normalize, safe_ratio
 from .sg import DIFFUSE_SHARPNESS, sg_integral  # λ_d ≈ 2 (000 Eq. 6); A(λ) (000 app. A)
 
 #: Rec. 709 luminance (Blender's scene-linear RGB): scalar weight of an RGB power.
@@ -140,16 +141,12 @@ OUTPUT_KEYS = (
     "kernel_level",
 )
 
-_FALLBACK_AXIS = np.array([0.0, 0.0, 1.0])
-
-
-def _f64(x):
-    return np.asarray(x, dtype=np.float64)
+FALLBACK_AXIS = np.array([0.0, 0.0, 1.0])
 
 
 def luminance(rgb) -> np.ndarray:
     """Rec. 709 luminance of RGB values (..., 3)."""
-    return _f64(rgb) @ LUMINANCE_WEIGHTS
+    return f64(rgb) @ LUMINANCE_WEIGHTS
 
 
 @dataclass(frozen=True)
@@ -184,7 +181,7 @@ class RSM:
             fields = {name: rsm[name] for name in cls.__dataclass_fields__}
         else:
             raise TypeError(f"expected an RSM or a mapping, got {type(rsm).__name__}")
-        fields = {name: _f64(value) for name, value in fields.items()}
+        fields = {name: f64(value) for name, value in fields.items()}
         size = mipmap.check_square_power_of_two(fields["position"].shape)
         for name, value in fields.items():
             expected = (size, size) if name == "specular_sharpness" else (size, size, 3)
@@ -206,15 +203,15 @@ class RSM:
         return self.size * self.size
 
 
-def _unit_or_zero(vectors, mask):
+def unit_or_zero(vectors, mask):
     """Normalize where mask and the length is positive and finite; zero elsewhere."""
     vectors = np.where(mask[..., None], vectors, 0.0)
-    length = np.sqrt(np.sum(vectors * vectors, axis=-1))
+    length = norm(vectors)
     ok = mask & (length > 0.0) & np.isfinite(length)
     return np.where(ok[..., None], vectors / np.where(ok, length, 1.0)[..., None], 0.0)
 
 
-def _toksvig_mean_direction(axis, sharpness):
+def toksvig_mean_direction(axis, sharpness):
     """ξ̄ = λ/(λ+1) ξ (Toksvig; 000 app. B.1), written ξ / (1 + 1/λ): finite for λ = 0 and λ = inf."""
     with np.errstate(divide="ignore"):
         factor = 1.0 / (1.0 + 1.0 / sharpness)
@@ -233,8 +230,8 @@ def texel_moments(rsm: RSM) -> np.ndarray:
     lit_d = w_d > 0.0
     lit_s = w_s > 0.0
     lit = (w_d + w_s) > 0.0
-    normal = _unit_or_zero(rsm.normal, lit_d)
-    spec_axis = _unit_or_zero(rsm.specular_axis, lit_s)
+    normal = unit_or_zero(rsm.normal, lit_d)
+    spec_axis = unit_or_zero(rsm.specular_axis, lit_s)
     spec_sharpness = np.where(lit_s, rsm.specular_sharpness, 0.0)
     if np.any(np.isnan(spec_sharpness)) or np.any(spec_sharpness < 0.0):
         raise ValueError("specular_sharpness of lit texels must be >= 0 (inf allowed)")
@@ -243,14 +240,14 @@ def texel_moments(rsm: RSM) -> np.ndarray:
         raise ValueError("position of lit texels must be finite")
     out = np.zeros(rsm.position.shape[:2] + (MOMENT_CHANNELS,))
     out[..., CH_DIFFUSE] = rsm.flux_diffuse
-    out[..., CH_DIFFUSE_DIRECTION] = w_d[..., None] * _toksvig_mean_direction(
+    out[..., CH_DIFFUSE_DIRECTION] = w_d[..., None] * toksvig_mean_direction(
         normal, np.full(w_d.shape, float(DIFFUSE_SHARPNESS))
     )
     out[..., CH_SPECULAR] = rsm.flux_specular
-    out[..., CH_SPECULAR_DIRECTION] = w_s[..., None] * _toksvig_mean_direction(
+    out[..., CH_SPECULAR_DIRECTION] = w_s[..., None] * toksvig_mean_direction(
         spec_axis, spec_sharpness
     )
-    squared = np.sum(position * position, axis=-1)
+    squared = dot(position, position)
     out[..., CH_DIFFUSE_POSITION] = w_d[..., None] * position
     out[..., CH_DIFFUSE_POSITION_SQUARED] = w_d * squared
     out[..., CH_SPECULAR_POSITION] = w_s[..., None] * position
@@ -260,7 +257,7 @@ def texel_moments(rsm: RSM) -> np.ndarray:
 
 def combined_position_moments(totals):
     """Σ w y and Σ w |y|² with w = w_d + w_s (000 app. B.2-B.3) from moment totals (..., 20)."""
-    totals = _f64(totals)
+    totals = f64(totals)
     return (totals[..., CH_DIFFUSE_POSITION] + totals[..., CH_SPECULAR_POSITION],
             totals[..., CH_DIFFUSE_POSITION_SQUARED] + totals[..., CH_SPECULAR_POSITION_SQUARED])
 
@@ -272,7 +269,7 @@ def default_pdf(rsm: RSM) -> np.ndarray:
 
 def normalize_pdf(pdf) -> np.ndarray:
     """Texel probabilities (H, W) summing to 1; an all-zero image becomes uniform."""
-    pdf = _f64(pdf)
+    pdf = f64(pdf)
     if pdf.ndim != 2:
         raise ValueError(f"a PDF image has shape (H, W), got {pdf.shape}")
     if not np.all(np.isfinite(pdf)) or np.any(pdf < 0.0):
@@ -312,7 +309,7 @@ def build_mipmaps(rsm, pdf=None) -> RSMMipmaps:
 
 def kernel_pdf_mass(pdf_chain, uv, level, texel_count) -> np.ndarray:
     """4^l / M · p̄(x, l): the PDF mass of a kernel (left side of 000 Eq. 3)."""
-    level = _f64(level)
+    level = f64(level)
     return 4.0**level / texel_count * mipmap.trilinear(pdf_chain, uv, level)
 
 
@@ -347,30 +344,17 @@ def kernel_level_original(pdf_at_center, k, vsgl_count, texel_count, top_level) 
     K/N) would ask for a kernel smaller than a texel, which the mipmap cannot resolve. p is the
     unfiltered density at x_i, so l jumps between texels: the weakness 000 §3.1 points out.
     """
-    p = np.maximum(_f64(pdf_at_center), np.finfo(np.float64).tiny)
+    p = np.maximum(f64(pdf_at_center), np.finfo(np.float64).tiny)
     area = np.minimum(float(k) / (float(vsgl_count) * p), 1.0)
     return np.clip(0.5 * np.log2(texel_count * area), 0.0, float(top_level))
 
 
-def _safe_ratio(numerator, denominator):
-    """numerator / denominator where denominator > 0, else 0 (broadcast over trailing dims)."""
-    den = np.asarray(denominator)
-    ok = den > 0.0
-    den = np.where(ok, den, 1.0)
-    extra = (Ellipsis,) + (None,) * (np.ndim(numerator) - np.ndim(den))
-    return np.where(ok[extra], numerator / den[extra], 0.0)
-
-
-def _lobe(power, direction_sum):
+def vsgl_lobe(power, direction_sum):
     """SG of one lobe from Σ ΦR (RGB) and Σ w ξ̄ (000 app. B.1): amplitude, axis, sharpness."""
     weight = luminance(power)
-    mean_direction = _safe_ratio(direction_sum, weight)
-    length = np.sqrt(np.sum(mean_direction * mean_direction, axis=-1))
-    has_axis = length > 0.0
-    axis = np.where(
-        has_axis[..., None], mean_direction / np.where(has_axis, length, 1.0)[..., None],
-        _FALLBACK_AXIS,
-    )
+    mean_direction = safe_ratio(direction_sum, weight)
+    length = norm(mean_direction)
+    axis = safe_normalize(mean_direction, FALLBACK_AXIS, length)
     # |ξ̄_v| <= 1 holds for any non-negative weighting; the clamp keeps λ_v finite (MAX_AXIS_LENGTH).
     length = np.minimum(length, MAX_AXIS_LENGTH)
     sharpness = length / (1.0 - length)
@@ -378,14 +362,20 @@ def _lobe(power, direction_sum):
     return amplitude, axis, sharpness
 
 
-def _position(weight, position_sum, position_squared_sum, fallback_mean, fallback_variance):
+def vsgl_position(weight, position_sum, position_squared_sum, fallback_mean, fallback_variance):
     """µ_v and σ_v² = E|y|² - |µ_v|² (000 app. B.2), clamped to the variance floor."""
     has = weight > 0.0
-    mean = np.where(has[..., None], _safe_ratio(position_sum, weight), fallback_mean)
-    second = _safe_ratio(position_squared_sum, weight)
-    variance = np.where(has, second - np.sum(mean * mean, axis=-1), fallback_variance)
+    mean = np.where(has[..., None], safe_ratio(position_sum, weight), fallback_mean)
+    second = safe_ratio(position_squared_sum, weight)
+    variance = np.where(has, second - dot(mean, mean), fallback_variance)
     floor = np.maximum(VARIANCE_FLOOR_RELATIVE * second, VARIANCE_FLOOR_ABSOLUTE)
     return mean, np.maximum(variance, np.where(has, floor, VARIANCE_FLOOR_ABSOLUTE))
+
+
+def _check_positional_distribution(positional_distribution):
+    if positional_distribution not in POSITIONAL_DISTRIBUTIONS:
+        raise ValueError(f"positional_distribution must be one of {POSITIONAL_DISTRIBUTIONS}, "
+                         f"got {positional_distribution!r}")
 
 
 def vsgl_parameters(totals, fallback_mean=None, fallback_variance=None,
@@ -401,25 +391,23 @@ def vsgl_parameters(totals, fallback_mean=None, fallback_variance=None,
     power takes the combined position. Any common positive scale of the totals cancels except in
     c_v and ``power``.
     """
-    if positional_distribution not in POSITIONAL_DISTRIBUTIONS:
-        raise ValueError(f"positional_distribution must be one of {POSITIONAL_DISTRIBUTIONS}, "
-                         f"got {positional_distribution!r}")
-    totals = _f64(totals)
+    _check_positional_distribution(positional_distribution)
+    totals = f64(totals)
     if fallback_mean is None:
         fallback_mean = np.zeros(3)
     if fallback_variance is None:
         fallback_variance = VARIANCE_FLOOR_ABSOLUTE
     d_power, s_power = totals[..., CH_DIFFUSE], totals[..., CH_SPECULAR]
-    d_amp, d_axis, d_sharp = _lobe(d_power, totals[..., CH_DIFFUSE_DIRECTION])
-    s_amp, s_axis, s_sharp = _lobe(s_power, totals[..., CH_SPECULAR_DIRECTION])
+    d_amp, d_axis, d_sharp = vsgl_lobe(d_power, totals[..., CH_DIFFUSE_DIRECTION])
+    s_amp, s_axis, s_sharp = vsgl_lobe(s_power, totals[..., CH_SPECULAR_DIRECTION])
     power = d_power + s_power
     position_sum, position_squared_sum = combined_position_moments(totals)
-    mean, variance = _position(luminance(power), position_sum, position_squared_sum,
+    mean, variance = vsgl_position(luminance(power), position_sum, position_squared_sum,
                                fallback_mean, fallback_variance)
     if positional_distribution == "per-lobe":
-        d_mean, d_variance = _position(luminance(d_power), totals[..., CH_DIFFUSE_POSITION],
+        d_mean, d_variance = vsgl_position(luminance(d_power), totals[..., CH_DIFFUSE_POSITION],
                                        totals[..., CH_DIFFUSE_POSITION_SQUARED], mean, variance)
-        s_mean, s_variance = _position(luminance(s_power), totals[..., CH_SPECULAR_POSITION],
+        s_mean, s_variance = vsgl_position(luminance(s_power), totals[..., CH_SPECULAR_POSITION],
                                        totals[..., CH_SPECULAR_POSITION_SQUARED], mean, variance)
     else:
         d_mean, d_variance, s_mean, s_variance = mean, variance, mean.copy(), variance.copy()
@@ -445,7 +433,7 @@ def _rsm_fallback(top_moments):
     totals = top_moments[0, 0]
     power = totals[CH_DIFFUSE] + totals[CH_SPECULAR]
     position_sum, position_squared_sum = combined_position_moments(totals)
-    mean, variance = _position(
+    mean, variance = vsgl_position(
         luminance(power), position_sum, position_squared_sum, np.zeros(3),
         VARIANCE_FLOOR_ABSOLUTE,
     )
@@ -456,7 +444,7 @@ def lattice_rotation(seed=0, rotation=None) -> np.ndarray:
     """Cranley-Patterson shift of the lattice: ``rotation`` if given, else uniform from ``seed``
     (numpy's default_rng), else (seed None) no shift."""
     if rotation is not None:
-        rotation = _f64(rotation).reshape(2)
+        rotation = f64(rotation).reshape(2)
         return rotation - np.floor(rotation)
     if seed is None:
         return np.zeros(2)
@@ -540,9 +528,7 @@ def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
     """
     if kernel not in KERNEL_MODES:
         raise ValueError(f"kernel must be one of {KERNEL_MODES}, got {kernel!r}")
-    if positional_distribution not in POSITIONAL_DISTRIBUTIONS:
-        raise ValueError(f"positional_distribution must be one of {POSITIONAL_DISTRIBUTIONS}, "
-                         f"got {positional_distribution!r}")
+    _check_positional_distribution(positional_distribution)
     rsm = RSM.coerce(rsm)
     if kernel == "two-vsgl":
         return two_vsgls(rsm)

@@ -61,10 +61,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .asg import asg_specular_lobe, sg_asg_convolution
-from .ggx import microfacet_brdf
-from .sg import (DIFFUSE_SHARPNESS, _dot, _f64, sg_evaluate, sg_integral, sg_product,
-                 sg_product_integral, specular_lobe_warp)
-from .vsgl import RSM, VARIANCE_FLOOR_ABSOLUTE
+from .ggx import fresnel_schlick, ggx_g1_denominator, microfacet_brdf
+from .numerics import dot, f64, norm, safe_normalize
+from .sg import (DIFFUSE_SHARPNESS, sg_evaluate, sg_integral, sg_product, sg_product_integral,
+                 specular_lobe_warp)
+from .vsgl import (MOMENT_CHANNELS, RSM, VARIANCE_FLOOR_ABSOLUTE, texel_moments,
+                   vsgl_parameters)
 
 #: Floor on σv² (same as the generator's absolute floor, 000 app. B.2).
 VARIANCE_FLOOR = VARIANCE_FLOOR_ABSOLUTE
@@ -85,67 +87,64 @@ def diffuse_mode_for_kernel(kernel: str) -> str:
     return "sg-convolution" if kernel == "two-vsgl" else "cosine"
 
 
-def incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
+def vsgl_incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
     """Incoming radiance SG of one VSGL lobe at shading points (000 Eq. 12), without cv.
 
     Returns ``(axis_in, sharpness_in, scale)`` with cin = cv · scale,
     scale = e^(λin − λv − λσ) / (2π σv²). Broadcasts (vectors in a trailing axis of 3).
     """
-    r = _f64(mean) - _f64(position)
-    d2 = _dot(r, r)
+    r = f64(mean) - f64(position)
+    d2 = dot(r, r)
     dist = np.sqrt(d2)
-    lobe_axis = _f64(lobe_axis)
+    lobe_axis = f64(lobe_axis)
     r, lobe_axis = np.broadcast_arrays(r, lobe_axis)
-    ok = (dist > 0.0)[..., None]
     # At y_p = µv λσ = 0 and the axis is irrelevant; −ξv keeps it a unit vector.
-    xi_mu = np.where(ok, r / np.where(ok, dist[..., None], 1.0), -lobe_axis)
-    var = np.maximum(_f64(variance), VARIANCE_FLOOR)
+    xi_mu = safe_normalize(r, -lobe_axis, dist)
+    var = np.maximum(f64(variance), VARIANCE_FLOOR)
     lam_sigma = d2 / var
-    axis_in, lam_in, scale = sg_product(-lobe_axis, _f64(lobe_sharpness), xi_mu, lam_sigma)
+    axis_in, lam_in, scale = sg_product(-lobe_axis, f64(lobe_sharpness), xi_mu, lam_sigma)
     return axis_in, lam_in, scale / (2.0 * np.pi * var)
 
 
-def diffuse_factor(axis_in, sharpness_in, normal, mode="cosine"):
+def vsgl_diffuse_factor(axis_in, sharpness_in, normal, mode="cosine"):
     """Ld / (cin Rd): A(λin)/π ⟨ξin, n⟩ ("cosine", 000 app. C) or
     ∫ G(ξin, λin) G(n, λd) dω / A(λd) ("sg-convolution", 003)."""
     if mode == "cosine":
-        return sg_integral(sharpness_in) / np.pi * np.maximum(_dot(_f64(axis_in), _f64(normal)), 0.0)
+        return sg_integral(sharpness_in) / np.pi * np.maximum(dot(f64(axis_in), f64(normal)), 0.0)
     if mode == "sg-convolution":
         return (sg_product_integral(axis_in, sharpness_in, normal, DIFFUSE_SHARPNESS)
                 / sg_integral(DIFFUSE_SHARPNESS))
     raise ValueError(f"diffuse mode must be one of {DIFFUSE_MODES}, got {mode!r}")
 
 
-def _g1_denominator(c, a2):
-    return c + np.sqrt((1.0 - a2) * c * c + a2)
-
-
-def specular_factor(axis_in, sharpness_in, view, normal, roughness, f0, specular_cosine="normal"):
+def vsgl_specular_factor(axis_in, sharpness_in, view, normal, roughness, f0, specular_cosine="normal"):
     """Ls / cin, RGB (..., 3): C(ξin) · SG × ASG convolution (see the module documentation)."""
-    axis_in = _f64(axis_in)
-    view = _f64(view)
-    normal = _f64(normal)
-    alpha = np.maximum(_f64(roughness), ALPHA_MIN)
+    axis_in = f64(axis_in)
+    view = f64(view)
+    normal = f64(normal)
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
     a2 = alpha * alpha
     x_axis, y_axis, z_axis, eta_x, eta_y = asg_specular_lobe(view, normal, alpha)
     cos_axis = normal if specular_cosine == "normal" else z_axis
     if specular_cosine not in SPECULAR_COSINES:
         raise ValueError(f"specular_cosine must be one of {SPECULAR_COSINES}")
     conv = sg_asg_convolution(axis_in, sharpness_in, x_axis, y_axis, cos_axis, eta_x, eta_y)
-    ci = np.maximum(_dot(axis_in, normal), 0.0)
-    co_raw = _dot(view, normal)
+    ci = np.maximum(dot(axis_in, normal), 0.0)
+    co_raw = dot(view, normal)
     co = np.maximum(co_raw, 0.0)
     half = axis_in + view
-    half_len = np.sqrt(_dot(half, half))
-    ok = half_len > 0.0
-    half = np.where(ok[..., None], half / np.where(ok, half_len, 1.0)[..., None], normal)
-    m = 1.0 - np.clip(_dot(axis_in, half), 0.0, 1.0)
-    m5 = m ** 5
+    half = safe_normalize(half, normal, norm(half))
     d1 = 1.0 / (np.pi * a2)
-    k = np.where(co_raw > 0.0, conv * d1 / (_g1_denominator(ci, a2) * _g1_denominator(co, a2)), 0.0)
-    f0 = _f64(f0)
-    fresnel = f0 + (1.0 - f0) * m5[..., None]
-    return k[..., None] * fresnel
+    masking = ggx_g1_denominator(ci, a2) * ggx_g1_denominator(co, a2)
+    k = np.where(co_raw > 0.0, conv * d1 / masking, 0.0)
+    return k[..., None] * fresnel_schlick(dot(axis_in, half)[..., None], f0)
+
+
+def _receivers(position, normal, view, diffuse_reflectance, specular_f0, roughness):
+    """The shading points as flat float64 rows: (P, 3) vectors and colours, (P,) roughness."""
+    return (f64(position).reshape(-1, 3), f64(normal).reshape(-1, 3), f64(view).reshape(-1, 3),
+            f64(diffuse_reflectance).reshape(-1, 3), f64(specular_f0).reshape(-1, 3),
+            f64(roughness).reshape(-1))
 
 
 def _chunks(count, per_chunk):
@@ -165,13 +164,9 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
     """
     if diffuse_mode not in DIFFUSE_MODES:
         raise ValueError(f"diffuse mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
-    position = _f64(position).reshape(-1, 3)
-    normal = _f64(normal).reshape(-1, 3)
-    view = _f64(view).reshape(-1, 3)
-    rd = _f64(diffuse_reflectance).reshape(-1, 3)
-    f0 = _f64(specular_f0).reshape(-1, 3)
-    alpha = _f64(roughness).reshape(-1)
-    count = len(_f64(vsgls["diffuse_variance"]).reshape(-1))
+    position, normal, view, rd, f0, alpha = _receivers(position, normal, view, diffuse_reflectance,
+                                                       specular_f0, roughness)
+    count = len(f64(vsgls["diffuse_variance"]).reshape(-1))
     diffuse = np.zeros((len(position), 3))
     specular = np.zeros((len(position), 3))
     terms = []
@@ -181,17 +176,17 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
         part = []
         for lobe in lobes:
             amp_key, axis_key, sharp_key = (f"{lobe}_amplitude", f"{lobe}_axis", f"{lobe}_sharpness")
-            mean = _f64(vsgls[f"{lobe}_mean"]).reshape(-1, 3)[rows][None]
-            variance = _f64(vsgls[f"{lobe}_variance"]).reshape(-1)[rows][None]
-            amplitude = _f64(vsgls[amp_key]).reshape(-1, 3)[rows][None]
-            axis_in, lam_in, scale = incoming_sg(
+            mean = f64(vsgls[f"{lobe}_mean"]).reshape(-1, 3)[rows][None]
+            variance = f64(vsgls[f"{lobe}_variance"]).reshape(-1)[rows][None]
+            amplitude = f64(vsgls[amp_key]).reshape(-1, 3)[rows][None]
+            axis_in, lam_in, scale = vsgl_incoming_sg(
                 position[:, None], mean, variance,
-                _f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
-                _f64(vsgls[sharp_key]).reshape(-1)[rows][None])
+                f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
+                f64(vsgls[sharp_key]).reshape(-1)[rows][None])
             c_in = amplitude * scale[..., None]
-            ld = c_in * diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
+            ld = c_in * vsgl_diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
                 * rd[:, None]
-            ls = c_in * specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
+            ls = c_in * vsgl_specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
                                         alpha[:, None], f0[:, None], specular_cosine)
             diffuse += ld.sum(axis=1)
             specular += ls.sum(axis=1)
@@ -224,15 +219,15 @@ class VPLs:
     incoming: np.ndarray
 
     def flat(self) -> "VPLs":
-        return VPLs(*(_f64(getattr(self, name)).reshape((-1, 3) if name != "roughness" else (-1,))
+        return VPLs(*(f64(getattr(self, name)).reshape((-1, 3) if name != "roughness" else (-1,))
                       for name in self.__dataclass_fields__))
 
     def rsm(self) -> RSM:
         """The RSM of these VPLs as VSGL generation takes it (000 Eqs. 6-7 lobes)."""
         axis, sharpness = specular_lobe_warp(self.incoming, self.normal, self.roughness)
-        return RSM(position=_f64(self.position), normal=_f64(self.normal),
-                   flux_diffuse=_f64(self.flux) * _f64(self.diffuse_reflectance),
-                   flux_specular=_f64(self.flux) * _f64(self.specular_f0),
+        return RSM(position=f64(self.position), normal=f64(self.normal),
+                   flux_diffuse=f64(self.flux) * f64(self.diffuse_reflectance),
+                   flux_specular=f64(self.flux) * f64(self.specular_f0),
                    specular_axis=axis, specular_sharpness=sharpness)
 
 
@@ -240,7 +235,7 @@ def _ggx_rgb(incoming, outgoing, normal, alpha, f0):
     """GGX BRDF for RGB F0 (Schlick is linear in F0): b0 + F0 (b1 - b0)."""
     b0 = microfacet_brdf(incoming, outgoing, normal, alpha, 0.0)
     b1 = microfacet_brdf(incoming, outgoing, normal, alpha, 1.0)
-    return b0[..., None] + _f64(f0) * (b1 - b0)[..., None]
+    return b0[..., None] + f64(f0) * (b1 - b0)[..., None]
 
 
 def vpl_intensity(vpls: VPLs, directions, lobes="ggx"):
@@ -248,7 +243,7 @@ def vpl_intensity(vpls: VPLs, directions, lobes="ggx"):
     (..., M, 3): Φ Rd/π ⟨ω,n⟩ and Φ f_GGX(ω', ω) ⟨ω,n⟩ ("ggx"), or the SG lobes of 000 Eqs. 6-7,
     Φ Rd G(ω; n, λd)/A(λd) and Φ Rs G(ω; ξs, λs)/A(λs) ("sg")."""
     v = vpls.flat()
-    cos = np.maximum(_dot(directions, v.normal), 0.0)
+    cos = np.maximum(dot(directions, v.normal), 0.0)
     if lobes == "ggx":
         diffuse = v.flux * v.diffuse_reflectance / np.pi * cos[..., None]
         spec = v.flux * _ggx_rgb(v.incoming, directions, v.normal, v.roughness, v.specular_f0) \
@@ -272,22 +267,19 @@ def brute_force_shading(vpls: VPLs, position, normal, view, diffuse_reflectance,
     (α clamped to ``ALPHA_MIN`` as in shading). No visibility (VSGL shading has none either).
     VPLs at the shading point are skipped."""
     v = vpls.flat()
-    position = _f64(position).reshape(-1, 3)
-    normal = _f64(normal).reshape(-1, 3)
-    view = _f64(view).reshape(-1, 3)
-    rd = _f64(diffuse_reflectance).reshape(-1, 3)
-    f0 = _f64(specular_f0).reshape(-1, 3)
-    alpha = np.maximum(_f64(roughness).reshape(-1), ALPHA_MIN)
+    position, normal, view, rd, f0, alpha = _receivers(position, normal, view, diffuse_reflectance,
+                                                       specular_f0, roughness)
+    alpha = np.maximum(alpha, ALPHA_MIN)
     diffuse = np.zeros((len(position), 3))
     specular = np.zeros((len(position), 3))
     for p in range(len(position)):
         r = v.position - position[p]
-        d2 = _dot(r, r)
+        d2 = dot(r, r)
         ok = d2 > 0.0
         omega = r / np.sqrt(np.where(ok, d2, 1.0))[:, None]
         i_d, i_s = vpl_intensity(v, -omega, vpl_lobes)
         irradiance = (i_d + i_s) * np.where(ok, 1.0 / np.where(ok, d2, 1.0), 0.0)[:, None] \
-            * np.maximum(_dot(omega, normal[p]), 0.0)[:, None]
+            * np.maximum(dot(omega, normal[p]), 0.0)[:, None]
         diffuse[p] = (irradiance * rd[p] / np.pi).sum(axis=0)
         brdf = _ggx_rgb(omega, view[p], normal[p], alpha[p], f0[p])
         specular[p] = (irradiance * brdf).sum(axis=0)
@@ -296,7 +288,5 @@ def brute_force_shading(vpls: VPLs, position, normal, view, diffuse_reflectance,
 
 def per_texel_vsgls(rsm) -> dict:
     """Every RSM texel its own VSGL (the N = M limit, 000 app. B with one VPL per cluster)."""
-    from .vsgl import MOMENT_CHANNELS, texel_moments, vsgl_parameters
-
     rsm = RSM.coerce(rsm)
     return vsgl_parameters(texel_moments(rsm).reshape(-1, MOMENT_CHANNELS))
