@@ -21,8 +21,8 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
-from .engine import render_size
 from .settings import VSGLSettings
+from .views import render_size
 
 PREVIEW_PASSES = (
     ("COMBINED", "Combined", "Direct plus one-bounce indirect light"),
