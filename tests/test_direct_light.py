@@ -81,7 +81,7 @@ def test_light_irradiance_glsl_matches_numpy(kind):
     out = evaluate_glsl(
         "vec3 incoming; float e = direct_light_irradiance(params, lpos, laxis, transpose(mat3(r0, r1, r2)),"
         " p, n, incoming); result = vec4(e, incoming);",
-        {k: as_gpu_floats(v) for k, v in inputs.items()}, 4, libraries=["direct_light/lights.glsl"])
+        {k: as_gpu_floats(v) for k, v in inputs.items()}, 4, libraries=["direct_light/light_at_surface.glsl"])
     light.position = as_gpu_floats(light.position)
     e, incoming = ref.light_irradiance(light, p, n)
     assert np.all(np.isfinite(out))

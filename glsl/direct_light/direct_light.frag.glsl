@@ -1,11 +1,11 @@
-// @require direct_light/lights.glsl
+// @require direct_light/light_at_surface.glsl
 //
 // Direct light of one light, full screen over the camera G-buffer (vsgl_addon/passes/gbuffer.py
 // layout), added (blending ONE, ONE) into two RGBA32F targets: diffuse and glossy direct radiance
 // (W/(m^2 sr), RGB; alpha 0). Python side: vsgl_addon/passes/direct_light.py.
 //
 // light_constants (RGBA32F, 1 row): 0 (light position, view count), 1 (light axis, 0),
-// 2 light params (lib/lights.glsl), 3 (light colour, 0), 4 (diffuse factor, specular factor, 0, 0),
+// 2 light params (lib/light_emission.glsl), 3 (light colour, 0), 4 (diffuse factor, specular factor, 0, 0),
 // 5-7 rows of world -> light local (mat3), then per RSM view k (k < 6) 5 texels from 8 + 5k: the
 // rows of its view-projection matrix, then (perspective 1 / ortho 0, P00, P22, P23).
 // camera: (position, 1) perspective or (direction towards the camera, 0) orthographic.

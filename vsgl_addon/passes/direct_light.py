@@ -15,8 +15,8 @@ towards the camera, RGB, W/(m²·sr), summed over the lights — what Cycles' Di
 Color and Glossy Direct × Glossy Color hold. Background pixels are 0.
 
 Light model (formulas.md §4; float64 twins :mod:`vsgl_addon.reference.direct_light` and
-:mod:`vsgl_addon.reference.lights`, GLSL ``glsl/direct_light/lights.glsl`` on the emission model
-``glsl/lib/lights.glsl`` the RSM shares): point and spot P/(4π) W/sr (spot: Blender's cone
+:mod:`vsgl_addon.reference.lights`, GLSL ``glsl/direct_light/light_at_surface.glsl`` on the emission model
+``glsl/lib/light_emission.glsl`` the RSM shares): point and spot P/(4π) W/sr (spot: Blender's cone
 smoothstep), sun S W/m², area lights as Lambertian point emitters I(θ) = (P/π) cos θ from their
 centre; light radius / sun angle are not modelled (hard shadows). The light's colour and its diffuse/specular
 factors multiply the result. Material: :mod:`vsgl_addon.reference.principled` (Cycles' Principled

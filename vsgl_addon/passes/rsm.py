@@ -23,7 +23,7 @@ Texels that see nothing are all zero. Texture rows start at the bottom of the vi
 NDC y = −1), as ``GPUTexture.read`` returns them; ``to_numpy`` keeps that order.
 
 **Model** (documented in, and tested against, :mod:`vsgl_addon.reference.rsm`). The lights are
-Blender's emission model shared with the direct light (``glsl/lib/lights.glsl``,
+Blender's emission model shared with the direct light (``glsl/lib/light_emission.glsl``,
 :mod:`vsgl_addon.reference.lights`). The reflectances are the Principled BSDF base layer the
 direct light uses (``glsl/lib/principled.glsl``, :mod:`vsgl_addon.reference.principled`, calibrated
 against Cycles) for the texel's incidence ω' (towards the light): Rd = base × (1 − metallic) ×

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Float64 twin of ``glsl/direct_light/lights.glsl`` and of the direct-light pass's shading
+"""Float64 twin of ``glsl/direct_light/light_at_surface.glsl`` and of the direct-light pass's shading
 (:mod:`vsgl_addon.passes.direct_light`), without shadows (a visibility can be passed in).
 
 Blender's lights are the emission model of :mod:`vsgl_addon.reference.lights` (formulas.md §4,
