@@ -102,18 +102,19 @@ def _shadow_view(kind):
     from vsgl_addon import views
 
     rotation = np.stack(_orthonormal_axes((0.1, 0.05, -1.0)), axis=1)
-    view = views._view_matrix(rotation, (0.2, -0.1, 4.0))
+    view = views.view_from_frame(rotation, (0.2, -0.1, 4.0))
     if kind == "perspective":
-        projection = views._perspective(math.tan(math.radians(20)), math.tan(math.radians(15)), 0.01, 8.0)
+        half_x, half_y = math.tan(math.radians(20)), math.tan(math.radians(15))
+        projection = views.perspective_projection(half_x, half_y, 0.01, 8.0)
     else:
-        projection = views._orthographic(1.5, 1.0, 0.05, 8.0)
+        projection = views.orthographic_projection(1.5, 1.0, 0.05, 8.0)
     vector = ((1.0 if kind == "perspective" else 0.0), projection[0, 0], projection[2, 2], projection[2, 3])
     return as_gpu_floats(projection @ view), as_gpu_floats(vector)
 
 
-def _orthonormal_axes(back):
-    """(x, y, z) of a right-handed frame whose -z points along ``back``'s opposite: z = -unit(back)."""
-    z = -_unit(np.asarray(back, float))
+def _orthonormal_axes(look):
+    """(x, y, z) of a right-handed view frame looking along ``look`` (down its -z)."""
+    z = -_unit(np.asarray(look, float))
     x = _unit(np.cross([0.0, 1.0, 0.0], z))
     return x, np.cross(z, x), z
 

@@ -144,7 +144,8 @@ def test_engine_image_and_camera_have_the_size_blender_renders(x, y, percentage,
     from vsgl_addon.views import render_size
 
     scene = _small_scene()
-    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = x, y, percentage
+    scene.render.resolution_x, scene.render.resolution_y = x, y
+    scene.render.resolution_percentage = percentage
     register()
     try:
         scene.render.engine = "VSGL"

@@ -63,14 +63,15 @@ scene = bpy.context.scene
 scene.render.engine = "VSGL"
 scene.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
 scene.render.image_settings.color_depth = "32"
-engine_class = next(c for c in bpy.types.RenderEngine.__subclasses__() if getattr(c, "bl_idname", "") == "VSGL")
-engine = sys.modules[engine_class.__module__]
+engine = next(sys.modules[c.__module__] for c in bpy.types.RenderEngine.__subclasses__()
+              if getattr(c, "bl_idname", "") == "VSGL")
 rendered = []
 for x, y, percentage in {sizes}:
     scene.render.resolution_x, scene.render.resolution_y = x, y
     scene.render.resolution_percentage = percentage
     bpy.ops.render.render(scene=scene.name)
-    bpy.data.images["Render Result"].save_render("{folder}/size_%d_%d_%d.exr" % (x, y, percentage), scene=scene)
+    path = "{folder}/size_%d_%d_%d.exr" % (x, y, percentage)
+    bpy.data.images["Render Result"].save_render(path, scene=scene)
     rendered.append(engine.last_frame_statistics["resolution"])
 print("VSGL-SIZES " + json.dumps(rendered))
 """

@@ -184,7 +184,7 @@ def _orthonormal_frame(matrix_world) -> np.ndarray:
     return np.stack([x, y, z], axis=1)
 
 
-def _view_matrix(rotation: np.ndarray, origin) -> np.ndarray:
+def view_from_frame(rotation: np.ndarray, origin) -> np.ndarray:
     """World -> view for a view whose world axes are the columns of ``rotation`` (X right, Y up,
     looking down -Z) at ``origin``."""
     view = np.eye(4)
@@ -193,7 +193,9 @@ def _view_matrix(rotation: np.ndarray, origin) -> np.ndarray:
     return view
 
 
-def _perspective(hx: float, hy: float, near: float, far: float) -> np.ndarray:
+def perspective_projection(hx: float, hy: float, near: float, far: float) -> np.ndarray:
+    """OpenGL perspective projection of a symmetric frustum whose image plane at distance 1 spans
+    [-hx, hx] x [-hy, hy] (half extents are tangents of the half angles), depth [near, far]."""
     p = np.zeros((4, 4))
     p[0, 0] = 1.0 / hx
     p[1, 1] = 1.0 / hy
@@ -203,7 +205,8 @@ def _perspective(hx: float, hy: float, near: float, far: float) -> np.ndarray:
     return p
 
 
-def _orthographic(hx: float, hy: float, near: float, far: float) -> np.ndarray:
+def orthographic_projection(hx: float, hy: float, near: float, far: float) -> np.ndarray:
+    """OpenGL orthographic projection of the box [-hx, hx] x [-hy, hy] (metres) x depth [near, far]."""
     p = np.eye(4)
     p[0, 0] = 1.0 / hx
     p[1, 1] = 1.0 / hy
@@ -290,11 +293,11 @@ def _padded_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _perspective_spec(name, rotation, origin, hx, hy, bounds) -> RSMViewSpec:
-    view = _view_matrix(rotation, origin)
+    view = view_from_frame(rotation, origin)
     _, far = _depth_range(view, box_corners(*bounds))
     far = max(far * 1.01, 1e-3)
     near = far * NEAR_FRACTION
-    return RSMViewSpec(name, True, view, _perspective(hx, hy, near, far), (hx, hy), near, far)
+    return RSMViewSpec(name, True, view, perspective_projection(hx, hy, near, far), (hx, hy), near, far)
 
 
 # Cube faces: (name, view rotation columns X, Y, Z(back)) in a frame's coordinates; each proper.
@@ -377,9 +380,9 @@ def _sun_specs(scene, light, bounds) -> list[RSMViewSpec]:
     depth = box @ direction  # the whole scene along the sun: occluders outside the camera count
     margin = 0.01 * max(extent, 1e-3)
     origin = centre + (depth.min() - margin) * direction - ((centre @ direction) * direction)
-    view = _view_matrix(frame, origin)
+    view = view_from_frame(frame, origin)
     near, far = 0.5 * margin, float(np.ptp(depth)) + 1.5 * margin
-    return [RSMViewSpec("sun", False, view, _orthographic(hx, hy, near, far), (hx, hy), near, far)]
+    return [RSMViewSpec("sun", False, view, orthographic_projection(hx, hy, near, far), (hx, hy), near, far)]
 
 
 def _outside_one_plane(clip: np.ndarray) -> np.ndarray:
