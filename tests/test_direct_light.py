@@ -81,7 +81,7 @@ def test_light_irradiance_glsl_matches_numpy(kind):
     out = evaluate_glsl(
         "vec3 incoming; float e = direct_light_irradiance(params, lpos, laxis, transpose(mat3(r0, r1, r2)),"
         " p, n, incoming); result = vec4(e, incoming);",
-        {k: as_gpu_floats(v) for k, v in inputs.items()}, 4, libraries=["direct_light/lights.glsl"])
+        {k: as_gpu_floats(v) for k, v in inputs.items()}, 4, libraries=["direct_light/light_at_surface.glsl"])
     light.position = as_gpu_floats(light.position)
     e, incoming = ref.direct_light_irradiance(light, p, n)
     assert np.all(np.isfinite(out))
@@ -94,6 +94,109 @@ def test_light_irradiance_glsl_matches_numpy(kind):
     assert accuracy.ok, accuracy.report()
     lit = keep & (e > 0)
     np.testing.assert_allclose(out[lit, 1:], incoming[lit], atol=1e-5)
+
+
+def _shadow_view(kind):
+    """(view-projection, projection vector (perspective, P00, P22, P23)) of a view looking down
+    from (0.2, -0.1, 4): a 40° x 30° perspective one or a 3 m x 2 m orthographic one."""
+    from vsgl_addon import views
+
+    rotation = np.stack(_orthonormal_axes((0.1, 0.05, -1.0)), axis=1)
+    view = views.view_from_frame(rotation, (0.2, -0.1, 4.0))
+    if kind == "perspective":
+        half_x, half_y = math.tan(math.radians(20)), math.tan(math.radians(15))
+        projection = views.perspective_projection(half_x, half_y, 0.01, 8.0)
+    else:
+        projection = views.orthographic_projection(1.5, 1.0, 0.05, 8.0)
+    vector = ((1.0 if kind == "perspective" else 0.0), projection[0, 0], projection[2, 2], projection[2, 3])
+    return as_gpu_floats(projection @ view), as_gpu_floats(vector)
+
+
+def _orthonormal_axes(look):
+    """(x, y, z) of a right-handed view frame looking along ``look`` (down its -z)."""
+    z = -_unit(np.asarray(look, float))
+    x = _unit(np.cross([0.0, 1.0, 0.0], z))
+    return x, np.cross(z, x), z
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("kind", ["perspective", "orthographic"])
+def test_shadow_map_lookup_glsl_matches_numpy(kind):
+    """lib/shadow.glsl's lookup (frustum test, texel, receiver depth, slope-scaled bias) against its
+    float64 twin, points inside and outside the view."""
+    rng = np.random.default_rng(5)
+    count, size = 4000, 64
+    view_projection, projection = _shadow_view(kind)
+    p = as_gpu_floats(rng.uniform((-1.8, -1.4, -1.0), (1.8, 1.4, 3.5), size=(count, 3)))
+    n = as_gpu_floats(_unit(rng.normal(size=(count, 3))))
+    incoming = as_gpu_floats(_unit(n + rng.normal(size=(count, 3))))
+    shadow = np.tile((float(size), 1.5, 0.75), (count, 1))
+    inputs = {f"r{i}": np.tile(view_projection[i], (count, 1)) for i in range(4)}
+    inputs.update(proj=np.tile(projection, (count, 1)), shadow=shadow, p=p, n=n, inc=incoming)
+    out = evaluate_glsl(
+        "ivec2 texel; float receiver, bias; float tan_theta = shadow_tan_incidence(n, inc);"
+        " bool inside = shadow_map_lookup(transpose(mat4(r0, r1, r2, r3)), proj, shadow.x, shadow.y,"
+        " shadow.z, tan_theta, p, n, texel, receiver, bias);"
+        " lookup = vec4(inside ? 1.0 : 0.0, receiver, bias, tan_theta); cell = vec2(texel);",
+        {k: as_gpu_floats(v) for k, v in inputs.items()}, {"lookup": 4, "cell": 2},
+        libraries=["lib/shadow.glsl"])
+    tan_theta = ref.shadow_tan_incidence(n, incoming)
+    inside, texel, receiver, bias = ref.shadow_map_lookup(view_projection, projection, size, 1.5, 0.75,
+                                                          tan_theta, p, n)
+    lookup, cell = out["lookup"], out["cell"]
+    assert 0.2 < inside.mean() < 0.8, "the points must straddle the frustum"
+    # float32 decides only for points on the frustum's boundary.
+    assert np.mean((lookup[:, 0] > 0.5) == inside) > 0.998
+    both = inside & (lookup[:, 0] > 0.5)
+    np.testing.assert_allclose(lookup[both, 1], receiver[both], rtol=1e-4)
+    np.testing.assert_allclose(lookup[both, 2], bias[both], rtol=1e-4)
+    steep = np.sum(n * incoming, axis=-1) > 0.05
+    np.testing.assert_allclose(lookup[steep, 3], tan_theta[steep], rtol=1e-4, atol=1e-5)
+    # A texel index flips only where the offset point lies on a texel edge.
+    assert np.mean(np.all(cell[both] == texel[both], axis=-1)) > 0.995
+    assert np.all(np.abs(cell[both] - texel[both]) <= 1)
+    assert np.all(cell[~(lookup[:, 0] > 0.5)] == 0)
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("kind", ["perspective", "orthographic"])
+def test_shadow_map_test_glsl_matches_numpy(kind):
+    """lib/shadow.glsl's depth comparison against its float64 twin: lit, shadowed, and "the view saw
+    nothing" (stored depth 1)."""
+    rng = np.random.default_rng(6)
+    count = 4000
+    _, projection = _shadow_view(kind)
+    stored = as_gpu_floats(rng.uniform(0.05, 0.999, count))
+    stored[:400] = 1.0
+    occluder = ref.shadow_linear_depth(stored, projection)
+    bias = as_gpu_floats(rng.uniform(0.0, 0.05, count))
+    receiver = as_gpu_floats(np.where(stored < 1.0, occluder, 4.0) + rng.uniform(-0.1, 0.15, count))
+    out = evaluate_glsl("shadow_map_test(stored, proj, receiver, bias)",
+                        {"stored": stored, "proj": np.tile(projection, (count, 1)), "receiver": receiver,
+                         "bias": bias}, libraries=["lib/shadow.glsl"])
+    expected = ref.shadow_map_test(stored, projection, receiver, bias)
+    assert 0.2 < expected[400:].mean() < 0.8 and np.all(expected[:400] == 1.0)
+    clear = (stored >= 1.0) | (np.abs(receiver - occluder - bias) > 1e-4 * np.maximum(occluder, 1.0))
+    np.testing.assert_array_equal(out[clear], expected[clear])
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("kind", ["perspective", "orthographic"])
+def test_shadow_linear_depth_inverts_the_projection(kind):
+    """Window depth of a point at distance d along the view's axis back to d, GLSL and numpy."""
+    view_projection, projection = _shadow_view(kind)
+    near, far = (0.01, 8.0) if kind == "perspective" else (0.05, 8.0)
+    distance = np.linspace(near, far, 257)
+    p22, p23 = projection[2], projection[3]
+    clip_z, clip_w = -p22 * distance + p23, (distance if kind == "perspective" else np.ones_like(distance))
+    window = as_gpu_floats(0.5 * clip_z / clip_w + 0.5)
+    count = len(window)
+    out = evaluate_glsl("shadow_linear_depth(window, proj)",
+                        {"window": window, "proj": np.tile(projection, (count, 1))},
+                        libraries=["lib/shadow.glsl"])
+    expected = ref.shadow_linear_depth(window, projection)
+    np.testing.assert_allclose(expected, distance, rtol=1e-4 if kind == "perspective" else 1e-6, atol=1e-6)
+    np.testing.assert_allclose(out, expected, rtol=2e-3 if kind == "perspective" else 1e-5, atol=1e-5)
 
 
 # --- Scenes -------------------------------------------------------------------------------------

@@ -66,7 +66,7 @@ def test_positions_reproject_to_their_pixels_and_normals_face_the_camera(kind):
     # Normals: unit, facing the camera; the floor's is +Z, the box's are axis-aligned.
     n = g["normal"][coverage][:, :3]
     np.testing.assert_allclose(np.linalg.norm(n, axis=-1), 1.0, atol=1e-6)
-    from vsgl_addon.passes.gbuffer import camera_vector
+    from vsgl_addon.views import camera_vector
 
     cam = camera_vector(camera.view_matrix(), camera.projection_matrix())
     towards = cam[:3] - p if cam[3] > 0.5 else np.broadcast_to(cam[:3], p.shape)

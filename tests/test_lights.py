@@ -1,4 +1,4 @@
-"""Blender's light emission model (glsl/lib/lights.glsl) against its float64 twin
+"""Blender's light emission model (glsl/lib/light_emission.glsl) against its float64 twin
 (vsgl_addon/reference/lights.py), which the RSM and the direct light share."""
 
 from __future__ import annotations
@@ -55,7 +55,8 @@ def test_light_intensity_glsl_matches_numpy(kind, spot_blend):
               "axis": np.tile(light.direction, (count, 1)), "r0": np.tile(to_local[0], (count, 1)),
               "r1": np.tile(to_local[1], (count, 1)), "r2": np.tile(to_local[2], (count, 1))}
     out = evaluate_glsl("light_intensity(params, direction, axis, transpose(mat3(r0, r1, r2)))",
-                        {k: as_gpu_floats(v) for k, v in inputs.items()}, libraries=["lib/lights.glsl"])
+                        {k: as_gpu_floats(v) for k, v in inputs.items()},
+                        libraries=["lib/light_emission.glsl"])
     expected = ref.light_intensity(light, directions)
     # A hard spot edge flips between 0 and 1 where float32 rounding decides: leave out the
     # directions within 1e-5 of it.

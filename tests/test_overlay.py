@@ -19,10 +19,10 @@ import pytest
 
 import vsgl_addon
 from vsgl_addon import overlay, overlay_cache
-from vsgl_addon.overlay_cache import (COARSE, REFINE_DELAY, REFINED, OverlayCache, band_projection,
-                                      overlay_size)
+from vsgl_addon.overlay_cache import COARSE, REFINE_DELAY, REFINED, OverlayCache, overlay_size
 from vsgl_addon.scene import extract_scene
 from vsgl_addon.settings import OVERLAY_DISPLAYS, VSGLSettings
+from vsgl_addon.views import band_projection
 
 pytestmark = pytest.mark.gpu
 
@@ -362,16 +362,6 @@ def test_refined_image_in_bands_matches_one_band(demo, monkeypatch):
     finally:
         single.free()
         banded.free()
-
-
-def test_band_projection_maps_the_band_to_the_full_viewport():
-    projection = np.array([[1.2, 0, 0.1, 0], [0, 1.6, 0.05, 0], [0, 0, -1.002, -0.2], [0, 0, -1, 0]])
-    band = band_projection(projection, 30, 60, 120)  # rows 30..60 of 120: NDC y in [-0.5, 0]
-    point = np.array([0.3, -0.1, -5.0, 1.0])
-    full, cropped = projection @ point, band @ point
-    y_full, y_band = full[1] / full[3], cropped[1] / cropped[3]
-    assert y_band == pytest.approx((y_full + 0.25) / 0.25)
-    assert cropped[0] == full[0] and cropped[3] == full[3]
 
 
 def test_renderer_takes_a_view_and_projection_and_reuses_scene_lights(demo):

@@ -20,7 +20,8 @@ import pytest
 
 from vsgl_addon import overlay_cache
 from vsgl_addon.overlay_cache import (COARSE, LIGHTS, REFINE_DELAY, REFINED, STEP_BUDGET, OverlayCache,
-                                      band_projection, overlay_size)
+                                      overlay_size)
+from vsgl_addon.views import band_projection
 from vsgl_addon.settings import VSGLSettings
 
 REPO = Path(__file__).resolve().parents[1]

@@ -128,6 +128,39 @@ def test_engine_renders_through_blender_with_resolution_percentage(tmp_path):
     assert layers["Indirect"].max() > 0
 
 
+#: (resolution x, y, percentage): odd sizes, and sizes where resolution × (percentage / 100.0) in
+#: float falls just below the integer (100 × 0.29 = 28.999...), the case Blender's integer rule
+#: resolution × percentage // 100 (BKE_render_resolution) decides.
+PERCENTAGE_SIZES = [(100, 77, 29), (101, 75, 33), (99, 73, 37), (101, 77, 50), (50, 101, 58),
+                    (97, 71, 67), (101, 63, 100)]
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("x, y, percentage", PERCENTAGE_SIZES)
+def test_engine_image_and_camera_have_the_size_blender_renders(x, y, percentage, tmp_path):
+    """The Render Result Blender allocates, the image the engine renders and the camera's resolution
+    (its aspect) are one size at any percentage."""
+    from vsgl_addon import engine, register, unregister
+    from vsgl_addon.views import render_size
+
+    scene = _small_scene()
+    scene.render.resolution_x, scene.render.resolution_y = x, y
+    scene.render.resolution_percentage = percentage
+    register()
+    try:
+        scene.render.engine = "VSGL"
+        bpy.ops.render.render(scene=scene.name)
+        scene.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
+        scene.render.image_settings.color_depth = "32"
+        bpy.data.images["Render Result"].save_render(str(tmp_path / "r.exr"), scene=scene)
+        camera = extract_scene(sb.depsgraph(scene)).camera
+    finally:
+        unregister()
+    height, width = read_layers(tmp_path / "r.exr")["Combined"].shape[:2]
+    assert engine.last_frame_statistics["resolution"] == [width, height]
+    assert camera.resolution == (width, height) == render_size(scene.render)
+
+
 @pytest.mark.gpu
 @pytest.mark.parametrize("settings", [
     VSGLSettings(vsgl_count=1), VSGLSettings(vsgl_count=4096, rsm_size=64), VSGLSettings(k=0.25),

@@ -3,11 +3,13 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 from helpers_blender import REPO, describe, run_blender, scratch_dir
-from test_render_engine import LAYERS, read_layers
+from test_render_engine import LAYERS, PERCENTAGE_SIZES, read_layers
 
 pytestmark = pytest.mark.real_blender
 
@@ -51,3 +53,40 @@ def test_animation_renders_the_frame_range(installed_profile):
     proc = _render(folder, environment, "-a")
     assert proc.returncode == 0, describe(proc)
     assert (folder / "frame_001.exr").is_file() and (folder / "frame_002.exr").is_file(), describe(proc)
+
+
+# Renders the demo through the installed engine at each (x, y, percentage), saves each Render Result
+# and prints the size the engine rendered: run with --python-expr after the file is loaded.
+_SIZES_SCRIPT = """
+import json, sys, bpy
+scene = bpy.context.scene
+scene.render.engine = "VSGL"
+scene.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
+scene.render.image_settings.color_depth = "32"
+engine = next(sys.modules[c.__module__] for c in bpy.types.RenderEngine.__subclasses__()
+              if getattr(c, "bl_idname", "") == "VSGL")
+rendered = []
+for x, y, percentage in {sizes}:
+    scene.render.resolution_x, scene.render.resolution_y = x, y
+    scene.render.resolution_percentage = percentage
+    bpy.ops.render.render(scene=scene.name)
+    path = "{folder}/size_%d_%d_%d.exr" % (x, y, percentage)
+    bpy.data.images["Render Result"].save_render(path, scene=scene)
+    rendered.append(engine.last_frame_statistics["resolution"])
+print("VSGL-SIZES " + json.dumps(rendered))
+"""
+
+
+def test_rendered_size_is_blenders_at_any_percentage(installed_profile):
+    """In Blender 5.2 itself: the Render Result Blender writes and the image the engine renders have
+    one size at odd resolutions and percentages (Blender's integer rule)."""
+    folder, environment = installed_profile
+    script = _SIZES_SCRIPT.format(sizes=PERCENTAGE_SIZES, folder=folder)
+    proc = run_blender("-b", str(REPO / "demo.blend"), "--python-expr", script, blender_env=environment,
+                       timeout=600)
+    lines = [line for line in proc.stdout.splitlines() if line.startswith("VSGL-SIZES ")]
+    assert proc.returncode == 0 and lines, describe(proc)
+    rendered = json.loads(lines[-1].split(" ", 1)[1])
+    for (x, y, percentage), size in zip(PERCENTAGE_SIZES, rendered, strict=True):
+        height, width = read_layers(folder / f"size_{x}_{y}_{percentage}.exr")["Combined"].shape[:2]
+        assert size == [width, height] == [x * percentage // 100, y * percentage // 100], (x, y, percentage)

@@ -27,6 +27,7 @@ import time
 import numpy as np
 import pytest
 
+from vsgl_addon import views as V
 from vsgl_addon.passes import rsm as R
 from vsgl_addon.reference import lights
 from vsgl_addon.reference import rsm as ref
@@ -640,7 +641,7 @@ def test_roughness_extremes_and_grazing_light(roughness, grazing):
 @pytest.mark.gpu
 def test_views_are_proper_rotations_and_cover_the_sphere():
     scene = calibration_scene(make_light("POINT", 1.0, (0.0, 0.0, 1.0)))
-    specs = R.light_view_specs(scene, scene.lights[0])
+    specs = V.light_view_specs(scene, scene.lights[0])
     assert sorted(s.name for s in specs) == sorted(["+X", "-X", "+Y", "-Y", "+Z", "-Z"])
     forward = []
     for spec in specs:
@@ -707,19 +708,19 @@ def test_extracted_blender_scene_spot_flux():
 
 
 def test_convex_hex_intersection_of_boxes_and_frustum():
-    a = R._box_corners((0.0, 0.0, 0.0), (2.0, 2.0, 2.0))
-    b = R._box_corners((1.0, -1.0, 0.5), (3.0, 1.5, 1.0))
-    points = R.convex_hex_intersection(a, b)
+    a = V.box_corners((0.0, 0.0, 0.0), (2.0, 2.0, 2.0))
+    b = V.box_corners((1.0, -1.0, 0.5), (3.0, 1.5, 1.0))
+    points = V.convex_hex_intersection(a, b)
     np.testing.assert_allclose(points.min(0), (1.0, 0.0, 0.5), atol=1e-12)
     np.testing.assert_allclose(points.max(0), (2.0, 1.5, 1.0), atol=1e-12)
-    assert len(R.convex_hex_intersection(a, b + 10.0)) == 0
+    assert len(V.convex_hex_intersection(a, b + 10.0)) == 0
     # A camera frustum cut by a box: every vertex lies in both.
     camera = make_camera((0.0, -5.0, 2.0), (0.0, 0.0, 0.0))
-    frustum = R._camera_frustum_corners(camera)
-    points = R.convex_hex_intersection(frustum, a - 1.0)
+    frustum = V.camera_frustum_corners(camera)
+    points = V.convex_hex_intersection(frustum, a - 1.0)
     assert len(points) >= 4
     for corners in (frustum, a - 1.0):
-        normals, offsets = R._hex_planes(corners)
+        normals, offsets = V.hex_planes(corners)
         assert np.all(points @ normals.T >= offsets - 1e-7)
 
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from .scene import extract_scene
 from .settings import VSGLSettings
+from .views import render_size
 
 ENGINE_ID = "VSGL"
 # Pass name -> FrameImages attribute (renderer.py).
@@ -30,12 +31,6 @@ RENDER_PASSES = {
 #: Timings and counts of the last frame rendered in this process (read by the render command's
 #: report and, later, the UI). Render engine instances are short-lived, so they cannot hold it.
 last_frame_statistics: dict = {}
-
-
-def render_size(render) -> tuple[int, int]:
-    """Blender's output size: resolution × percentage (what Cycles renders)."""
-    scale = render.resolution_percentage / 100.0
-    return max(1, int(render.resolution_x * scale)), max(1, int(render.resolution_y * scale))
 
 
 class VSGLRenderEngine(bpy.types.RenderEngine):

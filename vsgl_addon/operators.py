@@ -21,8 +21,8 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
-from .engine import render_size
 from .settings import KERNELS, LOOKDEV_PASSES, VSGLSettings
+from .views import render_size
 
 # The operators' "Pass" choice (settings.LOOKDEV_PASSES); an operator property, not stored in scenes.
 PREVIEW_PASSES = tuple((choice.identifier, choice.label, choice.description) for choice in LOOKDEV_PASSES)

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .settings import OVERLAY_DISPLAYS, VSGLSettings
+from .views import band_projection
 
 #: Coarse images have 1/COARSE_DIVISOR of the overlay's resolution per side.
 COARSE_DIVISOR = 4
@@ -85,17 +86,6 @@ class _Refinement:
     max_step_seconds: float = 0.0
     timings: dict = field(default_factory=dict)
     counts: dict = field(default_factory=dict)
-
-
-def band_projection(projection_matrix, first_row: int, end_row: int, height: int) -> np.ndarray:
-    """The projection of rows [first_row, end_row) of an image `height` rows high (row 0 at the
-    bottom): the same view, NDC y of that band stretched to [-1, 1]. Perspective or orthographic."""
-    y0 = -1.0 + 2.0 * first_row / height
-    y1 = -1.0 + 2.0 * end_row / height
-    crop = np.eye(4)
-    crop[1, 1] = 2.0 / (y1 - y0)
-    crop[1, 3] = -(y1 + y0) / (y1 - y0)
-    return crop @ np.asarray(projection_matrix, np.float64)
 
 
 def same_view(a: ViewRequest, b: ViewRequest) -> bool:

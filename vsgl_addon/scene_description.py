@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import views
+
 LIGHT_TYPES = ("POINT", "SPOT", "SUN", "AREA")
 AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 
@@ -164,65 +166,18 @@ class Camera:
         return (self.resolution[0] * self.pixel_aspect[0]) / (self.resolution[1] * self.pixel_aspect[1])
 
     def view_matrix(self) -> np.ndarray:
-        """(4, 4) float64 world -> camera space (the inverse of the orthonormalised world matrix)."""
-        m = np.array(self.matrix_world, np.float64)
-        # Blender's view matrix ignores the camera object's scale.
-        rot = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
-        view = np.eye(4)
-        view[:3, :3] = rot.T
-        view[:3, 3] = -rot.T @ m[:3, 3]
-        return view
+        """(4, 4) float64 world -> camera space (:func:`vsgl_addon.views.camera_view_matrix`)."""
+        return views.camera_view_matrix(self.matrix_world)
 
     def viewplane(self) -> tuple[float, float, float, float]:
-        """(xmin, xmax, ymin, ymax) of the view plane at clip_start (PERSP) or in metres (ORTHO).
-
-        The same computation as Blender's BKE_camera_params_compute_viewplane (zoom 1, no offset).
-        """
-        winx = float(self.resolution[0])
-        winy = float(self.resolution[1])
-        aspx, aspy = self.pixel_aspect
-        ycor = aspy / aspx
-        sensor = self.sensor_height if self.sensor_fit == "VERTICAL" else self.sensor_width
-        if self.type == "ORTHO":
-            pixsize = self.ortho_scale
-        else:
-            pixsize = sensor * self.clip_start / self.lens
-        fit = self.sensor_fit
-        if fit == "AUTO":
-            fit = "HORIZONTAL" if aspx * winx >= aspy * winy else "VERTICAL"
-        viewfac = winx if fit == "HORIZONTAL" else ycor * winy
-        pixsize /= viewfac
-        dx = self.shift_x * viewfac
-        dy = self.shift_y * viewfac
-        return (
-            (-0.5 * winx + dx) * pixsize,
-            (0.5 * winx + dx) * pixsize,
-            (-0.5 * ycor * winy + dy) * pixsize,
-            (0.5 * ycor * winy + dy) * pixsize,
-        )
+        """(xmin, xmax, ymin, ymax) of the view plane at clip_start (PERSP) or in metres (ORTHO),
+        as Blender computes it (:func:`vsgl_addon.views.camera_viewplane`)."""
+        return views.camera_viewplane(self)
 
     def projection_matrix(self) -> np.ndarray:
-        """(4, 4) float64 OpenGL-style projection (clip z in [-w, w]), as Camera.calc_matrix_camera."""
-        xmin, xmax, ymin, ymax = self.viewplane()
-        n, f = self.clip_start, self.clip_end
-        p = np.zeros((4, 4))
-        if self.type == "ORTHO":
-            p[0, 0] = 2.0 / (xmax - xmin)
-            p[1, 1] = 2.0 / (ymax - ymin)
-            p[2, 2] = -2.0 / (f - n)
-            p[0, 3] = -(xmax + xmin) / (xmax - xmin)
-            p[1, 3] = -(ymax + ymin) / (ymax - ymin)
-            p[2, 3] = -(f + n) / (f - n)
-            p[3, 3] = 1.0
-        else:
-            p[0, 0] = 2.0 * n / (xmax - xmin)
-            p[1, 1] = 2.0 * n / (ymax - ymin)
-            p[0, 2] = (xmax + xmin) / (xmax - xmin)
-            p[1, 2] = (ymax + ymin) / (ymax - ymin)
-            p[2, 2] = -(f + n) / (f - n)
-            p[2, 3] = -2.0 * f * n / (f - n)
-            p[3, 2] = -1.0
-        return p
+        """(4, 4) float64 OpenGL-style projection, as Camera.calc_matrix_camera
+        (:func:`vsgl_addon.views.camera_projection_matrix`)."""
+        return views.camera_projection_matrix(self)
 
 
 @dataclass(frozen=True)

@@ -44,6 +44,7 @@ from .scene_description import (
     SceneDescription,
     SkippedLight,
 )
+from .views import render_size
 
 # Only instances whose evaluated data is a mesh carry triangles. Curve, surface, text and
 # metaball objects appear twice in object_instances since Blender 3: as themselves (curve data)
@@ -513,11 +514,8 @@ def _read_camera(depsgraph: bpy.types.Depsgraph) -> tuple[Camera | None, str]:
     warning = ""
     if cam.type == "PANO":
         warning = f"VSGL: panoramic camera {cam_obj.name} projected as a perspective camera"
-    # Blender's own rounding of the percentage (integer division, BKE_render_resolution).
-    resolution = (
-        render.resolution_x * render.resolution_percentage // 100,
-        render.resolution_y * render.resolution_percentage // 100,
-    )
+    # The size the image is rendered at (Blender's integer rule), so that the aspect matches it.
+    resolution = render_size(render)
     return (
         Camera(
             name=cam_obj.name,

@@ -1,13 +1,14 @@
-// @require direct_light/lights.glsl
+// @require direct_light/light_at_surface.glsl
+// @require lib/shadow.glsl
 //
 // Direct light of one light, full screen over the camera G-buffer (vsgl_addon/passes/gbuffer.py
 // layout), added (blending ONE, ONE) into two RGBA32F targets: diffuse and glossy direct radiance
 // (W/(m^2 sr), RGB; alpha 0). Python side: vsgl_addon/passes/direct_light.py.
 //
 // light_constants (RGBA32F, 1 row): 0 (light position, view count), 1 (light axis, 0),
-// 2 light params (lib/lights.glsl), 3 (light colour, 0), 4 (diffuse factor, specular factor, 0, 0),
-// 5-7 rows of world -> light local (mat3), then per RSM view k (k < 6) 5 texels from 8 + 5k: the
-// rows of its view-projection matrix, then (perspective 1 / ortho 0, P00, P22, P23).
+// 2 light params (lib/light_emission.glsl), 3 (light colour, 0), 4 (diffuse factor, specular
+// factor, 0, 0), 5-7 rows of world -> light local (mat3), then per RSM view k (k < 6) 5 texels from
+// 8 + 5k: the rows of its view-projection matrix, then (perspective 1 / ortho 0, P00, P22, P23).
 // camera: (position, 1) perspective or (direction towards the camera, 0) orthographic.
 // shadow_params: (RSM size, normal offset in texels, depth bias in texels, shadows on 1 / off 0).
 
@@ -29,25 +30,14 @@ float view_depth_texel(int k, ivec2 texel)
   return texelFetch(rsm_depth_5, texel, 0).r;
 }
 
-// Linear depth along the view's axis from window depth (perspective or orthographic).
-float view_linear_depth(float window_depth, vec4 projection)
-{
-  float ndc = window_depth * 2.0 - 1.0;
-  if (projection.x > 0.5) {
-    return projection.w / (ndc + projection.z);  // d = P23 / (ndc + P22)
-  }
-  return (projection.w - ndc) / projection.z;  // d = -z = (P23 - ndc) / P22
-}
-
 // 1 when the RSM of the light sees `position` (or nothing in front of it), 0 in shadow; the first
-// view whose frustum contains the point decides. Normal offset and depth bias scale with the
-// view's texel footprint at the point. 0 when no view contains the point (outside a spot cone,
-// behind an area light).
+// view whose frustum contains the point decides (lib/shadow.glsl). Normal offset and depth bias
+// scale with the view's texel footprint at the point. 0 when no view contains the point (outside a
+// spot cone, behind an area light).
 float direct_light_visibility(vec3 position, vec3 normal, vec3 incoming, int view_count)
 {
   float size = shadow_params.x;
-  float cos_theta = clamp(dot(normal, incoming), 0.0, 1.0);
-  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
+  float tan_theta = shadow_tan_incidence(normal, incoming);
   for (int k = 0; k < DIRECT_LIGHT_MAX_VIEWS; k++) {
     if (k >= view_count) {
       break;
@@ -56,27 +46,13 @@ float direct_light_visibility(vec3 position, vec3 normal, vec3 incoming, int vie
     mat4 view_projection = transpose(mat4(light_constant(base), light_constant(base + 1),
                                           light_constant(base + 2), light_constant(base + 3)));
     vec4 projection = light_constant(base + 4);
-    vec4 clip = view_projection * vec4(position, 1.0);
-    if (!(clip.w > 0.0)) {
+    ivec2 texel;
+    float receiver, bias;
+    if (!shadow_map_lookup(view_projection, projection, size, shadow_params.y, shadow_params.z,
+                           tan_theta, position, normal, texel, receiver, bias)) {
       continue;
     }
-    vec3 ndc = clip.xyz / clip.w;
-    if (any(greaterThan(abs(ndc), vec3(1.0)))) {
-      continue;
-    }
-    float texel_world = 2.0 * clip.w / (projection.y * size);
-    vec3 offset_position = position + normal * (shadow_params.y * texel_world);
-    vec4 offset_clip = view_projection * vec4(offset_position, 1.0);
-    vec3 offset_ndc = offset_clip.xyz / max(offset_clip.w, 1e-30);
-    ivec2 texel = clamp(ivec2(floor((offset_ndc.xy * 0.5 + 0.5) * size)), ivec2(0), ivec2(int(size) - 1));
-    float stored = view_depth_texel(k, texel);
-    if (stored >= 1.0) {
-      return 1.0;  // the view saw nothing there: nothing occludes
-    }
-    float occluder = view_linear_depth(stored, projection);
-    float receiver = view_linear_depth(offset_ndc.z * 0.5 + 0.5, projection);
-    float bias = shadow_params.z * texel_world * (1.0 + min(tan_theta, 8.0));
-    return receiver <= occluder + bias ? 1.0 : 0.0;
+    return shadow_map_test(view_depth_texel(k, texel), projection, receiver, bias);
   }
   return 0.0;
 }

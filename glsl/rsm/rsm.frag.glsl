@@ -1,5 +1,5 @@
 // @require lib/image.glsl
-// @require lib/lights.glsl
+// @require lib/light_emission.glsl
 // @require lib/principled.glsl
 // @require lib/sg.glsl
 //
@@ -19,7 +19,7 @@
 // the 128 bytes every backend guarantees): texels 0-2 the rows of mat3 view -> world, 3-5 the rows
 // of mat3 world -> light local (inverse of the light's 3x3 world matrix, scale included),
 // 6 light_position, 7 light_axis (unit, where the light points), 8 light_params (the light
-// parameters of lib/lights.glsl), 9 light_color.
+// parameters of lib/light_emission.glsl), 9 light_color.
 
 // Largest RSM side whose texel solid angles use the exact formula; larger sizes integrate cos^3
 // by 3x3 Gauss-Legendre (see texel_solid_angle).
@@ -95,7 +95,7 @@ void main()
   }
 
   // Phi_1 = I(ray) d_omega: the light's radiant intensity towards the texel per unit light colour
-  // (formulas.md sec. 4, lib/lights.glsl) times the texel's solid angle; a sun's S (W/m^2) times
+  // (formulas.md sec. 4, lib/light_emission.glsl) times the texel's solid angle; a sun's S (W/m^2) times
   // the texel's area.
   float flux_white = light_intensity(light_params, ray, light_axis, light_to_local) * texel_measure;
 

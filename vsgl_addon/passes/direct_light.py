@@ -15,20 +15,23 @@ towards the camera, RGB, W/(m²·sr), summed over the lights — what Cycles' Di
 Color and Glossy Direct × Glossy Color hold. Background pixels are 0.
 
 Light model (formulas.md §4; float64 twins :mod:`vsgl_addon.reference.direct_light` and
-:mod:`vsgl_addon.reference.lights`, GLSL ``glsl/direct_light/lights.glsl`` on the emission model
-``glsl/lib/lights.glsl`` the RSM shares): point and spot P/(4π) W/sr (spot: Blender's cone
-smoothstep), sun S W/m², area lights as Lambertian point emitters I(θ) = (P/π) cos θ from their
-centre; light radius / sun angle are not modelled (hard shadows). The light's colour and its diffuse/specular
-factors multiply the result. Material: :mod:`vsgl_addon.reference.principled` (Cycles' Principled
-BSDF base layer: Lambert under a dielectric GGX layer, metallic GGX, multiple scattering).
+:mod:`vsgl_addon.reference.lights`, GLSL ``glsl/direct_light/light_at_surface.glsl`` on the
+emission model ``glsl/lib/light_emission.glsl`` the RSM shares): point and spot P/(4π) W/sr (spot:
+Blender's cone smoothstep), sun S W/m², area lights as Lambertian point emitters
+I(θ) = (P/π) cos θ from their centre; light radius / sun angle are not modelled (hard shadows). The
+light's colour and its diffuse/specular factors multiply the result. Material:
+:mod:`vsgl_addon.reference.principled` (Cycles' Principled BSDF base layer: Lambert under a
+dielectric GGX layer, metallic GGX, multiple scattering).
 
 Shadows: for each light, the first of its RSM views whose frustum contains the point decides (a
 point light's cube face by direction); the point, pushed along its normal by ``normal_offset``
 texels of that view's footprint, is lit when its linear depth is within ``depth_bias`` texels
 (× (1 + tan θ), θ the light's incidence, tan capped at 8) of the RSM's stored depth. Nearest texel,
-no filtering. A point inside no view (outside a spot's frustum, behind an area light) is unlit.
-Without views for a light (it hits nothing) the light is skipped; ``shadows=False`` ignores the
-views and lights every point in front of the light.
+no filtering. The per-view lookup and depth comparison are the shared ``glsl/lib/shadow.glsl``
+(float64 twin: the ``shadow_*`` functions of :mod:`vsgl_addon.reference.direct_light`). A point
+inside no view (outside a spot's frustum, behind an area light) is unlit. Without views for a light
+(it hits nothing) the light is skipped; ``shadows=False`` ignores the views and lights every point
+in front of the light.
 
 One full-screen draw per light, added by blending; each draw re-derives the pixel's Principled
 terms (an 8×8 + 4×4×4 albedo quadrature, see principled.glsl). Shader compiled once per process.

@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..shaders import create_shader
+from ..views import camera_vector
 from .gpu_util import matrix, read_texture
 from .scene_gpu import VERTEX_STAGE, SceneGPU, scene_shader_interface
 
@@ -75,17 +76,6 @@ def shader():
 
 def free_shaders() -> None:
     _shaders.clear()
-
-
-def camera_vector(view_matrix, projection_matrix) -> np.ndarray:
-    """(4,) float64: (camera position, 1) for a perspective projection, (unit direction towards the
-    camera, 0) for an orthographic one (projection[3, 3] == 1)."""
-    view = np.asarray(view_matrix, np.float64)
-    inverse = np.linalg.inv(view)
-    if abs(float(np.asarray(projection_matrix)[3, 3]) - 1.0) < 1e-12:  # orthographic
-        back = inverse[:3, 2] / np.linalg.norm(inverse[:3, 2])
-        return np.r_[back, 0.0]
-    return np.r_[inverse[:3, 3], 1.0]
 
 
 @dataclass

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Float64 twin of ``glsl/direct_light/lights.glsl`` and of the direct-light pass's shading
-(:mod:`vsgl_addon.passes.direct_light`), without shadows (a visibility can be passed in).
+"""Float64 twin of ``glsl/direct_light/light_at_surface.glsl``, of the direct-light pass's shading
+(:mod:`vsgl_addon.passes.direct_light`; :func:`shade` takes a visibility, it casts no shadows) and
+of the shadow-map lookups of ``glsl/lib/shadow.glsl``.
 
 Blender's lights are the emission model of :mod:`vsgl_addon.reference.lights` (formulas.md §4,
 checked against Cycles 5.0 in tests/test_direct_light.py): point and spot lights radiate
@@ -69,3 +70,62 @@ def shade(gbuffer: dict, camera_vector, lights, visibility=None):
     diffuse[~covered] = 0.0
     glossy[~covered] = 0.0
     return diffuse, glossy
+
+
+# --- Shadow-map lookups: the twin of glsl/lib/shadow.glsl (same names) -------------------------
+
+#: Largest tan of the incidence angle the slope-scaled bias follows (shadow.glsl's SHADOW_MAX_SLOPE).
+SHADOW_MAX_SLOPE = 8.0
+
+
+def shadow_linear_depth(window_depth, projection):
+    """Linear depth along a view's axis from window depth [0, 1]; ``projection`` (..., 4) is
+    (perspective 1 / orthographic 0, P00, P22, P23) of the view's OpenGL projection P."""
+    ndc = f64(window_depth) * 2.0 - 1.0
+    projection = f64(projection)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        perspective = projection[..., 3] / (ndc + projection[..., 2])  # d = P23 / (ndc + P22)
+        orthographic = (projection[..., 3] - ndc) / projection[..., 2]  # d = (P23 - ndc) / P22
+    return np.where(projection[..., 0] > 0.5, perspective, orthographic)
+
+
+def shadow_tan_incidence(normals, incoming):
+    """tan of the angle between unit ``normals`` and unit directions ``incoming`` (..., 3)."""
+    cos_theta = np.clip(np.sum(f64(normals) * f64(incoming), axis=-1), 0.0, 1.0)
+    return np.sqrt(np.maximum(1.0 - cos_theta * cos_theta, 0.0)) / np.maximum(cos_theta, 1e-3)
+
+
+def shadow_map_lookup(view_projection, projection, size, normal_offset, depth_bias, tan_theta,
+                      positions, normals):
+    """Where ``positions`` (..., 3) with unit ``normals`` fall in one view of side ``size`` texels:
+    (inside, texel, receiver, bias). ``inside``: the point lies in the view's frustum; ``texel``
+    (..., 2) int (x, y): the texel of the point pushed along its normal by ``normal_offset`` texels
+    of the view's footprint; ``receiver``: that point's linear depth; ``bias``: ``depth_bias``
+    texels × (1 + tan θ), tan θ capped at SHADOW_MAX_SLOPE. Outside points give texel 0 and zeros."""
+    matrix = f64(view_projection)
+    p, n = f64(positions), f64(normals)
+    clip = np.concatenate([p, np.ones(p.shape[:-1] + (1,))], axis=-1) @ matrix.T
+    w = clip[..., 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ndc = clip[..., :3] / w[..., None]
+    inside = (w > 0.0) & ~np.any(np.abs(ndc) > 1.0, axis=-1)
+    projection = f64(projection)
+    texel_world = 2.0 * w / (projection[..., 1] * size)
+    offset = p + n * (normal_offset * texel_world)[..., None]
+    offset_clip = np.concatenate([offset, np.ones(p.shape[:-1] + (1,))], axis=-1) @ matrix.T
+    offset_ndc = offset_clip[..., :3] / np.maximum(offset_clip[..., 3:4], 1e-30)
+    cell = np.floor(np.clip((offset_ndc[..., :2] * 0.5 + 0.5) * size, -1.0, size))
+    texel = np.clip(cell, 0, int(size) - 1).astype(np.int64)
+    receiver = shadow_linear_depth(offset_ndc[..., 2] * 0.5 + 0.5, projection)
+    bias = depth_bias * texel_world * (1.0 + np.minimum(f64(tan_theta), SHADOW_MAX_SLOPE))
+    texel[~inside] = 0
+    return inside, texel, np.where(inside, receiver, 0.0), np.where(inside, bias, 0.0)
+
+
+def shadow_map_test(stored, projection, receiver, bias):
+    """1 where nothing the view stored (window depth ``stored``, 1 = nothing) lies in front of the
+    receiver beyond the bias, 0 in shadow."""
+    stored = f64(stored)
+    occluder = shadow_linear_depth(stored, projection)
+    lit = (stored >= 1.0) | (f64(receiver) <= occluder + f64(bias))
+    return lit.astype(np.float64)

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Float64 twin of ``glsl/lib/lights.glsl``: Blender's light emission model (formulas.md §4), shared
+"""Float64 twin of ``glsl/lib/light_emission.glsl``: Blender's light emission model (formulas.md §4), shared
 by the RSM (:mod:`.rsm`: the flux of a texel) and the direct light (:mod:`.direct_light`: the
 irradiance of a point), in Blender's units:
 
@@ -22,13 +22,13 @@ import numpy as np
 
 from .numerics import f64, norm
 
-#: Light type codes, ``params[0]`` (the numbering of lights.glsl's LIGHT_* constants).
+#: Light type codes, ``params[0]`` (the numbering of light_emission.glsl's LIGHT_* constants).
 LIGHT_TYPE_CODES = {"POINT": 0, "SPOT": 1, "SUN": 2, "AREA": 3}
 
 
 def light_params(light) -> tuple[float, float, float, float]:
     """(type code, cos half spot angle, 1 / ((1 − cos) spot_blend) or −1 for a hard edge, intensity
-    scale): the ``params`` of lights.glsl (scale: point/spot P/4π, area P/π, sun S)."""
+    scale): the ``params`` of light_emission.glsl (scale: point/spot P/4π, area P/π, sun S)."""
     code = LIGHT_TYPE_CODES[light.type]
     cos_half, smooth = 0.0, 0.0
     if light.type in ("POINT", "SPOT"):
@@ -73,7 +73,7 @@ def spot_cone_solid_angle(spot_size: float, spot_blend: float, samples: int = 20
 
 def light_spot_attenuation(light, directions):
     """The cone of a spot ``light`` for rays leaving it along ``directions`` (..., 3, world): the
-    rays in the light's local frame with the object scale divided out (lights.glsl's
+    rays in the light's local frame with the object scale divided out (light_emission.glsl's
     light_spot_attenuation)."""
     to_local = np.linalg.inv(f64(light.matrix_world)[:3, :3])
     local = f64(directions) @ to_local.T
@@ -84,7 +84,7 @@ def light_spot_attenuation(light, directions):
 def light_intensity(light, directions) -> np.ndarray:
     """Intensity per unit light colour (W/sr) of a point, spot or area light towards ``directions``
     (..., 3, unit, leaving the light); for a sun the irradiance S (W/m²), whatever the direction
-    (lights.glsl's light_intensity)."""
+    (light_emission.glsl's light_intensity)."""
     directions = f64(directions)
     intensity = np.full(directions.shape[:-1], light_params(light)[3])
     if light.type == "SPOT":

@@ -2,7 +2,7 @@
 //
 // Blender's light emission model (formulas.md sec. 4; Cycles 5.0, kernel/light/ headers), shared by the
 // RSM pass (the flux of a texel: glsl/rsm/rsm.frag.glsl) and the direct light pass (the irradiance
-// of a point: glsl/direct_light/lights.glsl), so that the light a VPL re-emits is the light the
+// of a point: glsl/direct_light/light_at_surface.glsl), so that the light a VPL re-emits is the light the
 // direct pass puts on the same surface. Measured against Cycles in tests/test_direct_light.py, the
 // RSM's flux against closed forms in tests/test_rsm.py. Float64 twin: vsgl_addon/reference/lights.py
 // (same names, same semantics).

@@ -1,9 +1,9 @@
-// @require lib/lights.glsl
+// @require lib/light_emission.glsl
 // @require lib/principled.glsl
 //
 // Blender's lights as seen from a surface point (formulas.md sec. 4; Cycles 5.0, measured in
 // tests/test_direct_light.py): the irradiance a white light of the light's power puts on a surface,
-// and the direction towards the light, from the emission model of lib/lights.glsl (`params` is its
+// and the direction towards the light, from the emission model of lib/light_emission.glsl (`params` is its
 // light parameters). Float64 twin: vsgl_addon/reference/direct_light.py (same names).
 
 // Smallest squared distance to a light (m^2): a point on the light stays finite.
