@@ -7,12 +7,13 @@
 // (formulas.md sec. 4; 000 sec. 4). Python side and the meaning of every input:
 // vsgl_addon/passes/rsm.py; numpy twin of the texel quantities: vsgl_addon/reference/rsm.py.
 //
-// Outputs (RGBA32F, the layout VSGL generation reads, vsgl_addon/passes/vsgl_generation.py):
-//   rsm_position      = (y, lam_s)         world position, sharpness of the warped specular lobe
-//   rsm_normal        = (n, roughness)     shading normal facing the light, Principled roughness
-//   rsm_flux_diffuse  = (Phi Rd, Phi_1)    Phi_1 = texel flux for a white light (W), Phi = Phi_1 colour
-//   rsm_flux_specular = (Phi Rs, d_omega)  texel solid angle (sr), or its area (m^2) for a sun
-//   rsm_specular_axis = (xi_s, 1)          axis of the warped specular lobe, coverage 1
+// Outputs: one RSMTexel per texel, written to rsm_<attachment> by the generated rsm_store (RGBA32F;
+// attachments and channels declared in vsgl_addon/layouts.py RSM, the layout VSGL generation reads):
+//   position, specular_sharpness   world position, sharpness of the warped specular lobe
+//   normal, roughness              shading normal facing the light, Principled roughness
+//   flux_diffuse, flux_white       Phi Rd; Phi_1 = texel flux for a white light (W), Phi = Phi_1 colour
+//   flux_specular, texel_measure   Phi Rs; texel solid angle (sr), or its area (m^2) for a sun
+//   specular_axis, coverage        axis of the warped specular lobe; 1
 // Texels that see no geometry keep the clear value 0 (coverage 0, flux 0).
 //
 // Per-view constants come in the 10x1 RGBA32F texture `view_constants` (push constants stay within
@@ -128,9 +129,16 @@ void main()
   specular_lobe_warp(incoming, normal, terms.alpha, axis, sharpness);
 
   vec3 flux = flux_white * light_color;
-  rsm_position = vec4(world_position, sharpness);
-  rsm_normal = vec4(normal, roughness);
-  rsm_flux_diffuse = vec4(flux * terms.diffuse, flux_white);
-  rsm_flux_specular = vec4(flux * terms.specular_albedo, texel_measure);
-  rsm_specular_axis = vec4(axis, 1.0);
+  RSMTexel r;
+  r.position = world_position;
+  r.specular_sharpness = sharpness;
+  r.normal = normal;
+  r.roughness = roughness;
+  r.flux_diffuse = flux * terms.diffuse;
+  r.flux_white = flux_white;
+  r.flux_specular = flux * terms.specular_albedo;
+  r.texel_measure = texel_measure;
+  r.specular_axis = axis;
+  r.coverage = 1.0;
+  rsm_store(r);
 }

@@ -3,10 +3,8 @@
 //
 // Indirect light from VSGLs (000 app. C), one fragment per pixel of the camera G-buffer
 // (vsgl_addon/passes/vsgl_shading.py documents the inputs). For each VSGL of the table (RGBA32F,
-// vsgl_count x 10, the layout of vsgl_addon/passes/vsgl_generation.py: 1 = (diffuse amplitude,
-// sharpness), 2 = (diffuse axis, -), 3 = (specular amplitude, sharpness), 4 = (specular axis, -),
-// 8 = (diffuse mean, variance), 9 = (specular mean, variance)) both lobes are added, each at its
-// own position (glsl/lib/vsgl_shading.glsl), computed once per VSGL when the table says both lobes
+// one VSGLRecord per column, fetched by the generated vsgl_table_load: vsgl_addon/layouts.py
+// VSGL_TABLE) both lobes are added, each at its own position (glsl/lib/vsgl_shading.glsl), computed once per VSGL when the table says both lobes
 // share it (`shared_positions`, the paper's positional distribution). Outputs: indirect
 // diffuse = Rd * sum, indirect specular = F0 * sum_s + sum_f (Schlick is linear in F0); alpha =
 // coverage, or 0 when `accumulate` is set (later tables are added by blending).
@@ -33,19 +31,15 @@ void main()
   vec3 specular = vec3(0.0);
   vec3 fresnel = vec3(0.0);
   for (int i = 0; i < vsgl_count; i++) {
-    vec4 row1 = texelFetch(vsgl_table, ivec2(i, 1), 0);
-    vec4 row2 = texelFetch(vsgl_table, ivec2(i, 2), 0);
-    vec4 row3 = texelFetch(vsgl_table, ivec2(i, 3), 0);
-    vec4 row4 = texelFetch(vsgl_table, ivec2(i, 4), 0);
-    vec4 row8 = texelFetch(vsgl_table, ivec2(i, 8), 0);
-    vec4 row9 = texelFetch(vsgl_table, ivec2(i, 9), 0);
-    VSGLPosition diffuse_position = vsgl_position(rc.position, row8.xyz, row8.w);
+    VSGLRecord vsgl = vsgl_table_load(i);
+    VSGLPosition diffuse_position = vsgl_position(rc.position, vsgl.diffuse_mean, vsgl.diffuse_variance);
     VSGLPosition specular_position = diffuse_position;
     if (shared_positions == 0) {
-      specular_position = vsgl_position(rc.position, row9.xyz, row9.w);
+      specular_position = vsgl_position(rc.position, vsgl.specular_mean, vsgl.specular_variance);
     }
-    vsgl_accumulate(rc, diffuse_position, row1.xyz, row2.xyz, row1.w, specular_position, row3.xyz,
-                    row4.xyz, row3.w, VSGL_DIFFUSE_MODE, diffuse, specular, fresnel);
+    vsgl_accumulate(rc, diffuse_position, vsgl.diffuse_amplitude, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
+                    specular_position, vsgl.specular_amplitude, vsgl.specular_axis, vsgl.specular_sharpness,
+                    VSGL_DIFFUSE_MODE, diffuse, specular, fresnel);
   }
   vec3 rd = texelFetch(gbuffer_diffuse, pixel, 0).rgb;
   vec3 f0 = texelFetch(gbuffer_specular, pixel, 0).rgb;

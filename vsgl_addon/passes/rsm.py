@@ -69,9 +69,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..layouts import RSM as RSM_LAYOUT
 from ..reference.lights import light_params
 from ..reference.vsgl import RSM
-from ..shaders import create_shader
+from .contract import LIGHT_PASSES, GPUPass, ShaderSpec
 from .gpu_util import matrix, read_texture, texture_from_array
 from .scene_gpu import VERTEX_STAGE, SceneGPU, scene_shader_interface
 
@@ -86,9 +87,8 @@ NEAR_FRACTION = 1e-4
 #: Largest RSM side (a 2048² view holds five 64 MB colour textures).
 MAX_RSM_SIZE = 4096
 
-ATTACHMENTS = ("position", "normal", "flux_diffuse", "flux_specular", "specular_axis")
-
-_shaders: dict[str, object] = {}
+#: The colour attachments, in the order of :data:`vsgl_addon.layouts.RSM`.
+ATTACHMENTS = RSM_LAYOUT.slot_names
 
 
 # --- Shader ------------------------------------------------------------------------------------
@@ -100,21 +100,18 @@ def _interface():
         push_constants=[("VEC4", "view_params")],
         # view_constants: 10x1 RGBA32F, see glsl/rsm/rsm.frag.glsl (_view_constants).
         samplers=[("FLOAT_2D", "view_constants")],
-        fragment_outputs=[("VEC4", f"rsm_{name}") for name in ATTACHMENTS],
+        fragment_outputs=[("VEC4", f"rsm_{name}") for name in RSM_LAYOUT.slot_names],
     )
 
 
 def shader():
     """The RSM shader (glsl/rsm/rsm.frag.glsl after the scene's vertex stage), compiled on first use
     and cached for the process."""
-    if "rsm" not in _shaders:
-        _shaders["rsm"] = create_shader("rsm", _interface(), vertex=VERTEX_STAGE,
-                                        fragment="rsm/rsm.frag.glsl")
-    return _shaders["rsm"]
+    return PASS.shader()
 
 
 def free_shaders() -> None:
-    _shaders.clear()
+    PASS.free_shaders()
 
 
 # --- Views (pure numpy) ------------------------------------------------------------------------
@@ -421,28 +418,29 @@ class RSMView:
         """The view as VSGL generation's ``RSMTextures`` (no copy)."""
         from .vsgl_generation import RSMTextures
 
-        return RSMTextures(self.size, *(self.textures[name] for name in ATTACHMENTS))
+        return RSMTextures(self.size, **{name: self.textures[name] for name in RSM_LAYOUT.slot_names})
 
     def to_numpy(self) -> RSMArrays:
         s = self.size
-        data = {name: read_texture(self.textures[name], s, s).astype(np.float64) for name in ATTACHMENTS}
+        texels = {name: read_texture(self.textures[name], s, s) for name in RSM_LAYOUT.slot_names}
+        fields = RSM_LAYOUT.unpack_slots(texels)
         depth = read_texture(self.textures["depth"], s, s, 1)[..., 0].astype(np.float64)
         rsm = RSM(
-            position=data["position"][..., :3],
-            normal=data["normal"][..., :3],
-            flux_diffuse=data["flux_diffuse"][..., :3],
-            flux_specular=data["flux_specular"][..., :3],
-            specular_axis=data["specular_axis"][..., :3],
-            specular_sharpness=data["position"][..., 3],
+            position=fields["position"],
+            normal=fields["normal"],
+            flux_diffuse=fields["flux_diffuse"],
+            flux_specular=fields["flux_specular"],
+            specular_axis=fields["specular_axis"],
+            specular_sharpness=fields["specular_sharpness"],
         )
-        flux_white = data["flux_diffuse"][..., 3]
+        flux_white = fields["flux_white"]
         return RSMArrays(
             rsm=rsm,
             flux=flux_white[..., None] * np.asarray(self.light.color, np.float64),
             flux_white=flux_white,
-            texel_measure=data["flux_specular"][..., 3],
-            roughness=data["normal"][..., 3],
-            coverage=data["specular_axis"][..., 3] > 0.5,
+            texel_measure=fields["texel_measure"],
+            roughness=fields["roughness"],
+            coverage=fields["coverage"] > 0.5,
             depth=depth,
         )
 
@@ -471,7 +469,7 @@ def _render(scene_gpu: SceneGPU, light, spec: RSMViewSpec, size: int, textures: 
     import gpu
 
     program = shader()
-    targets = [textures[name] for name in ATTACHMENTS]
+    targets = [textures[name] for name in RSM_LAYOUT.slot_names]
     framebuffer = gpu.types.GPUFrameBuffer(depth_slot=textures["depth"], color_slots=targets)
     constants = texture_from_array(_view_constants(light, spec))
     with framebuffer.bind():
@@ -510,7 +508,7 @@ def render_rsm_views(scene, light_index: int, size: int = 256) -> list[RSMView]:
     for spec in light_view_specs(scene_gpu.scene, light, scene_gpu.bounds):
         if not view_sees_triangles(spec, scene_gpu.positions, scene_gpu.bounds):
             continue
-        textures = {name: gpu.types.GPUTexture((size, size), format="RGBA32F") for name in ATTACHMENTS}
+        textures = {name: gpu.types.GPUTexture((size, size), format="RGBA32F") for name in RSM_LAYOUT.slot_names}
         textures["depth"] = gpu.types.GPUTexture((size, size), format="DEPTH_COMPONENT32F")
         framebuffer, constants = _render(scene_gpu, light, spec, size, textures)
         views.append(RSMView(light_index, light, spec, size, textures, framebuffer, constants))
@@ -526,3 +524,15 @@ def total_flux(views: list[RSMView]) -> dict[str, np.ndarray]:
         totals["flux_diffuse"] += arrays.rsm.flux_diffuse.reshape(-1, 3).sum(axis=0)
         totals["flux_specular"] += arrays.rsm.flux_specular.reshape(-1, 3).sum(axis=0)
     return totals
+
+
+PASS = GPUPass(
+    name="rsm",
+    label="Reflective Shadow Maps",
+    step=LIGHT_PASSES,
+    shaders={"rsm": ShaderSpec(_interface, {"vertex": VERTEX_STAGE, "fragment": "rsm/rsm.frag.glsl"},
+                               code=lambda: {"fragment": RSM_LAYOUT.glsl("outputs_store")})},
+    reads=("scene",),
+    writes=(RSM_LAYOUT.name, "rsm_depth"),
+    run=render_rsm_views,
+)
