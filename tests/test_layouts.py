@@ -9,7 +9,7 @@ import pytest
 
 import scene_builders as sb
 from vsgl_addon import layouts
-from vsgl_addon.layouts import GBUFFER, RSM, VSGL_TABLE
+from vsgl_addon.layouts import GBUFFER, RSM, SHADING_INPUTS, VSGL_TABLE
 from vsgl_addon.reference import vsgl as reference
 from vsgl_addon.settings import VSGLSettings
 
@@ -188,6 +188,7 @@ SWAPS = {
     "vsgl rows power/rsm_total_power": (VSGL_TABLE, "power", "rsm_total_power"),
     "rsm attachments position/flux_specular": (RSM, "position", "flux_specular"),
     "gbuffer attachments position/material": (GBUFFER, "position", "material"),
+    "shading inputs diffuse_reflectance/specular_f0": (SHADING_INPUTS, "diffuse_reflectance", "specular_f0"),
 }
 
 

@@ -29,7 +29,7 @@ def test_reads_come_from_the_scene_or_an_earlier_pass_and_layout_names_are_decla
         missing = set(gpu_pass.reads) - available
         assert not missing, f"{gpu_pass.name} reads {missing} before any pass writes them"
         available |= set(gpu_pass.writes)
-    for name in ("vsgl_table", "rsm", "gbuffer"):
+    for name in ("vsgl_table", "rsm", "gbuffer", "shading_inputs"):
         assert name in layouts.LAYOUTS and name in available
 
 

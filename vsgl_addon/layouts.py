@@ -3,7 +3,7 @@
 
 A layout is an ordered list of **slots**, each one RGBA32F texel: the rows of one table texture
 (the VSGL table: column i = VSGL i) or the colour attachments of one framebuffer (the RSM, the
-camera G-buffer). A slot lists the fields it holds, filling its four channels in order; a field may
+camera G-buffer, the shading inputs). A slot lists the fields it holds, filling its four channels in order; a field may
 spread over several slots (the kernel centre's u and v). Everything else is derived from here:
 
 * Python packs and unpacks numpy arrays with :meth:`TextureLayout.pack` / :meth:`TextureLayout.unpack`
@@ -16,7 +16,7 @@ spread over several slots (the kernel centre's u and v). Everything else is deri
 
 The meaning of each field (and the paper it comes from) is documented where it is computed: the VSGL
 table in ``passes/vsgl_generation.py`` (000 §3-4, app. B), the RSM in ``passes/rsm.py`` (000 §4),
-the G-buffer in ``passes/gbuffer.py``.
+the G-buffer in ``passes/gbuffer.py``, the shading inputs in ``passes/shading_inputs.py``.
 """
 
 from __future__ import annotations
@@ -281,5 +281,18 @@ GBUFFER = TextureLayout(
     struct="GBufferTexel",
 )
 
+#: The shading inputs pass's outputs per camera pixel: Rd and the Schlick F0 of 000 app. C's
+#: C(ξin); each alpha is 1 where the pixel has geometry.
+SHADING_INPUTS = TextureLayout(
+    name="shading_inputs",
+    slots=(
+        Slot("diffuse_reflectance", (("diffuse_reflectance", 3), ("diffuse_coverage", 1))),
+        Slot("specular_f0", (("specular_f0", 3), ("specular_coverage", 1))),
+    ),
+    define_prefix="SHADING_INPUT",
+    glsl_prefix="shading_inputs",
+    struct="ShadingInputs",
+)
+
 #: Every layout by name (the names passes declare in ``GPUPass.reads`` / ``writes``).
-LAYOUTS = {layout.name: layout for layout in (VSGL_TABLE, RSM, GBUFFER)}
+LAYOUTS = {layout.name: layout for layout in (VSGL_TABLE, RSM, GBUFFER, SHADING_INPUTS)}

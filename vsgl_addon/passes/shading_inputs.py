@@ -15,7 +15,7 @@ Never touches bpy.context. Shader compiled once per process; outputs are the cal
 
 from __future__ import annotations
 
-from ..layouts import GBUFFER
+from ..layouts import GBUFFER, SHADING_INPUTS
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec
 from .gpu_util import fullscreen_triangle_batch
@@ -28,7 +28,7 @@ def _interface() -> ShaderInterface:
         samplers=[("FLOAT_2D", f"gbuffer_{name}") for name in GBUFFER.slot_names],
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
-        fragment_outputs=[("VEC4", "diffuse_reflectance"), ("VEC4", "specular_f0")],
+        fragment_outputs=[("VEC4", f"shading_inputs_{name}") for name in SHADING_INPUTS.slot_names],
     )
 
 
@@ -50,9 +50,8 @@ def shading_gbuffer(gbuffer) -> ShadingGBuffer:
     import gpu
 
     width, height = gbuffer.width, gbuffer.height
-    diffuse = gpu.types.GPUTexture((width, height), format="RGBA32F")
-    specular = gpu.types.GPUTexture((width, height), format="RGBA32F")
-    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[diffuse, specular])
+    outputs = {name: gpu.types.GPUTexture((width, height), format="RGBA32F") for name in SHADING_INPUTS.slot_names}
+    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[outputs[name] for name in SHADING_INPUTS.slot_names])
     program = shader()
     batch = _fullscreen_batch()
     with framebuffer.bind():
@@ -66,7 +65,8 @@ def shading_gbuffer(gbuffer) -> ShadingGBuffer:
             program.uniform_sampler(f"gbuffer_{name}", gbuffer.textures[name])
         batch.draw(program)
     return ShadingGBuffer(position=gbuffer.textures["position"], normal=gbuffer.textures["normal"],
-                          diffuse_reflectance=diffuse, specular_f0=specular, width=width, height=height,
+                          diffuse_reflectance=outputs["diffuse_reflectance"], specular_f0=outputs["specular_f0"],
+                          width=width, height=height,
                           roughness_is_perceptual=True)
 
 
@@ -76,8 +76,9 @@ PASS = GPUPass(
     step=SHADING_STEP,
     shaders={"shading_inputs": ShaderSpec(_interface, {"vertex": "fullscreen_triangle.vert.glsl",
                                                        "fragment": "shading_inputs/shading_inputs.frag.glsl"},
-                                          code=lambda: {"fragment": GBUFFER.glsl("samplers_load")})},
+                                          code=lambda: {"fragment": GBUFFER.glsl("samplers_load")
+                                                                    + SHADING_INPUTS.glsl("outputs_store")})},
     reads=(GBUFFER.name,),
-    writes=("shading_inputs",),
+    writes=(SHADING_INPUTS.name,),
     run=shading_gbuffer,
 )

@@ -8,7 +8,9 @@ VSGLs of every light (000 app. C; formulas.md §6). Twin of ``vsgl_addon/referen
     diffuse, specular = shading.read()     # (h, w, 4) float32, row 0 = bottom
     shading.free()
 
-**Input G-buffer** (:class:`ShadingGBuffer`, RGBA32F textures of one size, row 0 = bottom):
+**Input G-buffer** (:class:`ShadingGBuffer`, RGBA32F textures of one size, row 0 = bottom; the
+``position`` and ``normal`` attachments of :data:`vsgl_addon.layouts.GBUFFER` and the textures of
+:data:`vsgl_addon.layouts.SHADING_INPUTS`, where the channels are declared):
 
 =======================  ===================================  =================================
 texture                  .rgb                                 .a
@@ -50,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..layouts import GBUFFER, VSGL_TABLE
+from ..layouts import GBUFFER, SHADING_INPUTS, VSGL_TABLE
 from ..reference.vsgl_shading import DIFFUSE_MODES
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
@@ -64,9 +66,9 @@ def _interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("INT", "vsgl_count"), ("INT", "accumulate"),
                         ("INT", "roughness_is_perceptual"), ("INT", "shared_positions")],
-        samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal"),
-                  ("FLOAT_2D", "gbuffer_diffuse"), ("FLOAT_2D", "gbuffer_specular"),
-                  ("FLOAT_2D", "vsgl_table")],
+        samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal")]
+        + [("FLOAT_2D", f"shading_inputs_{name}") for name in SHADING_INPUTS.slot_names]
+        + [("FLOAT_2D", "vsgl_table")],
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
         fragment_outputs=[("VEC4", "indirect_diffuse"), ("VEC4", "indirect_specular")],
@@ -77,7 +79,8 @@ def _shader_spec(diffuse_mode: str) -> ShaderSpec:
     return ShaderSpec(_interface, {"vertex": "fullscreen_triangle.vert.glsl",
                                    "fragment": "vsgl_shading/vsgl_shading.frag.glsl"},
                       defines=lambda: {"VSGL_DIFFUSE_MODE": _MODE_INDEX[diffuse_mode]},
-                      code=lambda: {"fragment": VSGL_TABLE.glsl("sampler_load")})
+                      code=lambda: {"fragment": GBUFFER.glsl() + SHADING_INPUTS.glsl("samplers_load")
+                                                + VSGL_TABLE.glsl("sampler_load")})
 
 
 def run(gbuffer: "ShadingGBuffer", camera, tables, diffuse_mode: str = "cosine",
@@ -97,7 +100,7 @@ PASS = GPUPass(
     label="VSGL Shading",
     step=SHADING_STEP,
     shaders={mode: _shader_spec(mode) for mode in _MODE_INDEX},
-    reads=(GBUFFER.name, "shading_inputs", VSGL_TABLE.name),
+    reads=(GBUFFER.name, SHADING_INPUTS.name, VSGL_TABLE.name),
     writes=("indirect",),
     run=run,
 )
@@ -116,15 +119,6 @@ free_shaders = PASS.free_shaders
 
 def _fullscreen_triangle():
     return PASS.resource("fullscreen_triangle", lambda: fullscreen_triangle_batch(shader("cosine")))
-
-
-def _rgba(array, fourth=None) -> np.ndarray:
-    array = np.asarray(array, dtype=np.float64)
-    out = np.zeros(array.shape[:2] + (4,), dtype=np.float32)
-    out[..., : min(array.shape[-1], 4)] = array[..., :4]
-    if fourth is not None:
-        out[..., 3] = fourth
-    return out
 
 
 @dataclass
@@ -151,11 +145,14 @@ def upload_gbuffer(position, coverage, normal, roughness, diffuse_reflectance, s
     Its textures are freed with the object (Blender frees a GPUTexture with its last reference)."""
     position = np.asarray(position)
     height, width = position.shape[:2]
+    gbuffer = GBUFFER.pack_slots({"position": position, "coverage": coverage, "normal": normal,
+                                  "roughness": roughness}, (height, width))
+    inputs = SHADING_INPUTS.pack_slots({"diffuse_reflectance": diffuse_reflectance, "specular_f0": specular_f0},
+                                       (height, width))
     return ShadingGBuffer(
-        position=texture_from_array(_rgba(position, coverage)),
-        normal=texture_from_array(_rgba(normal, roughness)),
-        diffuse_reflectance=texture_from_array(_rgba(diffuse_reflectance)),
-        specular_f0=texture_from_array(_rgba(specular_f0)), width=width, height=height,
+        position=texture_from_array(gbuffer["position"]), normal=texture_from_array(gbuffer["normal"]),
+        diffuse_reflectance=texture_from_array(inputs["diffuse_reflectance"]),
+        specular_f0=texture_from_array(inputs["specular_f0"]), width=width, height=height,
         roughness_is_perceptual=roughness_is_perceptual)
 
 
@@ -265,8 +262,8 @@ class VSGLShading:
                          1 if gbuffer.roughness_is_perceptual else 0)
                 program.uniform_sampler("gbuffer_position", gbuffer.position)
                 program.uniform_sampler("gbuffer_normal", gbuffer.normal)
-                program.uniform_sampler("gbuffer_diffuse", gbuffer.diffuse_reflectance)
-                program.uniform_sampler("gbuffer_specular", gbuffer.specular_f0)
+                program.uniform_sampler("shading_inputs_diffuse_reflectance", gbuffer.diffuse_reflectance)
+                program.uniform_sampler("shading_inputs_specular_f0", gbuffer.specular_f0)
                 for index, table in enumerate(tables):
                     # The first table writes, the others add (ONE, ONE), alpha 0.
                     gpu.state.blend_set("NONE" if index == 0 else "ADDITIVE_PREMULT")
