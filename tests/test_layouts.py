@@ -9,7 +9,7 @@ import pytest
 
 import scene_builders as sb
 from vsgl_addon import layouts
-from vsgl_addon.layouts import GBUFFER, RSM, SHADING_INPUTS, VSGL_TABLE
+from vsgl_addon.layouts import GBUFFER, RSM, RSM_VIEW, SHADING_INPUTS, VSGL_TABLE
 from vsgl_addon.reference import vsgl as reference
 from vsgl_addon.settings import VSGLSettings
 
@@ -189,6 +189,7 @@ SWAPS = {
     "rsm attachments position/flux_specular": (RSM, "position", "flux_specular"),
     "gbuffer attachments position/material": (GBUFFER, "position", "material"),
     "shading inputs diffuse_reflectance/specular_f0": (SHADING_INPUTS, "diffuse_reflectance", "specular_f0"),
+    "rsm view rows view_to_world_row1/light_params": (RSM_VIEW, "view_to_world_row1", "light_params"),
 }
 
 

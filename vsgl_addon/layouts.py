@@ -294,5 +294,23 @@ SHADING_INPUTS = TextureLayout(
     struct="ShadingInputs",
 )
 
+#: The per-view constants of the RSM pass (a one-column table: push constants stay within the
+#: 128 bytes every backend guarantees): the rows of the 3x3 view -> world rotation, the rows of the
+#: inverse of the light's 3x3 world matrix (scale included), and the light's position, unit axis
+#: (where it points), parameters (glsl/lib/lights.glsl) and colour.
+RSM_VIEW = TextureLayout(
+    name="rsm_view",
+    slots=tuple(Slot(name, ((name, 3),)) for name in (
+        "view_to_world_row0", "view_to_world_row1", "view_to_world_row2",
+        "world_to_local_row0", "world_to_local_row1", "world_to_local_row2",
+        "light_position", "light_axis")) + (
+        Slot("light_params", (("light_params", 4),)),
+        Slot("light_color", (("light_color", 3),)),
+    ),
+    define_prefix="RSM_VIEW_ROW",
+    glsl_prefix="view_constants",
+    struct="RSMViewConstants",
+)
+
 #: Every layout by name (the names passes declare in ``GPUPass.reads`` / ``writes``).
-LAYOUTS = {layout.name: layout for layout in (VSGL_TABLE, RSM, GBUFFER, SHADING_INPUTS)}
+LAYOUTS = {layout.name: layout for layout in (VSGL_TABLE, RSM, GBUFFER, SHADING_INPUTS, RSM_VIEW)}

@@ -70,6 +70,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..layouts import RSM as RSM_LAYOUT
+from ..layouts import RSM_VIEW
 from ..reference.lights import light_params
 from ..reference.vsgl import RSM
 from .contract import LIGHT_PASSES, GPUPass, ShaderSpec
@@ -98,7 +99,7 @@ def _interface():
     return scene_shader_interface(
         # (perspective 1 / ortho 0, half extent x, y, size)
         push_constants=[("VEC4", "view_params")],
-        # view_constants: 10x1 RGBA32F, see glsl/rsm/rsm.frag.glsl (_view_constants).
+        # view_constants: a one-column RGBA32F table, vsgl_addon.layouts.RSM_VIEW (_view_constants).
         samplers=[("FLOAT_2D", "view_constants")],
         fragment_outputs=[("VEC4", f"rsm_{name}") for name in RSM_LAYOUT.slot_names],
     )
@@ -453,16 +454,17 @@ class RSMView:
 
 
 def _view_constants(light, spec: RSMViewSpec) -> np.ndarray:
-    """(1, 10, 4) float32: the per-view constants of glsl/rsm/rsm.frag.glsl."""
-    constants = np.zeros((1, 10, 4), np.float32)
-    constants[0, 0:3, :3] = spec.view_to_world[:3, :3]
-    constants[0, 3:6, :3] = np.linalg.inv(np.asarray(light.matrix_world, np.float64)[:3, :3])
+    """(rows, 1, 4) float32: the per-view constants of glsl/rsm/rsm.frag.glsl (layouts.RSM_VIEW)."""
+    view_to_world = spec.view_to_world[:3, :3]
+    world_to_local = np.linalg.inv(np.asarray(light.matrix_world, np.float64)[:3, :3])
     axis = np.asarray(light.direction, np.float64)
-    constants[0, 6, :3] = np.asarray(light.position, np.float64)
-    constants[0, 7, :3] = axis / np.linalg.norm(axis)
-    constants[0, 8] = light_params(light)
-    constants[0, 9, :3] = np.asarray(light.color, np.float64)
-    return constants
+    values = {f"view_to_world_row{i}": view_to_world[i][None] for i in range(3)}
+    values.update({f"world_to_local_row{i}": world_to_local[i][None] for i in range(3)})
+    values.update(light_position=np.asarray(light.position, np.float64)[None],
+                  light_axis=(axis / np.linalg.norm(axis))[None],
+                  light_params=np.asarray(light_params(light), np.float64)[None],
+                  light_color=np.asarray(light.color, np.float64)[None])
+    return RSM_VIEW.pack(values, 1)
 
 
 def _render(scene_gpu: SceneGPU, light, spec: RSMViewSpec, size: int, textures: dict):
@@ -531,7 +533,8 @@ PASS = GPUPass(
     label="Reflective Shadow Maps",
     step=LIGHT_PASSES,
     shaders={"rsm": ShaderSpec(_interface, {"vertex": VERTEX_STAGE, "fragment": "rsm/rsm.frag.glsl"},
-                               code=lambda: {"fragment": RSM_LAYOUT.glsl("outputs_store")})},
+                               code=lambda: {"fragment": RSM_LAYOUT.glsl("outputs_store")
+                                                         + RSM_VIEW.glsl("sampler_load")})},
     reads=("scene",),
     writes=(RSM_LAYOUT.name, "rsm_depth"),
     run=render_rsm_views,

@@ -46,9 +46,9 @@ positions shading places each lobe at), the power, the kernel's centre and level
 the warp chose (``kernel_texel``, row and column), and once per table ``rsm_total_power``.
 
 RSM input: an :class:`~vsgl_addon.reference.vsgl.RSM` (or mapping) of numpy arrays, uploaded with
-:func:`upload_rsm`, or :class:`RSMTextures` already on the GPU (RGBA32F, S x S):
-``position`` = (y, λs), ``normal`` = (n, -), ``flux_diffuse`` = (Φ Rd, -),
-``flux_specular`` = (Φ Rs, -), ``specular_axis`` = (ξs, -).
+:func:`upload_rsm`, or :class:`RSMTextures` already on the GPU (RGBA32F, S x S, the attachments of
+:data:`vsgl_addon.layouts.RSM`): the position y, normal n, Φ Rd, Φ Rs, and the specular lobe's
+axis ξs and sharpness λs of every texel.
 
 Needs a GPU context (``vsgl_addon.gpu_context.ensure_gpu_context``), main thread.
 """
@@ -187,10 +187,9 @@ def _groups(count: int, group: int) -> int:
 
 @dataclass
 class RSMTextures:
-    """An RSM on the GPU: RGBA32F textures of side ``size`` (a power of two).
-
-    position = (y, λs), normal = (n, -), flux_diffuse = (Φ Rd, -), flux_specular = (Φ Rs, -),
-    specular_axis = (ξs, -). Background texels (no flux) may hold anything.
+    """An RSM on the GPU: RGBA32F textures of side ``size`` (a power of two), one per attachment of
+    :data:`vsgl_addon.layouts.RSM` (which declares their channels). Background texels (no flux) may
+    hold anything.
     """
 
     size: int
