@@ -152,7 +152,7 @@ class FrameRenderer:
         gbuffer = direct = None
         try:
             gbuffer = gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
-            _finish(gbuffer.textures[GBUFFER.slot_names[0]])
+            _finish(gbuffer.textures["position"])
             lap(gbuffer_pass.PASS.step.name)
             direct = direct_light.PASS.run(gbuffer, scene.lights, vsgls.views_by_light)
             _finish(direct.textures["diffuse"])

@@ -52,6 +52,7 @@ ATTACHMENTS = GBUFFER.slot_names
 #: Largest G-buffer side (the GPU's texture limit on llvmpipe and most GPUs).
 MAX_SIDE = 16384
 
+
 def _interface():
     return scene_shader_interface(
         push_constants=[

@@ -69,8 +69,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..layouts import RSM as RSM_LAYOUT
-from ..layouts import RSM_VIEW
+from ..layouts import RSM as RSM_LAYOUT, RSM_VIEW
 from ..reference.lights import light_params
 from ..reference.vsgl import RSM
 from .contract import LIGHT_PASSES, GPUPass, ShaderSpec

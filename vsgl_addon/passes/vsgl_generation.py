@@ -38,7 +38,7 @@ The PDF plane is not normalized: the density p = M · probability is the plane's
 its top-level mean (the same number, rounded differently); an all-zero PDF is uniform, as in the
 reference.
 
-Output table (``vsgl_table``, RGBA32F, N x ``VSGL_TABLE`` rows, column i = VSGL i; rows and
+Output table (``vsgl_table``, RGBA32F, N columns, column i = VSGL i; its rows and their
 channels declared once in :data:`vsgl_addon.layouts.VSGL_TABLE`), kept on the GPU for shading and
 read back by :meth:`VSGLGeneration.read_table` into the reference's dict of arrays: the shared
 Gaussian (mean, variance: 000 app. B.2), each lobe's amplitude, axis, sharpness and position (the
@@ -360,11 +360,8 @@ class VSGLGeneration:
                 moments.bind()
                 set_uniform(moments.uniform_int, "rsm_size", size)
                 set_uniform(moments.uniform_int, "use_custom_pdf", 0 if pdf_texture is None else 1)
-                moments.uniform_sampler("rsm_position", rsm_textures.position)
-                moments.uniform_sampler("rsm_normal", rsm_textures.normal)
-                moments.uniform_sampler("rsm_flux_diffuse", rsm_textures.flux_diffuse)
-                moments.uniform_sampler("rsm_flux_specular", rsm_textures.flux_specular)
-                moments.uniform_sampler("rsm_specular_axis", rsm_textures.specular_axis)
+                for name in RSM.slot_names:
+                    moments.uniform_sampler(f"rsm_{name}", getattr(rsm_textures, name))
                 set_uniform(moments.uniform_sampler, "pdf_image",
                             pdf_texture if pdf_texture is not None else rsm_textures.flux_diffuse)
                 batch.draw(moments)
