@@ -11,8 +11,8 @@ touches ``bpy.context``; its float64 twin lives in ``vsgl_addon.reference``.
 
 Each pass module declares its contract once, as ``PASS`` (:class:`.contract.GPUPass`: shaders,
 layouts read and written, timed step, ``run`` entry); :data:`PASSES` lists them in frame order and
-is the one place warm-up, timings and statistics labels come from. Adding a pass is one module and
-one entry here.
+is the one place warm-up, the timed steps and the statistics labels come from, so a new pass is one
+module and one entry here for all of them.
 
 Shared by the passes (not passes themselves): :mod:`.contract` (the pass contract),
 :mod:`.scene_gpu` (the scene's triangles on the GPU, their vertex stage and per-material inputs,

@@ -3,9 +3,11 @@
 list (``vsgl_addon.passes.PASSES``) instead of knowing each pass.
 
 A pass module instantiates :class:`GPUPass` once, as ``PASS``: its shaders (create-info interface,
-stage files, defines and layout code, see :mod:`vsgl_addon.shaders`), the layouts it reads and
-writes (names of :data:`vsgl_addon.layouts.LAYOUTS`), the timed :class:`Step` it runs in, and its
-``run`` entry, whose result the pass's :meth:`GPUPass.free` releases. Shaders are compiled on first
+stage files, defines and layout code, see :mod:`vsgl_addon.shaders`), what it reads and writes
+(the names of :data:`vsgl_addon.layouts.LAYOUTS` for the textures passes hand each other, "scene"
+for the uploaded triangles, or the name of another image a pass makes, e.g. "rsm_depth"), the timed
+:class:`Step` it runs in, and its ``run`` entry, whose result the pass's :meth:`GPUPass.free`
+releases. Shaders are compiled on first
 use and cached in the ``PASS`` for the process; objects made from them (a batch bound to a shader's
 vertex format, a dummy texture) are cached with them and dropped by :meth:`GPUPass.free_shaders`.
 
