@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from vsgl_addon.shaders import (GLSL_ROOT, LINE_STRIDE, ShaderCompileError, ShaderInterface,
+from vsgl_addon.shaders import (GENERATED_CODE, GLSL_ROOT, LINE_STRIDE, ShaderCompileError, ShaderInterface,
                                 ShaderSourceError, compose, create_shader, map_messages)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -50,6 +50,17 @@ def test_defines_precede_every_source(tmp_path):
     root = _write(tmp_path, {"stage.glsl": "void main() {}\n"})
     text = compose("stage.glsl", root, defines={"COUNT": 4, "SCALE": "2.0"}).text
     assert text.splitlines()[:2] == ["#define COUNT 4", "#define SCALE 2.0"]
+
+
+def test_generated_code_follows_the_defines_and_precedes_the_libraries_tagged_as_a_file(tmp_path):
+    root = _write(tmp_path, {"lib/a.glsl": "float a() { return 1.0; }\n",
+                             "stage.glsl": "// @require lib/a.glsl\nvoid main() {}\n"})
+    composed = compose("stage.glsl", root, defines={"N": 3}, code="float generated() { return N; }\n")
+    assert composed.files[0] == GENERATED_CODE and len(composed.files) == 3
+    text = composed.text
+    assert text.index("#define N 3") < text.index("float generated()") < text.index("float a()")
+    assert composed.locate(LINE_STRIDE + 1) == (GENERATED_CODE, 1)
+    assert compose("stage.glsl", root, code="  \n").files == compose("stage.glsl", root).files
 
 
 def test_a_require_cycle_is_reported_with_its_path(tmp_path):
@@ -136,6 +147,20 @@ def test_a_compile_error_names_the_file_and_line_and_carries_the_compiler_text(t
     assert "undeclared_variable" in error.raw_log  # the compiler's own text is kept
     # The vertex stage (a file of glsl/) is not blamed for the fragment stage's line.
     assert not any("fullscreen_triangle" in message for message in error.messages)
+
+
+@pytest.mark.gpu
+def test_an_error_in_generated_code_is_named_as_such(tmp_path):
+    root = _write(tmp_path, {"ok.frag.glsl": "void main()\n{\n  color = vec4(generated());\n}\n"})
+    code = {"fragment": "float generated()\n{\n  return undeclared_in_generated;\n}\n"}
+    with pytest.raises(ShaderCompileError) as caught:
+        create_shader("generated", _INTERFACE, vertex="fullscreen_triangle.vert.glsl", fragment="ok.frag.glsl",
+                      root=[root, GLSL_ROOT], code=code)
+    assert any(message.startswith(f"{GENERATED_CODE}:3:") for message in caught.value.messages), \
+        caught.value.messages
+    code["fragment"] = "float generated()\n{\n  return 0.5;\n}\n"
+    assert create_shader("generated_ok", _INTERFACE, vertex="fullscreen_triangle.vert.glsl",
+                         fragment="ok.frag.glsl", root=[root, GLSL_ROOT], code=code) is not None
 
 
 @pytest.mark.gpu

@@ -166,6 +166,7 @@ def _command_render(arguments) -> int:
     from . import register, unregister
     from .engine import ENGINE_ID, RENDER_PASSES, last_frame_statistics
     from .gpu_context import ensure_gpu_context
+    from .passes import COUNT_LABELS, TIMING_LABELS
 
     out = _output_path(arguments.out, ".exr")
     report = _output_path(arguments.report, ".json") if arguments.report else None
@@ -201,6 +202,9 @@ def _command_render(arguments) -> int:
     statistics.update(scene=str(arguments.scene), output=str(out), preview=str(preview),
                       frame=scene.frame_current, render_seconds=seconds, gpu_renderer=renderer,
                       addon_version=addon_version(), blender_version=bpy.app.version_string)
+    # What each timing and count is, as the passes declare it (the statistics panel's labels).
+    statistics.update(timing_labels={key: TIMING_LABELS.get(key, key) for key in statistics["timings"]},
+                      count_labels={key: COUNT_LABELS.get(key, key) for key in statistics["counts"]})
     if report:
         report.write_text(json.dumps(statistics, indent=2, sort_keys=True), encoding="utf-8")
     width, height = statistics["resolution"]

@@ -16,19 +16,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .layouts import VSGL_TABLE
 from .passes.rsm import SceneGPU, render_rsm_views
 from .passes.vsgl_generation import VSGLGeneration
 from .reference.vsgl import LUMINANCE_WEIGHTS
 from .settings import VSGLSettings
 
-# Per-VSGL arrays of VSGL generation that the exported table keeps (one row per VSGL).
+# Per-VSGL arrays of the VSGL table (vsgl_addon.layouts.VSGL_TABLE) that the exported table keeps
+# (one row per VSGL), in the export's order; the warp's texel is generation's own diagnostic.
 VSGL_FIELDS = ("mean", "variance", "diffuse_mean", "diffuse_variance", "specular_mean",
                "specular_variance", "diffuse_amplitude", "diffuse_axis", "diffuse_sharpness",
                "specular_amplitude", "specular_axis", "specular_sharpness", "power",
                "kernel_center", "kernel_level")
-_FIELD_SHAPES = {"mean": (3,), "diffuse_mean": (3,), "specular_mean": (3,), "diffuse_amplitude": (3,),
-                 "diffuse_axis": (3,), "specular_amplitude": (3,), "specular_axis": (3,), "power": (3,),
-                 "kernel_center": (2,)}
 
 
 def share_vsgl_count(vsgl_count: int, view_powers) -> np.ndarray:
@@ -53,7 +52,7 @@ def _rotation(seed: int, light_index: int, view_index: int) -> np.ndarray:
 
 
 def _empty_table() -> dict:
-    return {name: np.zeros((0, *_FIELD_SHAPES.get(name, ()))) for name in VSGL_FIELDS}
+    return {name: np.zeros((0, *VSGL_TABLE.field_shape(name))) for name in VSGL_FIELDS}
 
 
 @dataclass

@@ -18,11 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .passes.direct_light import render_direct_light
-from .passes.gbuffer import render_gbuffer
+from .layouts import GBUFFER
+from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, shading_inputs, vsgl_shading
+from .passes.contract import LIGHT_PASSES
 from .passes.rsm import SceneGPU
-from .passes.shading_inputs import shading_gbuffer
-from .passes.vsgl_shading import VSGLShading
 from .pipeline import render_scene_vsgls
 from .reference.vsgl_shading import diffuse_mode_for_kernel
 from .settings import VSGLSettings
@@ -85,7 +84,7 @@ class SceneLights:
     def build(cls, scene, settings: VSGLSettings) -> "SceneLights":
         clock = time.perf_counter()
         scene_gpu = SceneGPU(scene)
-        timings = {"upload": time.perf_counter() - clock}
+        timings = {UPLOAD.name: time.perf_counter() - clock}
         clock = time.perf_counter()
         try:
             vsgls = render_scene_vsgls(scene_gpu, settings)
@@ -94,7 +93,7 @@ class SceneLights:
         except BaseException:
             scene_gpu.free()
             raise
-        timings["rsm_and_vsgl_generation"] = time.perf_counter() - clock
+        timings[LIGHT_PASSES.name] = time.perf_counter() - clock
         return cls(scene, scene_gpu, vsgls, timings)
 
     def free(self) -> None:
@@ -110,7 +109,7 @@ class FrameRenderer:
     """Renders frames; holds the shading pass's textures between frames (free() releases them)."""
 
     def __init__(self):
-        self._shading = VSGLShading()
+        self._shading = vsgl_shading.VSGLShading()
 
     def free(self) -> None:
         self._shading.free()
@@ -152,21 +151,21 @@ class FrameRenderer:
         vsgls = lights.vsgls
         gbuffer = direct = None
         try:
-            gbuffer = render_gbuffer(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
+            gbuffer = gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
             _finish(gbuffer.textures["position"])
-            lap("gbuffer")
-            direct = render_direct_light(gbuffer, scene.lights, vsgls.views_by_light)
+            lap(gbuffer_pass.PASS.step.name)
+            direct = direct_light.PASS.run(gbuffer, scene.lights, vsgls.views_by_light)
             _finish(direct.textures["diffuse"])
-            lap("direct_light")
-            inputs = shading_gbuffer(gbuffer)
-            diffuse, specular = self._shading.run(inputs, gbuffer.camera_vector, vsgls.tables(),
-                                                  diffuse_mode_for_kernel(settings.kernel))
-            _finish(diffuse)
-            lap("vsgl_shading")
+            lap(direct_light.PASS.step.name)
+            inputs = shading_inputs.PASS.run(gbuffer)
+            vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, vsgls.tables(),
+                                  diffuse_mode_for_kernel(settings.kernel), shading=self._shading)
+            _finish(self._shading.diffuse)
+            lap(vsgl_shading.PASS.step.name)
             indirect_diffuse, indirect_specular = self._shading.read()
             direct_diffuse, direct_specular = direct.to_numpy()
-            coverage = gbuffer.to_numpy()["position"][..., 3]
-            lap("read_back")
+            coverage = GBUFFER.unpack_slots(gbuffer.to_numpy(), ["coverage"])["coverage"]
+            lap(READ_BACK.name)
             counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in vsgls.views_by_light.values()),
                       "vsgls": vsgls.vsgl_count, "triangles": int(len(scene.geometry.positions))}
         finally:

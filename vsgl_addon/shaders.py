@@ -117,20 +117,28 @@ def _dependency_order(stage: str, roots: tuple[Path, ...]) -> list[tuple[str, Pa
     return order
 
 
+#: How messages name the generated code of ``compose(..., code=...)``.
+GENERATED_CODE = "<generated layout code>"
+
+
 def compose(stage: str, root: Roots = GLSL_ROOT, defines: dict[str, object] | None = None,
-            first_tag: int = 1) -> ComposedSource:
+            first_tag: int = 1, code: str = "") -> ComposedSource:
     """The stage source `stage` (relative to a root) preceded by its libraries, each `#line`-tagged.
 
+    `defines` become `#define NAME VALUE` lines at the top; `code` (GLSL generated from a layout
+    declaration, :mod:`vsgl_addon.layouts`) follows them, tagged like a file, before the libraries.
     Files are tagged first_tag, first_tag + 1, ...: the stages of one shader take disjoint ranges,
     or a message could not tell a vertex file from a fragment file.
     """
-    files = _dependency_order(stage, _roots(root))
+    files = [(GENERATED_CODE, code)] if code.strip() else []
+    files += [(_display_name(path), path) for _, path in _dependency_order(stage, _roots(root))]
     parts = [f"#define {name} {value}" for name, value in (defines or {}).items()]
-    for index, (_, path) in enumerate(files, start=first_tag):
+    for index, (_, source) in enumerate(files, start=first_tag):
         # `#line N` numbers the next line N (GLSL 3.30+), so a file's first line is tagged index*STRIDE + 1.
         parts.append(f"#line {index * LINE_STRIDE + 1}")
-        parts.append(path.read_text(encoding="utf-8").rstrip("\n"))
-    return ComposedSource("\n".join(parts) + "\n", [_display_name(path) for _, path in files], first_tag)
+        text = source if isinstance(source, str) else source.read_text(encoding="utf-8")
+        parts.append(text.rstrip("\n"))
+    return ComposedSource("\n".join(parts) + "\n", [name for name, _ in files], first_tag)
 
 
 def map_messages(log: str, sources: list[ComposedSource]) -> list[str]:
@@ -203,9 +211,12 @@ class ShaderInterface:
 
 def create_shader(name: str, interface: ShaderInterface, *, vertex: str | None = None,
                   fragment: str | None = None, compute: str | None = None,
-                  defines: dict[str, object] | None = None, root: Roots = GLSL_ROOT):
+                  defines: dict[str, object] | None = None, root: Roots = GLSL_ROOT,
+                  code: dict[str, str] | None = None):
     """Compile a shader from stage files under `root` (glsl/ by default; a folder or a list of
-    folders searched in order); raise ShaderCompileError with mapped messages."""
+    folders searched in order), each stage preceded by `defines` and its generated `code`
+    (stage name "vertex" / "fragment" / "compute" -> GLSL, see compose); raise ShaderCompileError
+    with mapped messages."""
     import gpu
 
     info = gpu.types.GPUShaderCreateInfo()
@@ -232,11 +243,12 @@ def create_shader(name: str, interface: ShaderInterface, *, vertex: str | None =
         info.local_group_size(*interface.local_group_size)
 
     sources = []
-    for stage, setter in ((vertex, info.vertex_source), (fragment, info.fragment_source),
-                          (compute, info.compute_source)):
+    code = code or {}
+    for kind, stage, setter in (("vertex", vertex, info.vertex_source), ("fragment", fragment, info.fragment_source),
+                                ("compute", compute, info.compute_source)):
         if stage is not None:
             first_tag = sum(len(source.files) for source in sources) + 1
-            composed = compose(stage, root, defines, first_tag)
+            composed = compose(stage, root, defines, first_tag, code.get(kind, ""))
             setter(composed.text)
             sources.append(composed)
 

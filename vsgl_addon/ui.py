@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import engine, overlay
+from . import engine, overlay, passes
 from .settings import KERNELS
 
 #: (heading, scene.vsgl property names), in pipeline order. Append an entry for a new pass's controls.
@@ -26,16 +26,10 @@ PASS_SECTIONS = (
     ("VSGL Generation", ("kernel", "vsgl_count", "k", "positional_distribution", "seed")),
 )
 OVERLAY_PROPERTIES = ("overlay_mode", "overlay_resolution_scale", "overlay_intensity")
-TIMING_LABELS = {
-    "scene_extraction": "Scene Extraction",
-    "upload": "Upload",
-    "rsm_and_vsgl_generation": "RSM + VSGL Generation",
-    "gbuffer": "G-Buffer",
-    "direct_light": "Direct Light",
-    "vsgl_shading": "VSGL Shading",
-    "read_back": "Read Back",
-}
-COUNT_LABELS = {"lights": "Lights", "rsm_views": "RSM Views", "vsgls": "VSGLs", "triangles": "Triangles"}
+#: Statistics labels come from the passes' declarations (vsgl_addon.passes.STEPS), so a new pass
+#: brings its own.
+TIMING_LABELS = passes.TIMING_LABELS
+COUNT_LABELS = passes.COUNT_LABELS
 
 
 def warnings() -> list[str]:

@@ -1,11 +1,9 @@
 // @require lib/image.glsl
 // @require lib/math.glsl
 //
-// Camera G-buffer pass, fragment stage. Layout (RGBA32F; documented in vsgl_addon/passes/gbuffer.py):
-//   gbuffer_position   = (world position, coverage 1)
-//   gbuffer_normal     = (world shading normal facing the camera, Principled roughness)
-//   gbuffer_base_color = (base colour, image sampled at the UV when present; metallic)
-//   gbuffer_material   = (Specular IOR Level, IOR, material index, 1)
+// Camera G-buffer pass, fragment stage: one GBufferTexel per pixel, written to the outputs
+// gbuffer_<attachment> by the generated gbuffer_store (attachments and channels declared in
+// vsgl_addon/layouts.py GBUFFER; meaning documented in vsgl_addon/passes/gbuffer.py).
 // Pixels with no geometry keep the clear value 0 (coverage 0).
 //
 // camera: xyz = camera position (perspective, w = 1) or the direction towards the camera
@@ -22,8 +20,16 @@ void main()
   vec3 base_color = material_base_color.w > 0.5 ?
                         image_sample_linear_repeat(base_color_image, texcoord) :
                         material_base_color.rgb;
-  gbuffer_position = vec4(world_position, 1.0);
-  gbuffer_normal = vec4(normal, clamp(material_params.x, 0.0, 1.0));
-  gbuffer_base_color = vec4(max(base_color, vec3(0.0)), clamp(material_params.y, 0.0, 1.0));
-  gbuffer_material = vec4(material_params.z, material_params.w, material_index, 1.0);
+  GBufferTexel r;
+  r.position = world_position;
+  r.coverage = 1.0;
+  r.normal = normal;
+  r.roughness = clamp(material_params.x, 0.0, 1.0);
+  r.base_color = max(base_color, vec3(0.0));
+  r.metallic = clamp(material_params.y, 0.0, 1.0);
+  r.specular_ior_level = material_params.z;
+  r.ior = material_params.w;
+  r.material_index = material_index;
+  r.material_coverage = 1.0;
+  gbuffer_store(r);
 }

@@ -7,19 +7,21 @@
 // (formulas.md sec. 4; 000 sec. 4). Python side and the meaning of every input:
 // vsgl_addon/passes/rsm.py; numpy twin of the texel quantities: vsgl_addon/reference/rsm.py.
 //
-// Outputs (RGBA32F, the layout VSGL generation reads, vsgl_addon/passes/vsgl_generation.py):
-//   rsm_position      = (y, lam_s)         world position, sharpness of the warped specular lobe
-//   rsm_normal        = (n, roughness)     shading normal facing the light, Principled roughness
-//   rsm_flux_diffuse  = (Phi Rd, Phi_1)    Phi_1 = texel flux for a white light (W), Phi = Phi_1 colour
-//   rsm_flux_specular = (Phi Rs, d_omega)  texel solid angle (sr), or its area (m^2) for a sun
-//   rsm_specular_axis = (xi_s, 1)          axis of the warped specular lobe, coverage 1
+// Outputs: one RSMTexel per texel, written to rsm_<attachment> by the generated rsm_store (RGBA32F;
+// attachments and channels declared in vsgl_addon/layouts.py RSM, the layout VSGL generation reads):
+//   position, specular_sharpness   world position, sharpness of the warped specular lobe
+//   normal, roughness              shading normal facing the light, Principled roughness
+//   flux_diffuse, flux_white       Phi Rd; Phi_1 = texel flux for a white light (W), Phi = Phi_1 colour
+//   flux_specular, texel_measure   Phi Rs; texel solid angle (sr), or its area (m^2) for a sun
+//   specular_axis, coverage        axis of the warped specular lobe; 1
 // Texels that see no geometry keep the clear value 0 (coverage 0, flux 0).
 //
-// Per-view constants come in the 10x1 RGBA32F texture `view_constants` (push constants stay within
-// the 128 bytes every backend guarantees): texels 0-2 the rows of mat3 view -> world, 3-5 the rows
-// of mat3 world -> light local (inverse of the light's 3x3 world matrix, scale included),
-// 6 light_position, 7 light_axis (unit, where the light points), 8 light_params (the light
-// parameters of lib/light_emission.glsl), 9 light_color.
+// Per-view constants come in the one-column RGBA32F table `view_constants` (push constants stay
+// within the 128 bytes every backend guarantees), fetched as one RSMViewConstants by the generated
+// view_constants_load (rows declared in vsgl_addon/layouts.py RSM_VIEW): the rows of mat3
+// view -> world and of mat3 world -> light local (inverse of the light's 3x3 world matrix, scale
+// included), light_position, light_axis (unit, where the light points), light_params (the light
+// parameters of lib/light_emission.glsl), light_color.
 
 // Largest RSM side whose texel solid angles use the exact formula; larger sizes integrate cos^3
 // by 3x3 Gauss-Legendre (see texel_solid_angle).
@@ -59,11 +61,6 @@ float texel_solid_angle(vec2 p, vec2 h, int size)
   return sum * h.x * h.y;
 }
 
-vec4 view_constant(int index)
-{
-  return texelFetch(view_constants, ivec2(index, 0), 0);
-}
-
 // Rows r0, r1, r2 as a mat3 (GLSL matrices are built from columns).
 mat3 rows_to_mat3(vec3 r0, vec3 r1, vec3 r2)
 {
@@ -72,12 +69,14 @@ mat3 rows_to_mat3(vec3 r0, vec3 r1, vec3 r2)
 
 void main()
 {
-  mat3 view_to_world = rows_to_mat3(view_constant(0).xyz, view_constant(1).xyz, view_constant(2).xyz);
-  mat3 light_to_local = rows_to_mat3(view_constant(3).xyz, view_constant(4).xyz, view_constant(5).xyz);
-  vec3 light_position = view_constant(6).xyz;
-  vec3 light_axis = view_constant(7).xyz;
-  vec4 light_params = view_constant(8);
-  vec3 light_color = view_constant(9).rgb;
+  RSMViewConstants view = view_constants_load(0);
+  mat3 view_to_world = rows_to_mat3(view.view_to_world_row0, view.view_to_world_row1, view.view_to_world_row2);
+  mat3 light_to_local = rows_to_mat3(view.world_to_local_row0, view.world_to_local_row1,
+                                     view.world_to_local_row2);
+  vec3 light_position = view.light_position;
+  vec3 light_axis = view.light_axis;
+  vec4 light_params = view.light_params;
+  vec3 light_color = view.light_color;
   int light_type = int(light_params.x + 0.5);
   float size = view_params.w;
   vec2 half_extent = view_params.yz;
@@ -128,9 +127,16 @@ void main()
   specular_lobe_warp(incoming, normal, terms.alpha, axis, sharpness);
 
   vec3 flux = flux_white * light_color;
-  rsm_position = vec4(world_position, sharpness);
-  rsm_normal = vec4(normal, roughness);
-  rsm_flux_diffuse = vec4(flux * terms.diffuse, flux_white);
-  rsm_flux_specular = vec4(flux * terms.specular_albedo, texel_measure);
-  rsm_specular_axis = vec4(axis, 1.0);
+  RSMTexel r;
+  r.position = world_position;
+  r.specular_sharpness = sharpness;
+  r.normal = normal;
+  r.roughness = roughness;
+  r.flux_diffuse = flux * terms.diffuse;
+  r.flux_white = flux_white;
+  r.flux_specular = flux * terms.specular_albedo;
+  r.texel_measure = texel_measure;
+  r.specular_axis = axis;
+  r.coverage = 1.0;
+  rsm_store(r);
 }

@@ -11,25 +11,25 @@
 // Planes 3 and 4 are the lobes' own position moments; 000 app. B.2's shared ones (w = w_d + w_s)
 // are their sum (reference `combined_position_moments`).
 //
-// RSM textures (RGBA32F, rsm_size^2): rsm_position = (y, lam_s), rsm_normal = (n, -),
-// rsm_flux_diffuse = (Phi Rd, -), rsm_flux_specular = (Phi Rs, -), rsm_specular_axis = (xi_s, -);
-// pdf_image = (custom PDF weight, -, -, -) when use_custom_pdf != 0.
+// RSM textures (RGBA32F, rsm_size^2, one RSMTexel per texel fetched by the generated rsm_load;
+// vsgl_addon/layouts.py RSM): y = position, lam_s = specular_sharpness, n = normal,
+// xi_s = specular_axis; pdf_image = (custom PDF weight, -, -, -) when use_custom_pdf != 0.
 
 void main()
 {
   ivec2 texel = ivec2(gl_FragCoord.xy);
-  vec4 position_sharpness = texelFetch(rsm_position, texel, 0);
-  vec3 flux_diffuse = texelFetch(rsm_flux_diffuse, texel, 0).rgb;
-  vec3 flux_specular = texelFetch(rsm_flux_specular, texel, 0).rgb;
+  RSMTexel rsm = rsm_load(texel);
+  vec3 flux_diffuse = rsm.flux_diffuse;
+  vec3 flux_specular = rsm.flux_specular;
   float w_d = luminance(flux_diffuse);
   float w_s = luminance(flux_specular);
   bool lit_d = w_d > 0.0;
   bool lit_s = w_s > 0.0;
   bool lit = w_d + w_s > 0.0;
-  vec3 normal = unit_or_zero(texelFetch(rsm_normal, texel, 0).xyz, lit_d);
-  vec3 specular_axis = unit_or_zero(texelFetch(rsm_specular_axis, texel, 0).xyz, lit_s);
-  float specular_sharpness = lit_s ? position_sharpness.w : 0.0;
-  vec3 y = lit ? position_sharpness.xyz : vec3(0.0);
+  vec3 normal = unit_or_zero(rsm.normal, lit_d);
+  vec3 specular_axis = unit_or_zero(rsm.specular_axis, lit_s);
+  float specular_sharpness = lit_s ? rsm.specular_sharpness : 0.0;
+  vec3 y = lit ? rsm.position : vec3(0.0);
   float y_squared = dot(y, y);
 
   vec3 diffuse_direction = w_d * toksvig_mean_direction(normal, DIFFUSE_SHARPNESS);

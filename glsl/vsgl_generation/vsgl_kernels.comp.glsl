@@ -13,15 +13,11 @@
 // positional_distribution: 0 = per lobe (each lobe at its own power centroid), 1 = shared (000
 // app. B.2 as written); see vsgl_addon/reference/vsgl.py POSITIONAL_DISTRIBUTIONS.
 //
-// Output table `vsgl_table` (RGBA32F, vsgl_count x 10), column i = VSGL i:
-//   row 0: mean.xyz, variance (000 app. B.2, weight Phi (Rd + Rs), in both modes)
-//   row 1: diffuse_amplitude.rgb, diffuse_sharpness
-//   row 2: diffuse_axis.xyz, kernel_level  row 3: specular_amplitude.rgb, specular_sharpness
-//   row 4: specular_axis.xyz, center.u     row 5: power.rgb, center.v
-//   row 6: the level-0 texel the warp chose (row, column), 0, 0 (the centre can round onto the
-//          texel's far edge: (texel + u) / S in float32 with u just below 1)
-//   row 7 (column 0 only): rsm_total_power.rgb, 0
-//   row 8: diffuse_mean.xyz, diffuse_variance    row 9: specular_mean.xyz, specular_variance
+// Output table `vsgl_table` (RGBA32F, vsgl_count x VSGL_ROW_COUNT), column i = VSGL i: one
+// VSGLRecord per column, stored by the generated vsgl_table_store (rows and channels declared in
+// vsgl_addon/layouts.py VSGL_TABLE); column 0 of row VSGL_ROW_RSM_TOTAL_POWER holds the RSM's total.
+// kernel_texel is the level-0 texel the warp chose (row, column): the centre can round onto the
+// texel's far edge ((texel + u) / S in float32 with u just below 1).
 
 const int BISECTION_ITERATIONS = 12;   // 000 section 3.2
 const float BELOW_ONE = 0.99999994;     // largest float32 below 1 (1 - 2^-24)
@@ -132,15 +128,24 @@ void write_vsgl(int column, vec4 totals[MOMENT_PLANES], vec3 fallback_mean, floa
     vsgl_position(luminance(specular_power), totals[4].xyz, totals[4].w, mean, variance,
                   specular_mean, specular_variance);
   }
-  imageStore(vsgl_table, ivec2(column, 0), vec4(mean, variance));
-  imageStore(vsgl_table, ivec2(column, 8), vec4(diffuse_mean, diffuse_variance));
-  imageStore(vsgl_table, ivec2(column, 9), vec4(specular_mean, specular_variance));
-  imageStore(vsgl_table, ivec2(column, 1), vec4(diffuse_amplitude, diffuse_sharpness));
-  imageStore(vsgl_table, ivec2(column, 2), vec4(diffuse_axis, level));
-  imageStore(vsgl_table, ivec2(column, 3), vec4(specular_amplitude, specular_sharpness));
-  imageStore(vsgl_table, ivec2(column, 4), vec4(specular_axis, center.x));
-  imageStore(vsgl_table, ivec2(column, 5), vec4(power, center.y));
-  imageStore(vsgl_table, ivec2(column, 6), vec4(float(texel.y), float(texel.x), 0.0, 0.0));
+  VSGLRecord r;
+  r.mean = mean;
+  r.variance = variance;
+  r.diffuse_mean = diffuse_mean;
+  r.diffuse_variance = diffuse_variance;
+  r.specular_mean = specular_mean;
+  r.specular_variance = specular_variance;
+  r.diffuse_amplitude = diffuse_amplitude;
+  r.diffuse_sharpness = diffuse_sharpness;
+  r.diffuse_axis = diffuse_axis;
+  r.kernel_level = level;
+  r.specular_amplitude = specular_amplitude;
+  r.specular_sharpness = specular_sharpness;
+  r.specular_axis = specular_axis;
+  r.kernel_center = center;
+  r.power = power;
+  r.kernel_texel = vec2(float(texel.y), float(texel.x));
+  vsgl_table_store(column, r);
 }
 
 // Mean and variance of the whole RSM (reference `_rsm_fallback`) from top-level position moments.
@@ -161,11 +166,13 @@ void main()
   }
   vec3 top_power = top_moments[0].xyz + vec3(top_moments[1].zw, top_moments[2].x);
   if (index == 0) {
-    imageStore(vsgl_table, ivec2(0, 7), vec4(texel_count * top_power, 0.0));
+    VSGLRecord whole_rsm;
+    whole_rsm.rsm_total_power = texel_count * top_power;
+    imageStore(vsgl_table, ivec2(0, VSGL_ROW_RSM_TOTAL_POWER), vsgl_table_pack_rsm_total_power(whole_rsm));
   }
 
   if (kernel_mode == 2) {
-    // 003: row 0 the diffuse lobe, row 1 the specular lobe, from whole-RSM totals (sum = M mean).
+    // 003: column 0 the diffuse lobe, column 1 the specular lobe, from whole-RSM totals (sum = M mean).
     if (index > 1) {
       return;
     }

@@ -1,12 +1,11 @@
 // @require lib/math.glsl
 // @require lib/vsgl_shading.glsl
 //
-// Indirect light from VSGLs (000 app. C), one fragment per pixel of the camera G-buffer
-// (vsgl_addon/passes/vsgl_shading.py documents the inputs). For each VSGL of the table (RGBA32F,
-// vsgl_count x 10, the layout of vsgl_addon/passes/vsgl_generation.py: 1 = (diffuse amplitude,
-// sharpness), 2 = (diffuse axis, -), 3 = (specular amplitude, sharpness), 4 = (specular axis, -),
-// 8 = (diffuse mean, variance), 9 = (specular mean, variance)) both lobes are added, each at its
-// own position (glsl/lib/vsgl_shading.glsl), computed once per VSGL when the table says both lobes
+// Indirect light from VSGLs (000 app. C), one fragment per pixel of the camera G-buffer's position
+// and normal attachments and the shading inputs (unpacked by the generated code of
+// vsgl_addon/layouts.py GBUFFER and SHADING_INPUTS; vsgl_addon/passes/vsgl_shading.py documents them). For each VSGL of the table (RGBA32F,
+// one VSGLRecord per column, fetched by the generated vsgl_table_load: vsgl_addon/layouts.py
+// VSGL_TABLE) both lobes are added, each at its own position (glsl/lib/vsgl_shading.glsl), computed once per VSGL when the table says both lobes
 // share it (`shared_positions`, the paper's positional distribution). Outputs: indirect
 // diffuse = Rd * sum, indirect specular = F0 * sum_s + sum_f (Schlick is linear in F0); alpha =
 // coverage, or 0 when `accumulate` is set (later tables are added by blending).
@@ -15,40 +14,35 @@
 void main()
 {
   ivec2 pixel = ivec2(gl_FragCoord.xy);
-  vec4 position = texelFetch(gbuffer_position, pixel, 0);
-  float coverage = accumulate != 0 ? 0.0 : position.w;
-  if (!(position.w > 0.0)) {
+  GBufferTexel g;
+  gbuffer_unpack_position(texelFetch(gbuffer_position, pixel, 0), g);
+  float coverage = accumulate != 0 ? 0.0 : g.coverage;
+  if (!(g.coverage > 0.0)) {
     indirect_diffuse = vec4(0.0, 0.0, 0.0, coverage);
     indirect_specular = vec4(0.0, 0.0, 0.0, coverage);
     return;
   }
-  vec4 normal_roughness = texelFetch(gbuffer_normal, pixel, 0);
-  vec3 normal = safe_normalize(normal_roughness.xyz, vec3(0.0, 0.0, 1.0));
-  float roughness = roughness_is_perceptual != 0 ? normal_roughness.w * normal_roughness.w
-                                                 : normal_roughness.w;
+  gbuffer_unpack_normal(texelFetch(gbuffer_normal, pixel, 0), g);
+  vec3 normal = safe_normalize(g.normal, vec3(0.0, 0.0, 1.0));
+  float roughness = roughness_is_perceptual != 0 ? g.roughness * g.roughness : g.roughness;
   // camera = (position, 1) for a perspective camera, (direction towards it, 0) for an orthographic one.
-  vec3 view = safe_normalize(camera.w > 0.0 ? camera.xyz - position.xyz : camera.xyz, normal);
-  VSGLReceiver rc = vsgl_receiver(position.xyz, normal, view, roughness);
+  vec3 view = safe_normalize(camera.w > 0.0 ? camera.xyz - g.position : camera.xyz, normal);
+  VSGLReceiver rc = vsgl_receiver(g.position, normal, view, roughness);
   vec3 diffuse = vec3(0.0);
   vec3 specular = vec3(0.0);
   vec3 fresnel = vec3(0.0);
   for (int i = 0; i < vsgl_count; i++) {
-    vec4 row1 = texelFetch(vsgl_table, ivec2(i, 1), 0);
-    vec4 row2 = texelFetch(vsgl_table, ivec2(i, 2), 0);
-    vec4 row3 = texelFetch(vsgl_table, ivec2(i, 3), 0);
-    vec4 row4 = texelFetch(vsgl_table, ivec2(i, 4), 0);
-    vec4 row8 = texelFetch(vsgl_table, ivec2(i, 8), 0);
-    vec4 row9 = texelFetch(vsgl_table, ivec2(i, 9), 0);
-    VSGLPosition diffuse_position = vsgl_position(rc.position, row8.xyz, row8.w);
+    VSGLRecord vsgl = vsgl_table_load(i);
+    VSGLPosition diffuse_position = vsgl_position(rc.position, vsgl.diffuse_mean, vsgl.diffuse_variance);
     VSGLPosition specular_position = diffuse_position;
     if (shared_positions == 0) {
-      specular_position = vsgl_position(rc.position, row9.xyz, row9.w);
+      specular_position = vsgl_position(rc.position, vsgl.specular_mean, vsgl.specular_variance);
     }
-    vsgl_accumulate(rc, diffuse_position, row1.xyz, row2.xyz, row1.w, specular_position, row3.xyz,
-                    row4.xyz, row3.w, VSGL_DIFFUSE_MODE, diffuse, specular, fresnel);
+    vsgl_accumulate(rc, diffuse_position, vsgl.diffuse_amplitude, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
+                    specular_position, vsgl.specular_amplitude, vsgl.specular_axis, vsgl.specular_sharpness,
+                    VSGL_DIFFUSE_MODE, diffuse, specular, fresnel);
   }
-  vec3 rd = texelFetch(gbuffer_diffuse, pixel, 0).rgb;
-  vec3 f0 = texelFetch(gbuffer_specular, pixel, 0).rgb;
-  indirect_diffuse = vec4(rd * diffuse, coverage);
-  indirect_specular = vec4(f0 * specular + fresnel, coverage);
+  ShadingInputs inputs = shading_inputs_load(pixel);
+  indirect_diffuse = vec4(inputs.diffuse_reflectance * diffuse, coverage);
+  indirect_specular = vec4(inputs.specular_f0 * specular + fresnel, coverage);
 }

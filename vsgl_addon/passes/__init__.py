@@ -9,29 +9,54 @@ touches ``bpy.context``; its float64 twin lives in ``vsgl_addon.reference``.
 * :mod:`.shading_inputs`: the G-buffer's Principled inputs -> Rd and F0 for VSGL shading.
 * :mod:`.vsgl_shading`: indirect light from VSGLs (000 app. C).
 
-Shared by the passes (not passes themselves): :mod:`.scene_gpu` (the scene's triangles on the GPU,
-their vertex stage and per-material inputs, drawn by :mod:`.rsm` and :mod:`.gbuffer`) and
-:mod:`.gpu_util` (numpy arrays to and from textures, matrices for uniforms).
+Each pass module declares its contract once, as ``PASS`` (:class:`.contract.GPUPass`: shaders,
+layouts read and written, timed step, ``run`` entry); :data:`PASSES` lists them in frame order and
+is the one place warm-up, the timed steps and the statistics labels come from, so a new pass is one
+module and one entry here for all of them.
+
+Shared by the passes (not passes themselves): :mod:`.contract` (the pass contract),
+:mod:`.scene_gpu` (the scene's triangles on the GPU, their vertex stage and per-material inputs,
+drawn by :mod:`.rsm` and :mod:`.gbuffer`) and :mod:`.gpu_util` (numpy arrays to and from textures,
+matrices for uniforms). The texture layouts passes hand each other: :mod:`vsgl_addon.layouts`.
 """
 
+from . import direct_light, gbuffer, rsm, shading_inputs, vsgl_generation, vsgl_shading
+from .contract import GPUPass, Step
 
-def _modules():
-    from . import direct_light, gbuffer, rsm, shading_inputs, vsgl_generation, vsgl_shading
+#: Every GPU pass, in the order a frame runs them.
+PASSES: tuple[GPUPass, ...] = (rsm.PASS, vsgl_generation.PASS, gbuffer.PASS, direct_light.PASS,
+                               shading_inputs.PASS, vsgl_shading.PASS)
 
-    return rsm, vsgl_generation, gbuffer, direct_light, shading_inputs, vsgl_shading
+#: Steps of a frame that are not GPU passes. Scene extraction is the Blender-facing caller's (the
+#: engine and the overlay time it); upload and read-back are the renderer's.
+SCENE_EXTRACTION = Step("scene_extraction", "Scene Extraction")
+UPLOAD = Step("upload", "Upload", {"lights": "Lights", "triangles": "Triangles"})
+READ_BACK = Step("read_back", "Read Back")
+
+
+def _steps() -> tuple[Step, ...]:
+    steps = [SCENE_EXTRACTION, UPLOAD]
+    for gpu_pass in PASSES:
+        if gpu_pass.step not in steps:
+            steps.append(gpu_pass.step)
+    return tuple(steps + [READ_BACK])
+
+
+#: Every timed step of a frame, in order: the keys of ``FrameImages.timings``.
+STEPS: tuple[Step, ...] = _steps()
+#: Timing key -> label, and count key -> label, for the statistics panel and reports.
+TIMING_LABELS = {step.name: step.label for step in STEPS}
+COUNT_LABELS = {key: label for step in STEPS for key, label in step.counts.items()}
 
 
 def compile_all_shaders() -> None:
     """Compile every pass's shaders now (each is cached for the process): a warm-up before the first
     frame, and the check that every stage compiles on this Blender's GLSL front end."""
-    rsm, vsgl_generation, gbuffer, direct_light, shading_inputs, vsgl_shading = _modules()
-    for module in (rsm, gbuffer, direct_light, shading_inputs):
-        module.shader()
-    vsgl_generation.compile_shaders()
-    vsgl_shading.compile_shaders()
+    for gpu_pass in PASSES:
+        gpu_pass.compile_shaders()
 
 
 def free_all_shaders() -> None:
-    """Drop every pass's cached shaders (and the batches made for them)."""
-    for module in _modules():
-        module.free_shaders()
+    """Drop every pass's cached shaders (and what was made from them)."""
+    for gpu_pass in PASSES:
+        gpu_pass.free_shaders()

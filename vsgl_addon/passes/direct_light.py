@@ -44,7 +44,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..reference.lights import light_params
-from ..shaders import ShaderInterface, create_shader
+from ..shaders import ShaderInterface
+from .contract import GPUPass, ShaderSpec, Step
 from .gbuffer import ATTACHMENTS as GBUFFER_ATTACHMENTS
 from .gpu_util import fullscreen_triangle_batch, read_texture, texture_from_array
 
@@ -52,10 +53,6 @@ MAX_VIEWS = 6
 #: Defaults of the shadow test, in texels of the RSM view at the point.
 NORMAL_OFFSET = 1.0
 DEPTH_BIAS = 1.0
-
-_shaders: dict[str, object] = {}
-_batch = None
-_dummy_depth = None
 
 
 def _interface() -> ShaderInterface:
@@ -73,35 +70,22 @@ def _interface() -> ShaderInterface:
 
 def shader():
     """The direct-light shader (glsl/direct_light/), compiled on first use and cached."""
-    if "direct_light" not in _shaders:
-        _shaders["direct_light"] = create_shader(
-            "direct_light", _interface(), vertex="fullscreen_triangle.vert.glsl",
-            fragment="direct_light/direct_light.frag.glsl")
-    return _shaders["direct_light"]
+    return PASS.shader()
 
 
 def free_shaders() -> None:
-    global _batch, _dummy_depth
-    _shaders.clear()
-    _batch = None
-    _dummy_depth = None
+    PASS.free_shaders()
 
 
 def _fullscreen_batch():
-    global _batch
-    if _batch is None:
-        _batch = fullscreen_triangle_batch(shader())
-    return _batch
+    return PASS.resource("fullscreen_triangle", lambda: fullscreen_triangle_batch(shader()))
 
 
 def _dummy():
     """A 1×1 depth texture for the unused view slots (never read)."""
-    global _dummy_depth
-    if _dummy_depth is None:
-        import gpu
+    import gpu
 
-        _dummy_depth = gpu.types.GPUTexture((1, 1), format="DEPTH_COMPONENT32F")
-    return _dummy_depth
+    return PASS.resource("dummy_depth", lambda: gpu.types.GPUTexture((1, 1), format="DEPTH_COMPONENT32F"))
 
 
 def light_constants(light, views) -> np.ndarray:
@@ -198,3 +182,15 @@ def render_direct_light(gbuffer, lights, views_by_light, *, shadows: bool = True
     result = DirectLight(width, height, textures, framebuffer)
     result.seconds = time.perf_counter() - start
     return result
+
+
+PASS = GPUPass(
+    name="direct_light",
+    label="Direct Light",
+    step=Step("direct_light", "Direct Light"),
+    shaders={"direct_light": ShaderSpec(_interface, {"vertex": "fullscreen_triangle.vert.glsl",
+                                                     "fragment": "direct_light/direct_light.frag.glsl"})},
+    reads=("gbuffer", "rsm_depth"),
+    writes=("direct_light",),
+    run=render_direct_light,
+)

@@ -41,17 +41,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..shaders import create_shader
+from ..layouts import GBUFFER
 from ..views import camera_vector
+from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import matrix, read_texture
 from .scene_gpu import VERTEX_STAGE, SceneGPU, scene_shader_interface
 
-ATTACHMENTS = ("position", "normal", "base_color", "material")
+#: The colour attachments, in the order of :data:`vsgl_addon.layouts.GBUFFER`.
+ATTACHMENTS = GBUFFER.slot_names
 
 #: Largest G-buffer side (the GPU's texture limit on llvmpipe and most GPUs).
 MAX_SIDE = 16384
-
-_shaders: dict[str, object] = {}
 
 
 def _interface():
@@ -61,21 +61,18 @@ def _interface():
             ("FLOAT", "material_index"),
         ],
         samplers=[],
-        fragment_outputs=[("VEC4", f"gbuffer_{name}") for name in ATTACHMENTS],
+        fragment_outputs=[("VEC4", f"gbuffer_{name}") for name in GBUFFER.slot_names],
     )
 
 
 def shader():
     """The G-buffer shader (glsl/gbuffer/gbuffer.frag.glsl after the scene's vertex stage),
     compiled on first use and cached for the process."""
-    if "gbuffer" not in _shaders:
-        _shaders["gbuffer"] = create_shader("gbuffer", _interface(), vertex=VERTEX_STAGE,
-                                            fragment="gbuffer/gbuffer.frag.glsl")
-    return _shaders["gbuffer"]
+    return PASS.shader()
 
 
 def free_shaders() -> None:
-    _shaders.clear()
+    PASS.free_shaders()
 
 
 @dataclass
@@ -95,7 +92,7 @@ class GBuffer:
 
     def to_numpy(self) -> dict[str, np.ndarray]:
         """Every attachment read back: (h, w, 4) float32 colour, "depth" (h, w); row 0 = bottom."""
-        out = {name: read_texture(self.textures[name], self.width, self.height) for name in ATTACHMENTS}
+        out = {name: read_texture(self.textures[name], self.width, self.height) for name in GBUFFER.slot_names}
         out["depth"] = read_texture(self.textures["depth"], self.width, self.height, 1)[..., 0]
         return out
 
@@ -113,10 +110,11 @@ def render_gbuffer(scene_gpu: SceneGPU, view_matrix, projection_matrix, resoluti
         raise ValueError(f"G-buffer resolution must be within 1..{MAX_SIDE} per side, not {resolution}")
     view = np.asarray(view_matrix, np.float64)
     projection = np.asarray(projection_matrix, np.float64)
-    textures = {name: gpu.types.GPUTexture((width, height), format="RGBA32F") for name in ATTACHMENTS}
+    names = GBUFFER.slot_names
+    textures = {name: gpu.types.GPUTexture((width, height), format="RGBA32F") for name in names}
     textures["depth"] = gpu.types.GPUTexture((width, height), format="DEPTH_COMPONENT32F")
     framebuffer = gpu.types.GPUFrameBuffer(depth_slot=textures["depth"],
-                                           color_slots=[textures[name] for name in ATTACHMENTS])
+                                           color_slots=[textures[name] for name in names])
     with framebuffer.bind():
         framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
         if scene_gpu.batch is not None:
@@ -143,3 +141,15 @@ def render_camera_gbuffer(scene_gpu: SceneGPU, resolution=None) -> GBuffer:
         raise ValueError("the scene has no camera")
     return render_gbuffer(scene_gpu, camera.view_matrix(), camera.projection_matrix(),
                           resolution or camera.resolution)
+
+
+PASS = GPUPass(
+    name="gbuffer",
+    label="G-Buffer",
+    step=Step("gbuffer", "G-Buffer"),
+    shaders={"gbuffer": ShaderSpec(_interface, {"vertex": VERTEX_STAGE, "fragment": "gbuffer/gbuffer.frag.glsl"},
+                                   code=lambda: {"fragment": GBUFFER.glsl("outputs_store")})},
+    reads=("scene",),
+    writes=(GBUFFER.name, "camera_depth"),
+    run=render_gbuffer,
+)

@@ -58,19 +58,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..layouts import RSM as RSM_LAYOUT, RSM_VIEW
 from ..reference.lights import light_params
 from ..reference.vsgl import RSM
-from ..shaders import create_shader
 from ..views import RSMViewSpec, light_view_specs, view_sees_triangles
+from .contract import LIGHT_PASSES, GPUPass, ShaderSpec
 from .gpu_util import matrix, read_texture, texture_from_array
 from .scene_gpu import VERTEX_STAGE, SceneGPU, scene_shader_interface
 
 #: Largest RSM side (a 2048² view holds five 64 MB colour textures).
 MAX_RSM_SIZE = 4096
 
-ATTACHMENTS = ("position", "normal", "flux_diffuse", "flux_specular", "specular_axis")
-
-_shaders: dict[str, object] = {}
+#: The colour attachments, in the order of :data:`vsgl_addon.layouts.RSM`.
+ATTACHMENTS = RSM_LAYOUT.slot_names
 
 
 # --- Shader ------------------------------------------------------------------------------------
@@ -80,23 +80,20 @@ def _interface():
     return scene_shader_interface(
         # (perspective 1 / ortho 0, half extent x, y, size)
         push_constants=[("VEC4", "view_params")],
-        # view_constants: 10x1 RGBA32F, see glsl/rsm/rsm.frag.glsl (_view_constants).
+        # view_constants: a one-column RGBA32F table, vsgl_addon.layouts.RSM_VIEW (_view_constants).
         samplers=[("FLOAT_2D", "view_constants")],
-        fragment_outputs=[("VEC4", f"rsm_{name}") for name in ATTACHMENTS],
+        fragment_outputs=[("VEC4", f"rsm_{name}") for name in RSM_LAYOUT.slot_names],
     )
 
 
 def shader():
     """The RSM shader (glsl/rsm/rsm.frag.glsl after the scene's vertex stage), compiled on first use
     and cached for the process."""
-    if "rsm" not in _shaders:
-        _shaders["rsm"] = create_shader("rsm", _interface(), vertex=VERTEX_STAGE,
-                                        fragment="rsm/rsm.frag.glsl")
-    return _shaders["rsm"]
+    return PASS.shader()
 
 
 def free_shaders() -> None:
-    _shaders.clear()
+    PASS.free_shaders()
 
 
 # --- Rendering ---------------------------------------------------------------------------------
@@ -142,28 +139,29 @@ class RSMView:
         """The view as VSGL generation's ``RSMTextures`` (no copy)."""
         from .vsgl_generation import RSMTextures
 
-        return RSMTextures(self.size, *(self.textures[name] for name in ATTACHMENTS))
+        return RSMTextures(self.size, **{name: self.textures[name] for name in RSM_LAYOUT.slot_names})
 
     def to_numpy(self) -> RSMArrays:
         s = self.size
-        data = {name: read_texture(self.textures[name], s, s).astype(np.float64) for name in ATTACHMENTS}
+        texels = {name: read_texture(self.textures[name], s, s) for name in RSM_LAYOUT.slot_names}
+        fields = RSM_LAYOUT.unpack_slots(texels)
         depth = read_texture(self.textures["depth"], s, s, 1)[..., 0].astype(np.float64)
         rsm = RSM(
-            position=data["position"][..., :3],
-            normal=data["normal"][..., :3],
-            flux_diffuse=data["flux_diffuse"][..., :3],
-            flux_specular=data["flux_specular"][..., :3],
-            specular_axis=data["specular_axis"][..., :3],
-            specular_sharpness=data["position"][..., 3],
+            position=fields["position"],
+            normal=fields["normal"],
+            flux_diffuse=fields["flux_diffuse"],
+            flux_specular=fields["flux_specular"],
+            specular_axis=fields["specular_axis"],
+            specular_sharpness=fields["specular_sharpness"],
         )
-        flux_white = data["flux_diffuse"][..., 3]
+        flux_white = fields["flux_white"]
         return RSMArrays(
             rsm=rsm,
             flux=flux_white[..., None] * np.asarray(self.light.color, np.float64),
             flux_white=flux_white,
-            texel_measure=data["flux_specular"][..., 3],
-            roughness=data["normal"][..., 3],
-            coverage=data["specular_axis"][..., 3] > 0.5,
+            texel_measure=fields["texel_measure"],
+            roughness=fields["roughness"],
+            coverage=fields["coverage"] > 0.5,
             depth=depth,
         )
 
@@ -176,23 +174,24 @@ class RSMView:
 
 
 def _view_constants(light, spec: RSMViewSpec) -> np.ndarray:
-    """(1, 10, 4) float32: the per-view constants of glsl/rsm/rsm.frag.glsl."""
-    constants = np.zeros((1, 10, 4), np.float32)
-    constants[0, 0:3, :3] = spec.view_to_world[:3, :3]
-    constants[0, 3:6, :3] = np.linalg.inv(np.asarray(light.matrix_world, np.float64)[:3, :3])
+    """(rows, 1, 4) float32: the per-view constants of glsl/rsm/rsm.frag.glsl (layouts.RSM_VIEW)."""
+    view_to_world = spec.view_to_world[:3, :3]
+    world_to_local = np.linalg.inv(np.asarray(light.matrix_world, np.float64)[:3, :3])
     axis = np.asarray(light.direction, np.float64)
-    constants[0, 6, :3] = np.asarray(light.position, np.float64)
-    constants[0, 7, :3] = axis / np.linalg.norm(axis)
-    constants[0, 8] = light_params(light)
-    constants[0, 9, :3] = np.asarray(light.color, np.float64)
-    return constants
+    values = {f"view_to_world_row{i}": view_to_world[i][None] for i in range(3)}
+    values.update({f"world_to_local_row{i}": world_to_local[i][None] for i in range(3)})
+    values.update(light_position=np.asarray(light.position, np.float64)[None],
+                  light_axis=(axis / np.linalg.norm(axis))[None],
+                  light_params=np.asarray(light_params(light), np.float64)[None],
+                  light_color=np.asarray(light.color, np.float64)[None])
+    return RSM_VIEW.pack(values, 1)
 
 
 def _render(scene_gpu: SceneGPU, light, spec: RSMViewSpec, size: int, textures: dict):
     import gpu
 
     program = shader()
-    targets = [textures[name] for name in ATTACHMENTS]
+    targets = [textures[name] for name in RSM_LAYOUT.slot_names]
     framebuffer = gpu.types.GPUFrameBuffer(depth_slot=textures["depth"], color_slots=targets)
     constants = texture_from_array(_view_constants(light, spec))
     with framebuffer.bind():
@@ -231,7 +230,7 @@ def render_rsm_views(scene, light_index: int, size: int = 256) -> list[RSMView]:
     for spec in light_view_specs(scene_gpu.scene, light, scene_gpu.bounds):
         if not view_sees_triangles(spec, scene_gpu.positions, scene_gpu.bounds):
             continue
-        textures = {name: gpu.types.GPUTexture((size, size), format="RGBA32F") for name in ATTACHMENTS}
+        textures = {name: gpu.types.GPUTexture((size, size), format="RGBA32F") for name in RSM_LAYOUT.slot_names}
         textures["depth"] = gpu.types.GPUTexture((size, size), format="DEPTH_COMPONENT32F")
         framebuffer, constants = _render(scene_gpu, light, spec, size, textures)
         views.append(RSMView(light_index, light, spec, size, textures, framebuffer, constants))
@@ -247,3 +246,16 @@ def total_flux(views: list[RSMView]) -> dict[str, np.ndarray]:
         totals["flux_diffuse"] += arrays.rsm.flux_diffuse.reshape(-1, 3).sum(axis=0)
         totals["flux_specular"] += arrays.rsm.flux_specular.reshape(-1, 3).sum(axis=0)
     return totals
+
+
+PASS = GPUPass(
+    name="rsm",
+    label="Reflective Shadow Maps",
+    step=LIGHT_PASSES,
+    shaders={"rsm": ShaderSpec(_interface, {"vertex": VERTEX_STAGE, "fragment": "rsm/rsm.frag.glsl"},
+                               code=lambda: {"fragment": RSM_LAYOUT.glsl("outputs_store")
+                                                         + RSM_VIEW.glsl("sampler_load")})},
+    reads=("scene",),
+    writes=(RSM_LAYOUT.name, "rsm_depth"),
+    run=render_rsm_views,
+)

@@ -15,44 +15,33 @@ Never touches bpy.context. Shader compiled once per process; outputs are the cal
 
 from __future__ import annotations
 
-from ..shaders import ShaderInterface, create_shader
-from .gbuffer import ATTACHMENTS as GBUFFER_ATTACHMENTS
+from ..layouts import GBUFFER, SHADING_INPUTS
+from ..shaders import ShaderInterface
+from .contract import GPUPass, ShaderSpec
 from .gpu_util import fullscreen_triangle_batch
-from .vsgl_shading import ShadingGBuffer, camera_uniform
-
-_shaders: dict[str, object] = {}
-_batch = None
+from .vsgl_shading import SHADING_STEP, ShadingGBuffer, camera_uniform
 
 
 def _interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera")],
-        samplers=[("FLOAT_2D", f"gbuffer_{name}") for name in GBUFFER_ATTACHMENTS],
+        samplers=[("FLOAT_2D", f"gbuffer_{name}") for name in GBUFFER.slot_names],
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
-        fragment_outputs=[("VEC4", "diffuse_reflectance"), ("VEC4", "specular_f0")],
+        fragment_outputs=[("VEC4", f"shading_inputs_{name}") for name in SHADING_INPUTS.slot_names],
     )
 
 
 def shader():
-    if "shading_inputs" not in _shaders:
-        _shaders["shading_inputs"] = create_shader(
-            "shading_inputs", _interface(), vertex="fullscreen_triangle.vert.glsl",
-            fragment="shading_inputs/shading_inputs.frag.glsl")
-    return _shaders["shading_inputs"]
+    return PASS.shader()
 
 
 def free_shaders() -> None:
-    global _batch
-    _shaders.clear()
-    _batch = None
+    PASS.free_shaders()
 
 
 def _fullscreen_batch():
-    global _batch
-    if _batch is None:
-        _batch = fullscreen_triangle_batch(shader())
-    return _batch
+    return PASS.resource("fullscreen_triangle", lambda: fullscreen_triangle_batch(shader()))
 
 
 def shading_gbuffer(gbuffer) -> ShadingGBuffer:
@@ -61,9 +50,8 @@ def shading_gbuffer(gbuffer) -> ShadingGBuffer:
     import gpu
 
     width, height = gbuffer.width, gbuffer.height
-    diffuse = gpu.types.GPUTexture((width, height), format="RGBA32F")
-    specular = gpu.types.GPUTexture((width, height), format="RGBA32F")
-    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[diffuse, specular])
+    outputs = {name: gpu.types.GPUTexture((width, height), format="RGBA32F") for name in SHADING_INPUTS.slot_names}
+    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[outputs[name] for name in SHADING_INPUTS.slot_names])
     program = shader()
     batch = _fullscreen_batch()
     with framebuffer.bind():
@@ -73,9 +61,24 @@ def shading_gbuffer(gbuffer) -> ShadingGBuffer:
         gpu.state.blend_set("NONE")
         program.bind()
         program.uniform_float("camera", camera_uniform(gbuffer.camera_vector))
-        for name in GBUFFER_ATTACHMENTS:
+        for name in GBUFFER.slot_names:
             program.uniform_sampler(f"gbuffer_{name}", gbuffer.textures[name])
         batch.draw(program)
     return ShadingGBuffer(position=gbuffer.textures["position"], normal=gbuffer.textures["normal"],
-                          diffuse_reflectance=diffuse, specular_f0=specular, width=width, height=height,
+                          diffuse_reflectance=outputs["diffuse_reflectance"], specular_f0=outputs["specular_f0"],
+                          width=width, height=height,
                           roughness_is_perceptual=True)
+
+
+PASS = GPUPass(
+    name="shading_inputs",
+    label="Shading Inputs",
+    step=SHADING_STEP,
+    shaders={"shading_inputs": ShaderSpec(_interface, {"vertex": "fullscreen_triangle.vert.glsl",
+                                                       "fragment": "shading_inputs/shading_inputs.frag.glsl"},
+                                          code=lambda: {"fragment": GBUFFER.glsl("samplers_load")
+                                                                    + SHADING_INPUTS.glsl("outputs_store")})},
+    reads=(GBUFFER.name,),
+    writes=(SHADING_INPUTS.name,),
+    run=shading_gbuffer,
+)

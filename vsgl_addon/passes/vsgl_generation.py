@@ -38,18 +38,17 @@ The PDF plane is not normalized: the density p = M · probability is the plane's
 its top-level mean (the same number, rounded differently); an all-zero PDF is uniform, as in the
 reference.
 
-Output table (``vsgl_table``, RGBA32F, N x 10, column i = VSGL i), kept on the GPU for shading and
-read back by :meth:`VSGLGeneration.read_table` into the reference's dict of arrays:
-row 0 (mean, variance: 000 app. B.2's shared Gaussian), 1 (diffuse_amplitude, diffuse_sharpness),
-2 (diffuse_axis, kernel_level), 3 (specular_amplitude, specular_sharpness), 4 (specular_axis,
-kernel_center u), 5 (power, kernel_center v), 6 (kernel_texel: the level-0 texel (row, column) the
-warp chose), 7 (column 0: rsm_total_power), 8 (diffuse_mean, diffuse_variance), 9 (specular_mean,
-specular_variance): the positions shading places each lobe at.
+Output table (``vsgl_table``, RGBA32F, N columns, column i = VSGL i; its rows and their
+channels declared once in :data:`vsgl_addon.layouts.VSGL_TABLE`), kept on the GPU for shading and
+read back by :meth:`VSGLGeneration.read_table` into the reference's dict of arrays: the shared
+Gaussian (mean, variance: 000 app. B.2), each lobe's amplitude, axis, sharpness and position (the
+positions shading places each lobe at), the power, the kernel's centre and level, the level-0 texel
+the warp chose (``kernel_texel``, row and column), and once per table ``rsm_total_power``.
 
 RSM input: an :class:`~vsgl_addon.reference.vsgl.RSM` (or mapping) of numpy arrays, uploaded with
-:func:`upload_rsm`, or :class:`RSMTextures` already on the GPU (RGBA32F, S x S):
-``position`` = (y, λs), ``normal`` = (n, -), ``flux_diffuse`` = (Φ Rd, -),
-``flux_specular`` = (Φ Rs, -), ``specular_axis`` = (ξs, -).
+:func:`upload_rsm`, or :class:`RSMTextures` already on the GPU (RGBA32F, S x S, the attachments of
+:data:`vsgl_addon.layouts.RSM`): the position y, normal n, Φ Rd, Φ Rs, and the specular lobe's
+axis ξs and sharpness λs of every texel.
 
 Needs a GPU context (``vsgl_addon.gpu_context.ensure_gpu_context``), main thread.
 """
@@ -60,8 +59,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..layouts import RSM, VSGL_TABLE
 from ..reference import vsgl as reference
-from ..shaders import ShaderInterface, create_shader
+from ..shaders import ShaderInterface
+from .contract import LIGHT_PASSES, GPUPass, ShaderSpec
 from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, texture_from_array
 
 KERNEL_MODES = reference.KERNEL_MODES  # ("modified", "original", "two-vsgl")
@@ -73,8 +74,6 @@ _POSITIONAL_INDEX = {"per-lobe": 0, "shared": 1}
 ATLAS_PLANES = 6
 MOMENT_PLANES = 5
 PDF_PLANE = 5
-#: Rows of the output table (see the module documentation).
-TABLE_ROWS = 10
 #: Largest VSGL count: the table is one texture row wide (and the lattice's fixed point is exact
 #: up to 2^15).
 MAX_VSGL_COUNT = 16384
@@ -87,76 +86,95 @@ _KERNEL_GROUP = (64, 1, 1)
 
 _LEVEL0_SAMPLERS = [("FLOAT_2D", f"level0_plane{plane}") for plane in range(ATLAS_PLANES)]
 
-_shaders: dict[str, object] = {}
-_fullscreen_batch = None
+
+def _texel_moments_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("INT", "rsm_size"), ("INT", "use_custom_pdf")],
+        samplers=[("FLOAT_2D", f"rsm_{name}") for name in RSM.slot_names] + [("FLOAT_2D", "pdf_image")],
+        vertex_inputs=[("VEC2", "position")],
+        varyings=[("VEC2", "uv")],
+        fragment_outputs=[("VEC4", f"level0_out{plane}") for plane in range(ATLAS_PLANES)],
+    )
 
 
-def _interfaces() -> dict[str, tuple[ShaderInterface, dict]]:
-    atlas = ("RGBA32F", "FLOAT_2D", "mip_atlas")
-    return {
-        "texel_moments": (ShaderInterface(
-            push_constants=[("INT", "rsm_size"), ("INT", "use_custom_pdf")],
-            samplers=[("FLOAT_2D", "rsm_position"), ("FLOAT_2D", "rsm_normal"),
-                      ("FLOAT_2D", "rsm_flux_diffuse"), ("FLOAT_2D", "rsm_flux_specular"),
-                      ("FLOAT_2D", "rsm_specular_axis"), ("FLOAT_2D", "pdf_image")],
-            vertex_inputs=[("VEC2", "position")],
-            varyings=[("VEC2", "uv")],
-            fragment_outputs=[("VEC4", f"level0_out{plane}") for plane in range(ATLAS_PLANES)],
-        ), {"vertex": "fullscreen_triangle.vert.glsl",
-            "fragment": "vsgl_generation/texel_moments.frag.glsl"}),
-        "mip_reduce_level1": (ShaderInterface(
-            push_constants=[("IVEC2", "target_origin")],
-            samplers=[("FLOAT_2D", "level0_source")],
-            vertex_inputs=[("VEC2", "position")],
-            varyings=[("VEC2", "uv")],
-            fragment_outputs=[("VEC4", "level1_out")],
-        ), {"vertex": "fullscreen_triangle.vert.glsl",
-            "fragment": "vsgl_generation/mip_reduce_level1.frag.glsl"}),
-        "mip_reduce": (ShaderInterface(
-            push_constants=[("INT", "rsm_size"), ("INT", "level")],
-            samplers=_LEVEL0_SAMPLERS,  # declared for glsl/lib/mip_atlas.glsl, unused
-            images=[atlas],
-            local_group_size=_REDUCE_GROUP,
-        ), {"compute": "vsgl_generation/mip_reduce.comp.glsl"}),
-        "vsgl_kernels": (ShaderInterface(
-            push_constants=[("INT", "rsm_size"), ("INT", "vsgl_count"), ("INT", "kernel_mode"),
-                            ("INT", "positional_distribution"), ("FLOAT", "kernel_k"),
-                            ("IVEC2", "lattice_rotation_fixed")],
-            samplers=_LEVEL0_SAMPLERS,
-            images=[atlas, ("RGBA32F", "FLOAT_2D", "vsgl_table")],
-            local_group_size=_KERNEL_GROUP,
-        ), {"compute": "vsgl_generation/vsgl_kernels.comp.glsl"}),
-    }
+def _mip_reduce_level1_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("IVEC2", "target_origin")],
+        samplers=[("FLOAT_2D", "level0_source")],
+        vertex_inputs=[("VEC2", "position")],
+        varyings=[("VEC2", "uv")],
+        fragment_outputs=[("VEC4", "level1_out")],
+    )
+
+
+def _mip_reduce_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("INT", "rsm_size"), ("INT", "level")],
+        samplers=_LEVEL0_SAMPLERS,  # declared for glsl/lib/mip_atlas.glsl, unused
+        images=[_ATLAS_IMAGE],
+        local_group_size=_REDUCE_GROUP,
+    )
+
+
+def _vsgl_kernels_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("INT", "rsm_size"), ("INT", "vsgl_count"), ("INT", "kernel_mode"),
+                        ("INT", "positional_distribution"), ("FLOAT", "kernel_k"),
+                        ("IVEC2", "lattice_rotation_fixed")],
+        samplers=_LEVEL0_SAMPLERS,
+        images=[_ATLAS_IMAGE, ("RGBA32F", "FLOAT_2D", "vsgl_table")],
+        local_group_size=_KERNEL_GROUP,
+    )
+
+
+_ATLAS_IMAGE = ("RGBA32F", "FLOAT_2D", "mip_atlas")
+_FULLSCREEN = "fullscreen_triangle.vert.glsl"
+
+
+def run(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None, rotation=None,
+        positional_distribution="per-lobe", generation: "VSGLGeneration | None" = None) -> "VSGLGeneration":
+    """The pass's entry: a :class:`VSGLGeneration` (new, or `generation` reused) holding the table of
+    `rsm` on the GPU (see :meth:`VSGLGeneration.run`); free it with ``free()``."""
+    generation = VSGLGeneration() if generation is None else generation
+    generation.run(rsm, vsgl_count, k, kernel, seed, pdf, rotation, positional_distribution)
+    return generation
+
+
+PASS = GPUPass(
+    name="vsgl_generation",
+    label="VSGL Generation",
+    step=LIGHT_PASSES,
+    shaders={
+        "texel_moments": ShaderSpec(_texel_moments_interface,
+                                    {"vertex": _FULLSCREEN, "fragment": "vsgl_generation/texel_moments.frag.glsl"},
+                                    code=lambda: {"fragment": RSM.glsl("samplers_load")}),
+        "mip_reduce_level1": ShaderSpec(_mip_reduce_level1_interface,
+                                        {"vertex": _FULLSCREEN,
+                                         "fragment": "vsgl_generation/mip_reduce_level1.frag.glsl"}),
+        "mip_reduce": ShaderSpec(_mip_reduce_interface, {"compute": "vsgl_generation/mip_reduce.comp.glsl"}),
+        "vsgl_kernels": ShaderSpec(_vsgl_kernels_interface,
+                                   {"compute": "vsgl_generation/vsgl_kernels.comp.glsl"},
+                                   code=lambda: {"compute": VSGL_TABLE.glsl("image_store")}),
+    },
+    reads=(RSM.name,),
+    writes=(VSGL_TABLE.name,),
+    run=run,
+)
 
 
 def shader(name: str):
     """The compiled stage `name` (texel_moments, mip_reduce_level1, mip_reduce, vsgl_kernels),
     compiled on first use and cached for the process."""
-    if name not in _shaders:
-        interface, stages = _interfaces()[name]
-        _shaders[name] = create_shader(f"vsgl_generation_{name}", interface, **stages)
-    return _shaders[name]
+    return PASS.shader(name)
 
 
 def _fullscreen_triangle():
     """The batch of one triangle covering the viewport (glsl/fullscreen_triangle.vert.glsl)."""
-    global _fullscreen_batch
-    if _fullscreen_batch is None:
-        _fullscreen_batch = fullscreen_triangle_batch(shader("texel_moments"))
-    return _fullscreen_batch
+    return PASS.resource("fullscreen_triangle", lambda: fullscreen_triangle_batch(shader("texel_moments")))
 
 
-def compile_shaders() -> None:
-    """Compile every stage now (keeps the ~50 ms JIT per stage out of the first frame)."""
-    for name in _interfaces():
-        shader(name)
-
-
-def free_shaders() -> None:
-    """Drop the cached shaders and batch (Blender frees GPU objects with their last reference)."""
-    global _fullscreen_batch
-    _fullscreen_batch = None
-    _shaders.clear()
+compile_shaders = PASS.compile_shaders
+free_shaders = PASS.free_shaders
 
 
 def _groups(count: int, group: int) -> int:
@@ -169,10 +187,9 @@ def _groups(count: int, group: int) -> int:
 
 @dataclass
 class RSMTextures:
-    """An RSM on the GPU: RGBA32F textures of side ``size`` (a power of two).
-
-    position = (y, λs), normal = (n, -), flux_diffuse = (Φ Rd, -), flux_specular = (Φ Rs, -),
-    specular_axis = (ξs, -). Background texels (no flux) may hold anything.
+    """An RSM on the GPU: RGBA32F textures of side ``size`` (a power of two), one per attachment of
+    :data:`vsgl_addon.layouts.RSM` (which declares their channels). Background texels (no flux) may
+    hold anything.
     """
 
     size: int
@@ -181,14 +198,6 @@ class RSMTextures:
     flux_diffuse: object
     flux_specular: object
     specular_axis: object
-
-
-def _pad4(array: np.ndarray, fourth=None) -> np.ndarray:
-    out = np.zeros(array.shape[:2] + (4,), dtype=np.float32)
-    out[..., :3] = array
-    if fourth is not None:
-        out[..., 3] = fourth
-    return out
 
 
 def upload_rsm(rsm) -> RSMTextures:
@@ -203,15 +212,12 @@ def upload_rsm(rsm) -> RSMTextures:
     lit = reference.luminance(rsm.flux_diffuse + rsm.flux_specular) > 0.0
     if not np.all(np.isfinite(rsm.position[lit])):
         raise ValueError("position of lit texels must be finite")
+    fields = {"position": rsm.position, "specular_sharpness": sharpness, "normal": rsm.normal,
+              "flux_diffuse": rsm.flux_diffuse, "flux_specular": rsm.flux_specular,
+              "specular_axis": rsm.specular_axis}
     with np.errstate(over="ignore", invalid="ignore"):
-        return RSMTextures(
-            size=rsm.size,
-            position=texture_from_array(_pad4(rsm.position, sharpness)),
-            normal=texture_from_array(_pad4(rsm.normal)),
-            flux_diffuse=texture_from_array(_pad4(rsm.flux_diffuse)),
-            flux_specular=texture_from_array(_pad4(rsm.flux_specular)),
-            specular_axis=texture_from_array(_pad4(rsm.specular_axis)),
-        )
+        texels = RSM.pack_slots(fields, (rsm.size, rsm.size))
+    return RSMTextures(size=rsm.size, **{name: texture_from_array(texels[name]) for name in RSM.slot_names})
 
 
 def upload_pdf(pdf, size: int):
@@ -354,11 +360,8 @@ class VSGLGeneration:
                 moments.bind()
                 set_uniform(moments.uniform_int, "rsm_size", size)
                 set_uniform(moments.uniform_int, "use_custom_pdf", 0 if pdf_texture is None else 1)
-                moments.uniform_sampler("rsm_position", rsm_textures.position)
-                moments.uniform_sampler("rsm_normal", rsm_textures.normal)
-                moments.uniform_sampler("rsm_flux_diffuse", rsm_textures.flux_diffuse)
-                moments.uniform_sampler("rsm_flux_specular", rsm_textures.flux_specular)
-                moments.uniform_sampler("rsm_specular_axis", rsm_textures.specular_axis)
+                for name in RSM.slot_names:
+                    moments.uniform_sampler(f"rsm_{name}", getattr(rsm_textures, name))
                 set_uniform(moments.uniform_sampler, "pdf_image",
                             pdf_texture if pdf_texture is not None else rsm_textures.flux_diffuse)
                 batch.draw(moments)
@@ -407,7 +410,7 @@ class VSGLGeneration:
             raise RuntimeError("build_mip_atlas() first")
         count, k = _check_arguments(vsgl_count, k, kernel, positional_distribution)
         if self.table is None or self.table_width != count:
-            self.table = gpu.types.GPUTexture((count, TABLE_ROWS), format="RGBA32F")
+            self.table = gpu.types.GPUTexture((count, len(VSGL_TABLE.slots)), format="RGBA32F")
             self.table_width = count
         self.vsgl_count = count
         self.positional_distribution = positional_distribution
@@ -428,27 +431,8 @@ class VSGLGeneration:
     def read_table(self) -> dict:
         """The table as the reference's dict of float64 arrays (reading back finishes the GPU)."""
         count = self.vsgl_count
-        table = read_texture(self.table, self.table_width, TABLE_ROWS).astype(np.float64)
-        rows = table[:, :count]
-        return {
-            "mean": rows[0, :, :3].copy(),
-            "variance": rows[0, :, 3].copy(),
-            "diffuse_mean": rows[8, :, :3].copy(),
-            "diffuse_variance": rows[8, :, 3].copy(),
-            "specular_mean": rows[9, :, :3].copy(),
-            "specular_variance": rows[9, :, 3].copy(),
-            "diffuse_amplitude": rows[1, :, :3].copy(),
-            "diffuse_axis": rows[2, :, :3].copy(),
-            "diffuse_sharpness": rows[1, :, 3].copy(),
-            "specular_amplitude": rows[3, :, :3].copy(),
-            "specular_axis": rows[4, :, :3].copy(),
-            "specular_sharpness": rows[3, :, 3].copy(),
-            "power": rows[5, :, :3].copy(),
-            "kernel_center": np.stack([rows[4, :, 3], rows[5, :, 3]], axis=-1),
-            "kernel_level": rows[2, :, 3].copy(),
-            "kernel_texel": rows[6, :, :2].astype(np.int64),
-            "rsm_total_power": table[7, 0, :3].copy(),
-        }
+        table = read_texture(self.table, self.table_width, len(VSGL_TABLE.slots)).astype(np.float64)
+        return VSGL_TABLE.unpack(table, count)
 
     def read_mip_chains(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """The mip chains as the reference's ``RSMMipmaps`` holds them (float32 values):

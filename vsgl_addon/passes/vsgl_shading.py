@@ -8,7 +8,9 @@ VSGLs of every light (000 app. C; formulas.md §6). Twin of ``vsgl_addon/referen
     diffuse, specular = shading.read()     # (h, w, 4) float32, row 0 = bottom
     shading.free()
 
-**Input G-buffer** (:class:`ShadingGBuffer`, RGBA32F textures of one size, row 0 = bottom):
+**Input G-buffer** (:class:`ShadingGBuffer`, RGBA32F textures of one size, row 0 = bottom; the
+``position`` and ``normal`` attachments of :data:`vsgl_addon.layouts.GBUFFER` and the textures of
+:data:`vsgl_addon.layouts.SHADING_INPUTS`, where the channels are declared):
 
 =======================  ===================================  =================================
 texture                  .rgb                                 .a
@@ -27,7 +29,7 @@ The ``position`` and ``normal`` textures of :mod:`vsgl_addon.passes.gbuffer` fit
 position)), (x, y, z, 0) = unit direction towards the camera (orthographic), as
 ``GBuffer.camera_vector``.
 
-**VSGLs**: one or more :class:`VSGLTable` (the RGBA32F N x 10 table texture of
+**VSGLs**: one or more :class:`VSGLTable` (the RGBA32F table texture of
 :class:`~vsgl_addon.passes.vsgl_generation.VSGLGeneration` and its count, read directly on the GPU;
 :func:`upload_vsgl_table` makes one from a numpy dict). Tables are drawn one after the other and
 added by blending (float32 adds).
@@ -50,66 +52,73 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..layouts import GBUFFER, SHADING_INPUTS, VSGL_TABLE
 from ..reference.vsgl_shading import DIFFUSE_MODES
-from ..shaders import ShaderInterface, create_shader
+from ..shaders import ShaderInterface
+from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, texture_from_array
-from .vsgl_generation import MAX_VSGL_COUNT, TABLE_ROWS
+from .vsgl_generation import MAX_VSGL_COUNT
 
 _MODE_INDEX = {"cosine": 0, "sg-convolution": 1}
-_shaders: dict[str, object] = {}
-_batch = None
 
 
 def _interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("INT", "vsgl_count"), ("INT", "accumulate"),
                         ("INT", "roughness_is_perceptual"), ("INT", "shared_positions")],
-        samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal"),
-                  ("FLOAT_2D", "gbuffer_diffuse"), ("FLOAT_2D", "gbuffer_specular"),
-                  ("FLOAT_2D", "vsgl_table")],
+        samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal")]
+        + [("FLOAT_2D", f"shading_inputs_{name}") for name in SHADING_INPUTS.slot_names]
+        + [("FLOAT_2D", "vsgl_table")],
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
         fragment_outputs=[("VEC4", "indirect_diffuse"), ("VEC4", "indirect_specular")],
     )
 
 
+def _shader_spec(diffuse_mode: str) -> ShaderSpec:
+    return ShaderSpec(_interface, {"vertex": "fullscreen_triangle.vert.glsl",
+                                   "fragment": "vsgl_shading/vsgl_shading.frag.glsl"},
+                      defines=lambda: {"VSGL_DIFFUSE_MODE": _MODE_INDEX[diffuse_mode]},
+                      code=lambda: {"fragment": GBUFFER.glsl() + SHADING_INPUTS.glsl("samplers_load")
+                                                + VSGL_TABLE.glsl("sampler_load")})
+
+
+def run(gbuffer: "ShadingGBuffer", camera, tables, diffuse_mode: str = "cosine",
+        shading: "VSGLShading | None" = None) -> "VSGLShading":
+    """The pass's entry: a :class:`VSGLShading` (new, or `shading` reused) holding the indirect
+    images of `gbuffer` (see :meth:`VSGLShading.run`); free it with ``free()``."""
+    shading = VSGLShading() if shading is None else shading
+    shading.run(gbuffer, camera, tables, diffuse_mode)
+    return shading
+
+
+#: Shading inputs and VSGL shading are timed together, as the frame always ran them.
+SHADING_STEP = Step("vsgl_shading", "VSGL Shading")
+
+PASS = GPUPass(
+    name="vsgl_shading",
+    label="VSGL Shading",
+    step=SHADING_STEP,
+    shaders={mode: _shader_spec(mode) for mode in _MODE_INDEX},
+    reads=(GBUFFER.name, SHADING_INPUTS.name, VSGL_TABLE.name),
+    writes=("indirect",),
+    run=run,
+)
+
+
 def shader(diffuse_mode: str = "cosine"):
     """The shading shader for `diffuse_mode`, compiled on first use and cached for the process."""
     if diffuse_mode not in _MODE_INDEX:
         raise ValueError(f"diffuse_mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
-    if diffuse_mode not in _shaders:
-        _shaders[diffuse_mode] = create_shader(
-            f"vsgl_shading_{diffuse_mode.replace('-', '_')}", _interface(),
-            vertex="fullscreen_triangle.vert.glsl", fragment="vsgl_shading/vsgl_shading.frag.glsl",
-            defines={"VSGL_DIFFUSE_MODE": _MODE_INDEX[diffuse_mode]})
-    return _shaders[diffuse_mode]
+    return PASS.shader(diffuse_mode)
 
 
-def compile_shaders() -> None:
-    for mode in _MODE_INDEX:
-        shader(mode)
-
-
-def free_shaders() -> None:
-    global _batch
-    _batch = None
-    _shaders.clear()
+compile_shaders = PASS.compile_shaders
+free_shaders = PASS.free_shaders
 
 
 def _fullscreen_triangle():
-    global _batch
-    if _batch is None:
-        _batch = fullscreen_triangle_batch(shader("cosine"))
-    return _batch
-
-
-def _rgba(array, fourth=None) -> np.ndarray:
-    array = np.asarray(array, dtype=np.float64)
-    out = np.zeros(array.shape[:2] + (4,), dtype=np.float32)
-    out[..., : min(array.shape[-1], 4)] = array[..., :4]
-    if fourth is not None:
-        out[..., 3] = fourth
-    return out
+    return PASS.resource("fullscreen_triangle", lambda: fullscreen_triangle_batch(shader("cosine")))
 
 
 @dataclass
@@ -124,6 +133,11 @@ class ShadingGBuffer:
     height: int
     roughness_is_perceptual: bool = False
 
+    def free(self) -> None:
+        """Drop the references to the textures (Blender frees each with its last reference; the
+        camera G-buffer keeps its own)."""
+        self.position = self.normal = self.diffuse_reflectance = self.specular_f0 = None
+
 
 def upload_gbuffer(position, coverage, normal, roughness, diffuse_reflectance, specular_f0,
                    roughness_is_perceptual=False) -> ShadingGBuffer:
@@ -131,17 +145,20 @@ def upload_gbuffer(position, coverage, normal, roughness, diffuse_reflectance, s
     Its textures are freed with the object (Blender frees a GPUTexture with its last reference)."""
     position = np.asarray(position)
     height, width = position.shape[:2]
+    gbuffer = GBUFFER.pack_slots({"position": position, "coverage": coverage, "normal": normal,
+                                  "roughness": roughness}, (height, width))
+    inputs = SHADING_INPUTS.pack_slots({"diffuse_reflectance": diffuse_reflectance, "specular_f0": specular_f0},
+                                       (height, width))
     return ShadingGBuffer(
-        position=texture_from_array(_rgba(position, coverage)),
-        normal=texture_from_array(_rgba(normal, roughness)),
-        diffuse_reflectance=texture_from_array(_rgba(diffuse_reflectance)),
-        specular_f0=texture_from_array(_rgba(specular_f0)), width=width, height=height,
+        position=texture_from_array(gbuffer["position"]), normal=texture_from_array(gbuffer["normal"]),
+        diffuse_reflectance=texture_from_array(inputs["diffuse_reflectance"]),
+        specular_f0=texture_from_array(inputs["specular_f0"]), width=width, height=height,
         roughness_is_perceptual=roughness_is_perceptual)
 
 
 @dataclass
 class VSGLTable:
-    """A VSGL table texture (RGBA32F, at least ``count`` x 10, vsgl_generation's layout).
+    """A VSGL table texture (RGBA32F, at least ``count`` columns, :data:`~vsgl_addon.layouts.VSGL_TABLE`).
 
     ``shared_positions``: both lobes of every VSGL sit at the same position (the paper's shared
     positional distribution, 000 app. B.2), so shading computes the position terms once per VSGL.
@@ -161,26 +178,10 @@ class VSGLTable:
 
 
 def table_array(vsgls) -> np.ndarray:
-    """The (10, N, 4) float32 table of a numpy VSGL dict (rows 1-4 and 8-9 as vsgl_generation writes
-    them, and row 0 when the dict has the shared ``mean``/``variance``)."""
+    """The (rows, N, 4) float32 table of a numpy VSGL dict, packed by the declared layout
+    (:data:`vsgl_addon.layouts.VSGL_TABLE`); fields the dict lacks stay 0."""
     count = len(np.asarray(vsgls["diffuse_variance"]).reshape(-1))
-    table = np.zeros((TABLE_ROWS, max(count, 1), 4), dtype=np.float32)
-    if count == 0:
-        return table
-    if "mean" in vsgls:
-        table[0, :count, :3] = vsgls["mean"]
-        table[0, :count, 3] = vsgls["variance"]
-    table[8, :count, :3] = vsgls["diffuse_mean"]
-    table[8, :count, 3] = vsgls["diffuse_variance"]
-    table[9, :count, :3] = vsgls["specular_mean"]
-    table[9, :count, 3] = vsgls["specular_variance"]
-    table[1, :count, :3] = vsgls["diffuse_amplitude"]
-    table[1, :count, 3] = vsgls["diffuse_sharpness"]
-    table[2, :count, :3] = vsgls["diffuse_axis"]
-    table[3, :count, :3] = vsgls["specular_amplitude"]
-    table[3, :count, 3] = vsgls["specular_sharpness"]
-    table[4, :count, :3] = vsgls["specular_axis"]
-    return table
+    return VSGL_TABLE.pack(vsgls, count)
 
 
 def upload_vsgl_table(vsgls) -> VSGLTable:
@@ -246,7 +247,7 @@ class VSGLShading:
         self._targets(width, height)
         if not tables:  # still one draw: coverage in alpha, zero radiance
             if self._empty_table is None:
-                self._empty_table = texture_from_array(np.zeros((TABLE_ROWS, 1, 4), np.float32))
+                self._empty_table = texture_from_array(np.zeros((len(VSGL_TABLE.slots), 1, 4), np.float32))
             tables = [VSGLTable(self._empty_table, 0)]
         saved = (gpu.state.blend_get(), gpu.state.depth_test_get(), gpu.state.depth_mask_get(),
                  tuple(gpu.state.viewport_get()))
@@ -261,8 +262,8 @@ class VSGLShading:
                          1 if gbuffer.roughness_is_perceptual else 0)
                 program.uniform_sampler("gbuffer_position", gbuffer.position)
                 program.uniform_sampler("gbuffer_normal", gbuffer.normal)
-                program.uniform_sampler("gbuffer_diffuse", gbuffer.diffuse_reflectance)
-                program.uniform_sampler("gbuffer_specular", gbuffer.specular_f0)
+                program.uniform_sampler("shading_inputs_diffuse_reflectance", gbuffer.diffuse_reflectance)
+                program.uniform_sampler("shading_inputs_specular_f0", gbuffer.specular_f0)
                 for index, table in enumerate(tables):
                     # The first table writes, the others add (ONE, ONE), alpha 0.
                     gpu.state.blend_set("NONE" if index == 0 else "ADDITIVE_PREMULT")
