@@ -27,6 +27,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from gpu_timing import median_seconds  # noqa: E402  (benchmarks/, this script's folder)
+
 
 def _rsm(size, seed=0):
     """A smooth lit floor with a one-texel checker on top (a high-frequency PDF)."""
@@ -48,12 +50,7 @@ def _rsm(size, seed=0):
 
 
 def _median_ms(function, repeats):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
+    return 1e3 * median_seconds(function, repeats)
 
 
 def measure(vg, textures, count, repeats):

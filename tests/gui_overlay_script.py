@@ -61,12 +61,9 @@ def refined_and_drawn():
     cache = overlay.cache
     _window, _area, _region, space = viewport()
     key = space.region_3d.as_pointer()
-    view = cache.views.get(key)
-    request = cache.requests.get(key)
     if cache.error:
         raise RuntimeError(cache.error)
-    return (view is not None and request is not None and view.level == overlay.REFINED
-            and view.scene_version == cache.scene_version and overlay._same_view(view.request, request))
+    return cache.is_current(key) and cache.views[key].level == overlay.REFINED
 
 
 def setup():

@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The viewport overlay in the bpy module: cache logic, drawing, lifecycle (vsgl_addon/overlay.py).
+"""The viewport overlay in the bpy module: the cache on the real passes, drawing, lifecycle
+(vsgl_addon/overlay_cache.py, vsgl_addon/overlay.py; the scheduling alone: test_overlay_cache.py).
 
 No window here, so the draw callback's parts are driven directly: request_view() (what the
 callback records), step() (what the timer does: one unit of work per call), draw() into an
@@ -17,10 +18,11 @@ import numpy as np
 import pytest
 
 import vsgl_addon
-from vsgl_addon import overlay
-from vsgl_addon.overlay import COARSE, REFINE_DELAY, REFINED, OverlayCache, band_projection, overlay_size
+from vsgl_addon import overlay, overlay_cache
+from vsgl_addon.overlay_cache import (COARSE, REFINE_DELAY, REFINED, OverlayCache, band_projection,
+                                      overlay_size)
 from vsgl_addon.scene import extract_scene
-from vsgl_addon.settings import VSGLSettings
+from vsgl_addon.settings import OVERLAY_DISPLAYS, VSGLSettings
 
 pytestmark = pytest.mark.gpu
 
@@ -45,7 +47,7 @@ def demo():
 @pytest.fixture(autouse=True)
 def one_band(monkeypatch):
     """One refined image per step (the band-by-band refinement has its own test)."""
-    monkeypatch.setattr(overlay, "STEP_BUDGET", 1e9)
+    monkeypatch.setattr(overlay_cache, "STEP_BUDGET", 1e9)
 
 
 def camera_view(scene):
@@ -68,7 +70,7 @@ def run_until_idle(cache, settings=SETTINGS, scale=0.5, now=100.0, limit=20):
     raise AssertionError(f"still busy after {limit} steps: {done}")
 
 
-def draw_to_array(cache, key, mode="INDIRECT", scale=1.0, size=REGION):
+def draw_to_array(cache, key, display="indirect", scale=1.0, size=REGION):
     import gpu
 
     offscreen = gpu.types.GPUOffScreen(*size, format="RGBA32F")
@@ -77,7 +79,7 @@ def draw_to_array(cache, key, mode="INDIRECT", scale=1.0, size=REGION):
             framebuffer = gpu.state.active_framebuffer_get()
             framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0))
             gpu.state.viewport_set(0, 0, *size)
-            drawn = cache.draw(key, mode, scale)
+            drawn = cache.draw(key, display, scale)
             buffer = framebuffer.read_color(0, 0, size[0], size[1], 4, 0, "FLOAT")
         buffer.dimensions = size[0] * size[1] * 4
         return drawn, np.array(buffer, np.float32).reshape(size[1], size[0], 4)
@@ -157,19 +159,19 @@ def test_draw_shows_the_red_bounce_and_follows_mode_and_intensity(demo):
         view, projection = camera_view(demo)
         cache.request_view(7, view, projection, REGION, now=0.0)
         run_until_idle(cache, now=10.0)
-        drawn, indirect = draw_to_array(cache, 7, "INDIRECT")
+        drawn, indirect = draw_to_array(cache, 7, "indirect")
         assert drawn
         covered = indirect[..., 3] > 0.5
         assert covered.mean() > 0.5  # the camera sees walls and floor almost everywhere
         mean = indirect[covered][:, :3].mean(axis=0)
         assert mean[0] > 1.5 * mean[2] > 0  # the bounce off a red floor is red
-        _, brighter = draw_to_array(cache, 7, "INDIRECT", scale=4.0)
+        _, brighter = draw_to_array(cache, 7, "indirect", scale=4.0)
         np.testing.assert_allclose(brighter[covered][:, :3], 4.0 * indirect[covered][:, :3], rtol=1e-4, atol=1e-6)
-        _, diffuse = draw_to_array(cache, 7, "INDIRECT_DIFFUSE")
-        _, specular = draw_to_array(cache, 7, "INDIRECT_SPECULAR")
+        _, diffuse = draw_to_array(cache, 7, "indirect_diffuse")
+        _, specular = draw_to_array(cache, 7, "indirect_specular")
         np.testing.assert_allclose(diffuse[..., :3] + specular[..., :3], indirect[..., :3], rtol=1e-4, atol=1e-6)
-        _, direct = draw_to_array(cache, 7, "DIRECT")
-        _, combined = draw_to_array(cache, 7, "COMBINED")
+        _, direct = draw_to_array(cache, 7, "direct")
+        _, combined = draw_to_array(cache, 7, "combined")
         np.testing.assert_allclose(combined[..., :3], direct[..., :3] + indirect[..., :3], rtol=1e-4, atol=1e-5)
         assert direct[covered][:, :3].max() > indirect[covered][:, :3].max()  # the spot's own light
         assert not draw_to_array(cache, 99)[0]  # a viewport with no images yet draws nothing
@@ -205,7 +207,7 @@ def test_200_redraws_with_parameters_changing(demo):
     settings.show_overlay = True
     view, projection = camera_view(scene)
     spot = bpy.data.objects["Spot"]
-    modes = list(overlay.MODE_INDEX)
+    modes = OVERLAY_DISPLAYS.identifiers
     offscreen = gpu.types.GPUOffScreen(*REGION, format="RGBA32F")
     done = []
     try:
@@ -231,7 +233,8 @@ def test_200_redraws_with_parameters_changing(demo):
             assert interval > 0
             done.append(overlay.cache.statistics.get("level"))
             with offscreen.bind():
-                overlay.cache.draw(1, settings.overlay_mode, *overlay._view_transform(scene))
+                display = OVERLAY_DISPLAYS.identified(settings.overlay_mode).name
+                overlay.cache.draw(1, display, *overlay._view_transform(scene))
             assert overlay.cache.error is None, overlay.cache.error
         assert {"lights", COARSE} <= set(done)
         assert overlay.cache.updates >= 100  # the timer did real work, not just nothing 200 times
@@ -310,7 +313,7 @@ def test_orthographic_views_are_shaded_too(demo):
     try:
         cache.request_view(3, ortho.view_matrix(), ortho.projection_matrix(), REGION, now=0.0)
         assert run_until_idle(cache, now=10.0) == ["lights", COARSE, REFINED]
-        drawn, image = draw_to_array(cache, 3, "INDIRECT")
+        drawn, image = draw_to_array(cache, 3, "indirect")
         covered = image[..., 3] > 0.5
         assert drawn and covered.mean() > 0.3
         mean = image[covered][:, :3].mean(axis=0)
@@ -344,18 +347,18 @@ def test_refined_image_in_bands_matches_one_band(demo, monkeypatch):
         single.request_view(1, view, projection, REGION, now=0.0)
         run_until_idle(single, now=10.0)
         assert single.statistics["bands"] == 1
-        monkeypatch.setattr(overlay, "STEP_BUDGET", 1e-4)  # a few rows per step
+        monkeypatch.setattr(overlay_cache, "STEP_BUDGET", 1e-4)  # a few rows per step
         banded.request_view(1, view, projection, REGION, now=0.0)
         done = run_until_idle(banded, now=10.0, limit=200)
         assert done[:2] == ["lights", COARSE] and set(done[2:]) == {REFINED} and len(done) > 4
         assert banded.statistics["bands"] == len(done) - 2
         assert banded.views[1].size == single.views[1].size == (80, 60)
         assert [entry["level"] for entry in banded.history][2:-1] == ["refining"] * (len(done) - 3)
-        for mode in ("INDIRECT", "DIRECT"):
-            _, a = draw_to_array(single, 1, mode, size=(80, 60))
-            _, b = draw_to_array(banded, 1, mode, size=(80, 60))
+        for display in ("indirect", "direct"):
+            _, a = draw_to_array(single, 1, display, size=(80, 60))
+            _, b = draw_to_array(banded, 1, display, size=(80, 60))
             close = np.isclose(a, b, rtol=1e-3, atol=1e-4).all(axis=-1)
-            assert close.mean() > 0.99, (mode, close.mean())
+            assert close.mean() > 0.99, (display, close.mean())
     finally:
         single.free()
         banded.free()

@@ -17,7 +17,7 @@ import pytest
 import vsgl_addon
 from vsgl_addon import engine, overlay, ui
 from vsgl_addon.operators import settings_image_name
-from vsgl_addon.settings import VSGLSettings
+from vsgl_addon.settings import KERNELS, OVERLAY_DISPLAYS, POSITIONS, VSGLSettings
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -26,9 +26,11 @@ class RecordingLayout:
     """Stands in for bpy.types.UILayout: records every prop, label and operator drawn."""
 
     def __init__(self, record=None):
-        self.record = record if record is not None else {"props": [], "labels": [], "operators": []}
+        self.record = record if record is not None else {"props": [], "labels": [], "operators": [], "layouts": []}
+        self.record["layouts"].append(self)
         self.use_property_split = self.use_property_decorate = False
         self.active = self.enabled = True
+        self.props = []  # drawn into this layout itself
 
     def _child(self, *args, **kwargs):
         return RecordingLayout(self.record)
@@ -41,6 +43,7 @@ class RecordingLayout:
     def prop(self, data, name, **kwargs):
         assert name in data.bl_rna.properties, name
         self.record["props"].append(name)
+        self.props.append(name)
 
     def label(self, text="", **kwargs):
         self.record["labels"].append(text)
@@ -91,6 +94,28 @@ def test_sidebar_tab_and_render_properties_show_every_setting(registered):
     assert operators == {"vsgl.render_preview", "vsgl.render_to_file"}
 
 
+def test_pass_settings_a_kernel_ignores_are_greyed_out(registered):
+    scene = registered
+    for kernel in KERNELS:
+        scene.vsgl.kernel = kernel.identifier
+        layouts = draw(ui.VIEW3D_PT_vsgl_passes, scene)["layouts"]
+        greyed = {name for layout in layouts if not layout.enabled for name in layout.props}
+        assert greyed == set(kernel.ignores), kernel.identifier
+    assert KERNELS.identified("TWO_VSGL").ignores  # the case that greys something
+
+
+def test_enum_properties_are_the_settings_tables(registered):
+    properties = registered.vsgl.bl_rna.properties
+    for prop, table in (("kernel", KERNELS), ("positional_distribution", POSITIONS),
+                        ("overlay_mode", OVERLAY_DISPLAYS)):
+        items = [(item.identifier, item.name, item.description, item.value) for item in properties[prop].enum_items]
+        assert items == [(choice.identifier, choice.label, choice.description, number)
+                         for number, choice in enumerate(table)], prop
+    operator = bpy.ops.vsgl.render_preview.get_rna_type().properties["pass_name"]
+    assert [item.identifier for item in operator.enum_items] == ["COMBINED", "INDIRECT", "INDIRECT_DIFFUSE",
+                                                                 "INDIRECT_SPECULAR", "DIRECT"]
+
+
 def draw_header(cls, scene):
     layout = RecordingLayout()
     cls.draw_header(SimpleNamespace(layout=layout), SimpleNamespace(scene=scene))
@@ -132,7 +157,7 @@ def test_overlay_properties_defaults_ranges_tooltips(registered):
     properties = settings.bl_rna.properties
     assert settings.show_overlay is False
     assert settings.overlay_mode == "INDIRECT"
-    assert {item.identifier for item in properties["overlay_mode"].enum_items} == set(overlay.MODE_INDEX)
+    assert {item.identifier for item in properties["overlay_mode"].enum_items} == set(OVERLAY_DISPLAYS.identifiers)
     scale = properties["overlay_resolution_scale"]
     assert (scale.default, scale.hard_min, scale.hard_max) == pytest.approx((0.25, 0.02, 1.0))
     intensity = properties["overlay_intensity"]

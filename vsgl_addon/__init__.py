@@ -17,7 +17,7 @@ What the add-on adds to Blender is declared in one place, :func:`_registry`:
   ``SpaceView3D.draw_handler_add``, which returns a handle): install() is called last in register(),
   uninstall() first in unregister(); uninstall() must be harmless when nothing is installed.
 
-Later parts add entries there.
+A new pass's panel, handler or timer is one more entry there.
 :func:`unregister` removes exactly what is present, so it also cleans up after a register() that
 failed part-way, and calling it twice is harmless.
 """

@@ -12,7 +12,7 @@ import tomllib
 from pathlib import Path
 
 from .gpu_context import GPUContextError
-from .settings import KERNEL_FROM_PROPERTY, POSITIONAL_FROM_PROPERTY
+from .settings import KERNELS, POSITIONS
 
 MANIFEST = Path(__file__).resolve().parent.parent / "blender_manifest.toml"
 
@@ -179,9 +179,8 @@ def _command_render(arguments) -> int:
         # The loaded file is never saved: these changes last for this run only.
         scene.vsgl.vsgl_count, scene.vsgl.k, scene.vsgl.rsm_size, scene.vsgl.seed = (
             settings.vsgl_count, settings.k, settings.rsm_size, settings.seed)
-        scene.vsgl.kernel = {v: k for k, v in KERNEL_FROM_PROPERTY.items()}[settings.kernel]
-        scene.vsgl.positional_distribution = {
-            v: k for k, v in POSITIONAL_FROM_PROPERTY.items()}[settings.positional_distribution]
+        scene.vsgl.kernel = KERNELS.named(settings.kernel).identifier
+        scene.vsgl.positional_distribution = POSITIONS.named(settings.positional_distribution).identifier
         scene.render.engine = ENGINE_ID
         if arguments.resolution:
             scene.render.resolution_x, scene.render.resolution_y = arguments.resolution
@@ -240,7 +239,6 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--resolution", type=_resolution, metavar="WxH", help="default: the scene's (480x360)")
     demo.set_defaults(run=_command_demo)
 
-    from .settings import KERNEL_MODES, POSITIONAL_DISTRIBUTIONS
 
     positional_help = ("where each VSGL's lobes sit: per-lobe (default; each lobe's own power centroid) or "
                        "shared (000 app. B.2 as written)")
@@ -253,10 +251,10 @@ def build_parser() -> argparse.ArgumentParser:
     vsgl.add_argument("--out", required=True, metavar="VSGLS.npz")
     vsgl.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per light, 1 to 4096")
     vsgl.add_argument("--k", type=_float, metavar="K", help="kernel size factor K, 0.25 to 16 (000 Eq. 3)")
-    vsgl.add_argument("--kernel", choices=KERNEL_MODES)
+    vsgl.add_argument("--kernel", choices=KERNELS.names)
     vsgl.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
     vsgl.add_argument("--seed", type=_positive_int, metavar="S")
-    vsgl.add_argument("--positional-distribution", choices=POSITIONAL_DISTRIBUTIONS, help=positional_help)
+    vsgl.add_argument("--positional-distribution", choices=POSITIONS.names, help=positional_help)
     vsgl.set_defaults(run=_command_vsgl)
 
     render = commands.add_parser(
@@ -269,10 +267,10 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--resolution", type=_resolution, metavar="WxH")
     render.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per light, 1 to 4096")
     render.add_argument("--k", type=_float, metavar="K", help="kernel size factor K, 0.25 to 16 (000 Eq. 3)")
-    render.add_argument("--kernel", choices=KERNEL_MODES)
+    render.add_argument("--kernel", choices=KERNELS.names)
     render.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
     render.add_argument("--seed", type=_positive_int, metavar="S")
-    render.add_argument("--positional-distribution", choices=POSITIONAL_DISTRIBUTIONS, help=positional_help)
+    render.add_argument("--positional-distribution", choices=POSITIONS.names, help=positional_help)
     render.add_argument("--frame", type=int, metavar="F")
     render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")
     render.set_defaults(run=_command_render)

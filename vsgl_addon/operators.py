@@ -22,25 +22,16 @@ import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from .engine import render_size
-from .settings import VSGLSettings
+from .settings import KERNELS, LOOKDEV_PASSES, VSGLSettings
 
-PREVIEW_PASSES = (
-    ("COMBINED", "Combined", "Direct plus one-bounce indirect light"),
-    ("INDIRECT", "Indirect", "One-bounce indirect light only (diffuse + specular)"),
-    ("INDIRECT_DIFFUSE", "Indirect Diffuse", "Diffuse part of the indirect light"),
-    ("INDIRECT_SPECULAR", "Indirect Specular", "Glossy part of the indirect light"),
-    ("DIRECT", "Direct", "Direct light only"),
-)
-_PASS_ATTRIBUTE = {"COMBINED": "combined", "INDIRECT": "indirect", "INDIRECT_DIFFUSE": "indirect_diffuse",
-                   "INDIRECT_SPECULAR": "indirect_specular", "DIRECT": "direct"}
-_PASS_LABEL = {identifier: label for identifier, label, _ in PREVIEW_PASSES}
-_KERNEL_LABEL = {"modified": "Modified", "original": "Original", "two-vsgl": "TwoVSGL"}
+# The operators' "Pass" choice (settings.LOOKDEV_PASSES); an operator property, not stored in scenes.
+PREVIEW_PASSES = tuple((choice.identifier, choice.label, choice.description) for choice in LOOKDEV_PASSES)
 
 
 def settings_image_name(settings: VSGLSettings, pass_name: str = "COMBINED") -> str:
     """The image name of a preview: its parameters, so that A/B images are told apart."""
-    return (f"VSGL N{settings.vsgl_count} K{settings.k:g} {_KERNEL_LABEL[settings.kernel]} "
-            f"RSM{settings.rsm_size} Seed{settings.seed} {_PASS_LABEL[pass_name]}")
+    return (f"VSGL N{settings.vsgl_count} K{settings.k:g} {KERNELS.named(settings.kernel).tag} "
+            f"RSM{settings.rsm_size} Seed{settings.seed} {LOOKDEV_PASSES.identified(pass_name).label}")
 
 
 def _ensure_gpu() -> None:
@@ -69,7 +60,7 @@ def render_camera(scene, depsgraph, width: int, height: int):
 
 
 def _rgba(images, pass_name: str) -> np.ndarray:
-    rgb = getattr(images, _PASS_ATTRIBUTE[pass_name])
+    rgb = getattr(images, LOOKDEV_PASSES.identified(pass_name).name)
     return np.concatenate([rgb, images.coverage[..., None]], axis=-1).astype(np.float32)
 
 

@@ -10,73 +10,19 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 from bpy.types import PropertyGroup
 
-from .settings import K_RANGE, RSM_SIZE_RANGE, VSGL_COUNT_RANGE
-
-# Identifiers are stored in .blend files: rename the labels freely, never the identifiers.
-KERNEL_ITEMS = (
-    (
-        "MODIFIED",
-        "Modified (Eq. 3)",
-        "The paper's method (000 Eqs. 3, 5): each VSGL's kernel size is found by bisection on the "
-        "mipmapped PDF, so a cluster's light and its PDF are filtered by the same kernel. "
-        "Temporally stable; costs the same as Original within a few percent",
-        0,
-    ),
-    (
-        "ORIGINAL",
-        "Original (Eqs. 1, 4)",
-        "Classic filtered importance sampling (Krivanek-Colbert, Tokuyoshi 2015): kernel size from "
-        "the PDF at the kernel centre only. Kept for comparison: kernels overlap or leave gaps, "
-        "which shows as flickering and errors with a changing, high-frequency PDF",
-        1,
-    ),
-    (
-        "TWO_VSGL",
-        "Two VSGLs (003)",
-        "Simplified mode for a spot light on a local region (003): one diffuse and one specular VSGL "
-        "summed over the whole reflective shadow map, with no mipmap and no sampling. Cheapest and "
-        "flicker-free, but all bounce light comes from one blurred source; ignores VSGL Count and K",
-        2,
-    ),
-)
+from . import overlay
+from .settings import K_RANGE, KERNELS, OVERLAY_DISPLAYS, POSITIONS, RSM_SIZE_RANGE, VSGL_COUNT_RANGE
 
 
-# Where each VSGL's two lobes sit (stored in .blend files: never rename the identifiers).
-POSITIONAL_DISTRIBUTION_ITEMS = (
-    ("PER_LOBE", "Per Lobe",
-     "Each VSGL's diffuse and specular light sit at their own centre and spread (weighted by the "
-     "diffuse, resp. specular power of its texels). Keeps a matte floor's bounce on the floor when a "
-     "cluster also holds a shiny object's texels; costs the same to shade", 0),
-    ("SHARED", "Shared (Paper)",
-     "One position for both lobes, weighted by the total power, as the paper writes it (000 app. B.2, "
-     "shared so one shadow map per VSGL serves both). Clusters mixing matte and shiny surfaces move "
-     "one surface's bounce light towards the other", 1),
-)
-
-
-# What the viewport overlay shows (stored in .blend files: never rename the identifiers).
-OVERLAY_MODE_ITEMS = (
-    ("INDIRECT", "Indirect Only",
-     "One-bounce indirect light (diffuse + specular) alone, over black where there is geometry: "
-     "shows exactly where the bounce light falls and how strong it is", 0),
-    ("ADDED", "Added to Viewport",
-     "The indirect light added on top of whatever the viewport shows (solid, material preview, "
-     "rendered): a quick look at the bounce light in context", 1),
-    ("INDIRECT_DIFFUSE", "Indirect Diffuse",
-     "Only the diffuse part of the indirect light (colour bleeding)", 2),
-    ("INDIRECT_SPECULAR", "Indirect Specular",
-     "Only the glossy part of the indirect light (glossy reflections of lit surfaces, caustics)", 3),
-    ("DIRECT", "Direct",
-     "Only the direct light the VSGL renderer computes (with its shadow-map shadows)", 4),
-    ("COMBINED", "Combined",
-     "Direct plus indirect light: what an F12 render with the VSGL engine gives", 5),
-)
+def enum_items(choices) -> tuple[tuple[str, str, str, int], ...]:
+    """EnumProperty items of a settings.Choices table. The number is the row's position: Blender
+    stores it in the .blend, which is why rows are only appended."""
+    return tuple((choice.identifier, choice.label, choice.description, number)
+                 for number, choice in enumerate(choices))
 
 
 def _overlay_changed(settings, context):
     """Overlay switched on or off: free its GPU resources or start updating (overlay.py)."""
-    from . import overlay
-
     overlay.on_overlay_toggled(bool(settings.show_overlay))
 
 
@@ -112,13 +58,13 @@ class VSGLSceneSettings(PropertyGroup):
     kernel: EnumProperty(
         name="Kernel",
         description="How the reflective shadow map is clustered into VSGLs",
-        items=KERNEL_ITEMS,
+        items=enum_items(KERNELS),
         default="MODIFIED",
     )
     positional_distribution: EnumProperty(
         name="Lobe Positions",
         description="Where each VSGL's diffuse and specular light come from",
-        items=POSITIONAL_DISTRIBUTION_ITEMS,
+        items=enum_items(POSITIONS),
         default="PER_LOBE",
     )
     rsm_size: IntProperty(
@@ -164,7 +110,7 @@ class VSGLSceneSettings(PropertyGroup):
     overlay_mode: EnumProperty(
         name="Display",
         description="What the overlay shows; switching costs nothing (every pass is kept)",
-        items=OVERLAY_MODE_ITEMS,
+        items=enum_items(OVERLAY_DISPLAYS),
         default="INDIRECT",
     )
     overlay_resolution_scale: FloatProperty(

@@ -1,8 +1,16 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The render parameters as plain values (no bpy): what the passes receive.
+"""The render parameters as plain values (no bpy): what the passes receive, and every choice's table.
 
 `scene.vsgl` (properties.py) stores them in the .blend; the command line overrides them for one
-run. Ranges are the add-on's, shared by both (issue 3: N from 1 to 4096, K from 0.25 to 16).
+run. Ranges are the add-on's, shared by both (N from 1 to 4096, K from 0.25 to 16).
+
+Every choice the user makes between techniques (kernel, lobe positions, what the overlay or a
+look-dev image shows) is one :class:`Choices` table here, one :class:`Choice` per option. The
+Blender enum items, the command line's ``choices``, the panels and the passes' validation are all
+derived from it, so a new option (a PDF, a visibility technique) is one more row.
+
+Paper references: 000 = Tokuyoshi, "Modified filtered importance sampling for virtual spherical
+Gaussian lights" (CVM 2016); 003 = the Square Enix spherical Gaussian talk (2015).
 """
 
 from __future__ import annotations
@@ -10,13 +18,119 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-KERNEL_MODES = ("modified", "original", "two-vsgl")
-# scene.vsgl.kernel identifiers (stored in .blend files) -> pass names (000 Eq. 3, Eqs. 1/4, 003).
-KERNEL_FROM_PROPERTY = {"MODIFIED": "modified", "ORIGINAL": "original", "TWO_VSGL": "two-vsgl"}
-# Where each VSGL's lobes sit (reference.vsgl.POSITIONAL_DISTRIBUTIONS): own power centroid per lobe,
-# or 000 app. B.2's one Gaussian for both.
-POSITIONAL_DISTRIBUTIONS = ("per-lobe", "shared")
-POSITIONAL_FROM_PROPERTY = {"PER_LOBE": "per-lobe", "SHARED": "shared"}
+
+@dataclass(frozen=True)
+class Choice:
+    """One option of a choice: what the passes, the .blend file and the user call it."""
+
+    name: str  # what VSGLSettings, the passes and the command line use
+    identifier: str  # the EnumProperty identifier stored in .blend files: never rename it
+    label: str  # shown in the interface; free to change
+    description: str  # the tooltip: what it does, what it costs, the paper's equation
+    tag: str = ""  # short form in image names (operators.settings_image_name); "" = not used there
+    ignores: tuple[str, ...] = ()  # scene.vsgl properties this option does not use (greyed out)
+
+
+class Choices(tuple):
+    """The options of one choice, in order. Blender stores an enum's value in the .blend as the
+    option's position (its item number), so rows are only ever appended, never reordered."""
+
+    def __new__(cls, *choices: Choice):
+        for attribute in ("name", "identifier"):
+            values = [getattr(choice, attribute) for choice in choices]
+            if len(set(values)) != len(values):
+                raise ValueError(f"duplicate {attribute} in {values}")
+        return super().__new__(cls, choices)
+
+    def __getnewargs__(self):  # copy and pickle call __new__ with the choices, not one tuple
+        return tuple(self)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(choice.name for choice in self)
+
+    @property
+    def identifiers(self) -> tuple[str, ...]:
+        return tuple(choice.identifier for choice in self)
+
+    def named(self, name: str) -> Choice:
+        for choice in self:
+            if choice.name == name:
+                return choice
+        raise KeyError(name)
+
+    def identified(self, identifier: str) -> Choice:
+        for choice in self:
+            if choice.identifier == identifier:
+                return choice
+        raise KeyError(identifier)
+
+    def number(self, name: str) -> int:
+        """The option's position: its enum item number in the .blend (properties.enum_items), and
+        for OVERLAY_DISPLAYS the overlay shader's `mode`."""
+        return self.names.index(name)
+
+
+#: How the reflective shadow map is clustered into VSGLs (000 Eq. 3; Eqs. 1, 4; 003).
+KERNELS = Choices(
+    Choice("modified", "MODIFIED", "Modified (Eq. 3)",
+           "The paper's method (000 Eqs. 3, 5): each VSGL's kernel size is found by bisection on the "
+           "mipmapped PDF, so a cluster's light and its PDF are filtered by the same kernel. "
+           "Temporally stable; costs the same as Original within a few percent", tag="Modified"),
+    Choice("original", "ORIGINAL", "Original (Eqs. 1, 4)",
+           "Classic filtered importance sampling (Krivanek-Colbert, Tokuyoshi 2015): kernel size from "
+           "the PDF at the kernel centre only. Kept for comparison: kernels overlap or leave gaps, "
+           "which shows as flickering and errors with a changing, high-frequency PDF", tag="Original"),
+    Choice("two-vsgl", "TWO_VSGL", "Two VSGLs (003)",
+           "Simplified mode for a spot light on a local region (003): one diffuse and one specular VSGL "
+           "summed over the whole reflective shadow map, with no mipmap and no sampling. Cheapest and "
+           "flicker-free, but all bounce light comes from one blurred source; ignores VSGL Count and K",
+           tag="TwoVSGL", ignores=("vsgl_count", "k", "positional_distribution")),
+)
+
+#: Where each VSGL's two lobes sit (reference.vsgl explains both): each lobe's own power
+#: centroid, or 000 app. B.2's one Gaussian for both.
+POSITIONS = Choices(
+    Choice("per-lobe", "PER_LOBE", "Per Lobe",
+           "Each VSGL's diffuse and specular light sit at their own centre and spread (weighted by the "
+           "diffuse, resp. specular power of its texels). Keeps a matte floor's bounce on the floor when a "
+           "cluster also holds a shiny object's texels; costs the same to shade"),
+    Choice("shared", "SHARED", "Shared (Paper)",
+           "One position for both lobes, weighted by the total power, as the paper writes it (000 app. B.2, "
+           "shared so one shadow map per VSGL serves both). Clusters mixing matte and shiny surfaces move "
+           "one surface's bounce light towards the other"),
+)
+
+#: What the viewport overlay shows; the position is the overlay shader's `mode`
+#: (glsl/overlay/overlay.frag.glsl). "added" is blended onto the viewport instead of over it.
+OVERLAY_DISPLAYS = Choices(
+    Choice("indirect", "INDIRECT", "Indirect Only",
+           "One-bounce indirect light (diffuse + specular) alone, over black where there is geometry: "
+           "shows exactly where the bounce light falls and how strong it is"),
+    Choice("added", "ADDED", "Added to Viewport",
+           "The indirect light added on top of whatever the viewport shows (solid, material preview, "
+           "rendered): a quick look at the bounce light in context"),
+    Choice("indirect_diffuse", "INDIRECT_DIFFUSE", "Indirect Diffuse",
+           "Only the diffuse part of the indirect light (colour bleeding)"),
+    Choice("indirect_specular", "INDIRECT_SPECULAR", "Indirect Specular",
+           "Only the glossy part of the indirect light (glossy reflections of lit surfaces, caustics)"),
+    Choice("direct", "DIRECT", "Direct",
+           "Only the direct light the VSGL renderer computes (with its shadow-map shadows)"),
+    Choice("combined", "COMBINED", "Combined",
+           "Direct plus indirect light: what an F12 render with the VSGL engine gives"),
+)
+
+#: Which light a look-dev image holds (operators.py); the name is the renderer's FrameImages attribute.
+LOOKDEV_PASSES = Choices(
+    Choice("combined", "COMBINED", "Combined", "Direct plus one-bounce indirect light"),
+    Choice("indirect", "INDIRECT", "Indirect", "One-bounce indirect light only (diffuse + specular)"),
+    Choice("indirect_diffuse", "INDIRECT_DIFFUSE", "Indirect Diffuse", "Diffuse part of the indirect light"),
+    Choice("indirect_specular", "INDIRECT_SPECULAR", "Indirect Specular", "Glossy part of the indirect light"),
+    Choice("direct", "DIRECT", "Direct", "Direct light only"),
+)
+
+KERNEL_MODES = KERNELS.names
+POSITIONAL_DISTRIBUTIONS = POSITIONS.names
 
 VSGL_COUNT_RANGE = (1, 4096)
 K_RANGE = (0.25, 16.0)
@@ -71,9 +185,9 @@ class VSGLSettings:
         The property allows any RSM resolution in its range; the passes use the nearest power of two.
         """
         return cls(vsgl_count=int(properties.vsgl_count), k=float(properties.k),
-                   kernel=KERNEL_FROM_PROPERTY[properties.kernel],
+                   kernel=KERNELS.identified(properties.kernel).name,
                    rsm_size=nearest_power_of_two(properties.rsm_size), seed=int(properties.seed),
-                   positional_distribution=POSITIONAL_FROM_PROPERTY[properties.positional_distribution])
+                   positional_distribution=POSITIONS.identified(properties.positional_distribution).name)
 
     def overridden(self, **values) -> "VSGLSettings":
         """A copy with the given values (None means keep), validated."""

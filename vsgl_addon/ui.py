@@ -18,6 +18,7 @@ from __future__ import annotations
 import bpy
 
 from . import engine, overlay
+from .settings import KERNELS
 
 #: (heading, scene.vsgl property names), in pipeline order. Append an entry for a new pass's controls.
 PASS_SECTIONS = (
@@ -66,8 +67,8 @@ def draw_pass_settings(layout, settings) -> None:
         for name in names:
             row = column.row()
             row.prop(settings, name)
-            if name in ("vsgl_count", "k", "positional_distribution") and settings.kernel == "TWO_VSGL":
-                row.enabled = False  # the two-VSGL mode ignores them (003)
+            if name in KERNELS.identified(settings.kernel).ignores:
+                row.enabled = False  # e.g. the two-VSGL mode has no N, K or lobe positions (003)
 
 
 def draw_overlay_settings(layout, settings) -> None:

@@ -1,8 +1,8 @@
-// The viewport overlay: draws the cached VSGL images (overlay.py) over a 3D viewport.
+// The viewport overlay: draws the cached VSGL images (overlay_cache.py) over a 3D viewport.
 //
 // Inputs (all RGBA32F, the overlay's own resolution, row 0 at the bottom, alpha = coverage):
 //   indirect_diffuse, indirect_specular, direct_light   linear radiance, Blender's units
-// `mode` (properties.OVERLAY_MODE_ITEMS order): 0 indirect only, 1 indirect added to the viewport,
+// `mode` (settings.OVERLAY_DISPLAYS order): 0 indirect only, 1 indirect added to the viewport,
 // 2 indirect diffuse, 3 indirect specular, 4 direct, 5 direct + indirect.
 // `scale` = intensity x 2^exposure; the view transform is Blender's "Standard" one (scale, then
 // the look's gamma); the framebuffer's sRGB encoding (or ours, `encode_srgb`) makes it display-referred.

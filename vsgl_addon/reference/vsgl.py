@@ -65,6 +65,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import settings  # the choices' one table (plain Python, no bpy)
 from . import mipmap
 from .sg import DIFFUSE_SHARPNESS, sg_integral  # λ_d ≈ 2 (000 Eq. 6); A(λ) (000 app. A)
 
@@ -94,7 +95,7 @@ MAX_SHARPNESS = MAX_AXIS_LENGTH / (1.0 - MAX_AXIS_LENGTH)
 VARIANCE_FLOOR_RELATIVE = 2.0**-20
 VARIANCE_FLOOR_ABSOLUTE = 1e-12
 
-KERNEL_MODES = ("modified", "original", "two-vsgl")
+KERNEL_MODES = settings.KERNEL_MODES  # ("modified", "original", "two-vsgl"): settings.KERNELS
 
 #: Channels of the per-texel moment image (mip-chained; "w" = luminance of the RGB power):
 #: Σ Φ Rd, Σ w_d ξ̄_d, Σ Φ Rs, Σ w_s ξ̄_s (000 app. B.1, B.3), and the position moments of each
@@ -119,7 +120,7 @@ MOMENT_CHANNELS = 20
 #: Fig. 7's world-space limitation). The add-on has no VSGL visibility, so the paper's reason for
 #: sharing does not apply; "shared" stays available and the combined ``mean``/``variance`` are
 #: always returned (what a per-VSGL shadow map would use).
-POSITIONAL_DISTRIBUTIONS = ("per-lobe", "shared")
+POSITIONAL_DISTRIBUTIONS = settings.POSITIONAL_DISTRIBUTIONS  # ("per-lobe", "shared"): settings.POSITIONS
 
 OUTPUT_KEYS = (
     "mean",

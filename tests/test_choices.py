@@ -1,0 +1,78 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The choice tables (vsgl_addon/settings.py) and what is derived from them, without Blender.
+
+A .blend file stores an enum property's identifier and item number, so both are fixed here as
+they are in every saved file (demo.blend included); labels and descriptions may change.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from vsgl_addon import settings
+from vsgl_addon.cli import UsageError, build_parser
+from vsgl_addon.reference import vsgl as reference_vsgl
+from vsgl_addon.settings import (KERNELS, LOOKDEV_PASSES, OVERLAY_DISPLAYS, POSITIONS, Choice, Choices,
+                                 VSGLSettings)
+
+STORED = {
+    "kernel": (KERNELS, ["MODIFIED", "ORIGINAL", "TWO_VSGL"]),
+    "positional_distribution": (POSITIONS, ["PER_LOBE", "SHARED"]),
+    "overlay_mode": (OVERLAY_DISPLAYS, ["INDIRECT", "ADDED", "INDIRECT_DIFFUSE", "INDIRECT_SPECULAR", "DIRECT",
+                                        "COMBINED"]),
+}
+
+
+@pytest.mark.parametrize("prop", sorted(STORED))
+def test_stored_identifiers_and_numbers_never_change(prop):
+    table, identifiers = STORED[prop]
+    assert list(table.identifiers) == identifiers
+    assert [table.number(choice.name) for choice in table] == list(range(len(identifiers)))
+    for choice in table:
+        assert table.identified(choice.identifier) is table.named(choice.name) is choice
+        assert len(choice.description) > 40, choice.identifier
+
+
+def test_pass_names_are_the_tables():
+    assert settings.KERNEL_MODES == KERNELS.names == ("modified", "original", "two-vsgl")
+    assert settings.POSITIONAL_DISTRIBUTIONS == POSITIONS.names == ("per-lobe", "shared")
+    assert reference_vsgl.KERNEL_MODES is settings.KERNEL_MODES  # the reference validates against the same
+    assert reference_vsgl.POSITIONAL_DISTRIBUTIONS is settings.POSITIONAL_DISTRIBUTIONS
+    assert LOOKDEV_PASSES.names == ("combined", "indirect", "indirect_diffuse", "indirect_specular", "direct")
+
+
+def test_settings_from_properties_maps_identifiers_to_names():
+    for kernel in KERNELS:
+        for position in POSITIONS:
+            stored = dict(vsgl_count=64, k=2.0, kernel=kernel.identifier, rsm_size=100, seed=3,
+                          positional_distribution=position.identifier)
+            result = VSGLSettings.from_properties(type("Props", (), stored))
+            assert (result.kernel, result.positional_distribution, result.rsm_size) == (
+                kernel.name, position.name, 128)
+    with pytest.raises(KeyError):
+        KERNELS.identified("modified")  # a pass name is not an identifier
+
+
+@pytest.mark.parametrize("command", ["vsgl", "render"])
+def test_cli_choices_are_the_pass_names(command):
+    parser = build_parser()
+    base = [command, "scene.blend", "--out", "out.file"]
+    for kernel, position in zip(KERNELS.names, POSITIONS.names * 2):
+        arguments = parser.parse_args([*base, "--kernel", kernel, "--positional-distribution", position])
+        assert (arguments.kernel, arguments.positional_distribution) == (kernel, position)
+    for flag, identifier in (("--kernel", "MODIFIED"), ("--positional-distribution", "PER_LOBE")):
+        with pytest.raises(UsageError, match="invalid choice"):
+            parser.parse_args([*base, flag, identifier])  # the .blend identifiers are not the CLI's names
+
+
+def test_only_the_two_vsgl_kernel_ignores_settings():
+    assert {choice.name: choice.ignores for choice in KERNELS} == {
+        "modified": (), "original": (), "two-vsgl": ("vsgl_count", "k", "positional_distribution")}
+    assert [choice.tag for choice in KERNELS] == ["Modified", "Original", "TwoVSGL"]  # preview image names
+
+
+def test_a_table_rejects_duplicates():
+    with pytest.raises(ValueError, match="duplicate identifier"):
+        Choices(Choice("a", "A", "A", "first"), Choice("b", "A", "B", "second"))
+    with pytest.raises(ValueError, match="duplicate name"):
+        Choices(Choice("a", "A", "A", "first"), Choice("a", "B", "B", "second"))
