@@ -84,3 +84,47 @@ def test_generated_scene_renders_through_the_engine(seed, tmp_path):
     assert any(".Indirect Diffuse." in name for name in channels), sorted(channels)
     for name, pixels in channels.items():
         assert np.all(np.isfinite(pixels)), f"{name} of {generated}"
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("seed", SEEDS[1::3])
+def test_generated_scene_through_the_overlay_update_path(seed):
+    """The viewport overlay's cache on the same scenes: light passes, coarse image, refined bands;
+    every image it uploads is finite, nothing fails, and freeing it leaves no GPU resource."""
+    from vsgl_addon import passes
+    from vsgl_addon.overlay_cache import REFINE_DELAY, GPUBackend, OverlayCache
+
+    generated = scene_generator.build(seed)
+    scene = bpy.context.scene
+    sb.depsgraph(scene)
+    before = scene_generator.rna_dump()
+    uploaded = []
+
+    class RecordingBackend(GPUBackend):
+        def texture(self, rgba):
+            uploaded.append(np.array(rgba))
+            return super().texture(rgba)
+
+    with scene_generator.GPUResourceTracker() as tracker:
+        description = extract_scene(sb.depsgraph(scene))
+        camera = description.camera
+        cache = OverlayCache(backend=RecordingBackend())
+        try:
+            cache.request_view(1, camera.view_matrix(), camera.projection_matrix(), (40, 30), now=0.0)
+            done = []
+            for now in (0.0, REFINE_DELAY + 1.0):
+                for _ in range(64):
+                    work = cache.step(lambda: description, _settings(seed), 0.5, now=now)
+                    if work is None:
+                        break
+                    done.append(work)
+            assert cache.error is None, f"{cache.error} in {generated}"
+            assert done[:2] == ["lights", "coarse"] and "refined" in done, done
+        finally:
+            cache.free()
+        assert cache.gpu_resource_count() == 0
+        del cache
+        passes.free_all_shaders()
+    assert uploaded and all(np.all(np.isfinite(image)) for image in uploaded), str(generated)
+    assert tracker.alive() == [], f"GPU resources alive after the overlay of {generated}"
+    assert scene_generator.dump_differences(before, scene_generator.rna_dump()) == []
