@@ -7,7 +7,6 @@ import os
 import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import pytest
@@ -33,16 +32,20 @@ def test_returns_the_renderer_name(gpu_context):
 
 
 @pytest.mark.gpu
-def test_is_idempotent(gpu_context):
+def test_is_idempotent(gpu_context, monkeypatch):
     import bpy
 
     from vsgl_addon.gpu_context import ensure_gpu_context
 
+    from vsgl_addon import gpu_context as module
+
     scenes = len(bpy.data.scenes)
-    started = time.perf_counter()
+    rendered, probed = [], []
+    monkeypatch.setattr(module, "_create_context_by_rendering", lambda *a: rendered.append(a))
+    monkeypatch.setattr(module, "probe_opengl", lambda: probed.append(True))
     assert ensure_gpu_context() == gpu_context
     assert ensure_gpu_context() == gpu_context
-    assert time.perf_counter() - started < 0.1  # nothing is rendered again
+    assert rendered == [] and probed == []  # nothing is rendered or probed again
     assert len(bpy.data.scenes) == scenes
 
 

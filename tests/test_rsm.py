@@ -22,7 +22,6 @@ incidence dependence is tested texel by texel against the numpy model
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -543,7 +542,7 @@ def test_back_side_normal_is_flipped_towards_the_light():
 
 @pytest.mark.gpu
 @pytest.mark.parametrize("kind", ["POINT", "SPOT", "AREA", "SUN"])
-def test_light_that_hits_nothing_is_cheap_and_empty(kind):
+def test_light_that_hits_nothing_is_cheap_and_empty(kind, monkeypatch):
     """Geometry outside every view (behind the spot or area light; no geometry for the point light;
     a sun whose camera looks away from the scene): no views, no draw, zero flux."""
     if kind == "SUN":
@@ -556,12 +555,11 @@ def test_light_that_hits_nothing_is_cheap_and_empty(kind):
         # The plane is behind the light (which points down, the plane is above it).
         scene = make_scene([rectangle(1.0, z=5.0)], [make_light(kind, 100.0, (0, 0, 1.0),
                                                                 spot_size=math.radians(45), spot_blend=0.1)])
-    start = time.perf_counter()
+    drawn = []
+    monkeypatch.setattr(R, "_render", lambda *args: drawn.append(args))
     views = R.render_rsm_views(scene, 0, 256)
-    elapsed = time.perf_counter() - start
-    assert views == []
+    assert views == [] and drawn == []  # no view, no draw call
     assert R.total_flux(views)["flux"].tolist() == [0.0, 0.0, 0.0]
-    assert elapsed < 0.5
 
 
 @pytest.mark.gpu

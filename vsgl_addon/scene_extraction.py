@@ -241,6 +241,47 @@ def _slot_table(slot_materials: list, used_slots: tuple[int, ...], materials: "_
     return tuple(materials.index(m) if i in used else 0 for i, m in enumerate(slot_materials))
 
 
+def _normal_matrices(rot: np.ndarray, det: np.ndarray) -> np.ndarray:
+    """Normal transforms of (K, 3, 3) linear parts: the inverse transpose, or for a singular one
+    (an object scaled to zero on an axis, a common way to hide it) the cofactor matrix, which is
+    det × the inverse transpose wherever that exists and stays defined when it does not: a box
+    flattened onto a plane keeps the plane's normal on its two large faces."""
+    regular = np.abs(det) > 1e-12 * np.maximum(np.abs(rot.astype(np.float64)).max(axis=(1, 2)) ** 3, 1e-300)
+    out = np.empty_like(rot)
+    if regular.all():
+        return np.linalg.inv(rot).transpose(0, 2, 1)
+    if regular.any():
+        out[regular] = np.linalg.inv(rot[regular]).transpose(0, 2, 1)
+    m = rot[~regular].astype(np.float64)
+    # Rows of the cofactor matrix: cross products of the columns' complements (cof(M)[i] = m_j × m_k
+    # over the columns j, k other than i, in cyclic order).
+    columns = m.transpose(0, 2, 1)
+    cofactor = np.stack([np.cross(columns[:, 1], columns[:, 2]), np.cross(columns[:, 2], columns[:, 0]),
+                         np.cross(columns[:, 0], columns[:, 1])], axis=1).transpose(0, 2, 1)
+    # cof(M) = det(M) M^-T: a nearly singular mirror would flip the normals that M^-T keeps.
+    sign = np.where(det[~regular] < 0.0, -1.0, 1.0)[:, None, None]
+    out[~regular] = (cofactor * sign).astype(rot.dtype)
+    return out
+
+
+def _unit_normals(normals: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Unit normals; where a transformed normal is zero or not finite (a degenerate transform, NaN in
+    custom normals), the triangle's geometric normal, and +Z for a triangle of zero area."""
+    length = np.linalg.norm(normals, axis=-1, keepdims=True)
+    good = np.isfinite(length) & (length > 1e-30)
+    if good.all():
+        return normals / length
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        unit = normals / length
+        p = positions.astype(np.float64)
+        face = np.cross(p[..., 1, :] - p[..., 0, :], p[..., 2, :] - p[..., 0, :])
+        face_length = np.linalg.norm(face, axis=-1, keepdims=True)
+        face_ok = np.isfinite(face_length) & (face_length > 0.0)
+        face = np.where(face_ok, face / np.where(face_ok, face_length, 1.0), np.array([0.0, 0.0, 1.0]))
+    fallback = np.broadcast_to(face[..., None, :], normals.shape).astype(normals.dtype)
+    return np.where(good, unit, fallback)
+
+
 def _place(meshes: dict, placements: dict) -> Geometry:
     """World-space triangles of every placement, all instances of one mesh transformed at once."""
     parts = []
@@ -251,10 +292,9 @@ def _place(meshes: dict, placements: dict) -> Geometry:
         matrices = np.stack([m for m, _ in placed]).astype(np.float32)  # (K, 4, 4)
         rot = matrices[:, :3, :3]
         det = np.linalg.det(rot.astype(np.float64))
-        normal_matrices = np.linalg.inv(rot).transpose(0, 2, 1)  # inverse transpose
         positions = np.einsum("kij,tcj->ktci", rot, arrays.corners) + matrices[:, None, None, :3, 3]
-        normals = np.einsum("kij,tcj->ktci", normal_matrices, arrays.normals)
-        normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-30)
+        normals = np.einsum("kij,tcj->ktci", _normal_matrices(rot, det), arrays.normals)
+        normals = _unit_normals(normals, positions)
         uvs = np.broadcast_to(arrays.uvs, (len(placed), *arrays.uvs.shape))
         # A mirroring transform reverses the winding; swap two corners to keep front faces front.
         mirrored = det < 0
