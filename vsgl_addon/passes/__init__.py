@@ -20,6 +20,8 @@ drawn by :mod:`.rsm` and :mod:`.gbuffer`) and :mod:`.gpu_util` (numpy arrays to 
 matrices for uniforms). The texture layouts passes hand each other: :mod:`vsgl_addon.layouts`.
 """
 
+import atexit
+
 from . import direct_light, gbuffer, rsm, shading_inputs, vsgl_generation, vsgl_shading
 from .contract import GPUPass, Step
 
@@ -60,3 +62,10 @@ def free_all_shaders() -> None:
     """Drop every pass's cached shaders (and what was made from them)."""
     for gpu_pass in PASSES:
         gpu_pass.free_shaders()
+
+
+# The cached shaders and batches must go while Blender's GPU backend is alive: at interpreter exit
+# the bpy module shuts it down in its own atexit handler, and a GPU object collected after that
+# crashes the process (a segmentation fault after the work is done). atexit runs handlers last in,
+# first out, and this module is always imported after bpy.
+atexit.register(free_all_shaders)
