@@ -11,7 +11,7 @@ run, alternating the two so that drift affects both alike, as N (VSGL count) and
 grow. Reading the (N x 7) table back waits for the GPU to finish, so each time covers the GPU's
 work. Every figure is the median of --repeats runs after a warm-up (shader JIT excluded).
 The overhead columns compare modified against original (000 reports about 5 µs for its
-bisection; the issue asks that ours stay within 10 %).
+bisection; ours should stay within 10 % of it).
 """
 
 from __future__ import annotations

@@ -247,7 +247,7 @@ SIGNIFICANT_FRACTION = 1e-6
 
 
 class Accuracy:
-    """How a GPU result compares with its float64 reference, by the criterion of the issue:
+    """How a GPU result compares with its float64 reference, by the project's criterion:
 
     relative error <= `relative` wherever |reference| > `significant` * M, M the largest |reference|
     of the point's group, absolute error <= `absolute` * max(M, 1) elsewhere, and every GPU value
@@ -257,7 +257,7 @@ class Accuracy:
     norm of the difference.
 
     The absolute bound is in units of M when M > 1: the criterion is applied to the output divided
-    by its slice maximum. For outputs of at most 1 it is the issue's 1e-7 as is; in absolute units
+    by its slice maximum. For outputs of at most 1 it is the 1e-7 as is; in absolute units
     it could not hold for large slices (below 1e-6 of M = 1e10 lie values like 7e3, whose float32
     spacing is 5e-4).
     """

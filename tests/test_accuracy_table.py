@@ -67,7 +67,7 @@ def test_markdown_round_trip(rows):
 
 
 def test_nu_evidence_in_the_table(committed):
-    """The issue item's answer is in the committed table: nu = lam/2 accurate, nu = lam not."""
+    """Which nu is right is settled in the committed table: nu = lam/2 accurate, nu = lam not."""
     table = {k: v for k, (v, _) in committed.items()}
     kappa = [v for (name, _, metric), v in table.items() if name == "SG×ASG convolution, ν = κλ"]
     assert kappa == [pytest.approx(0.5, abs=0.011)]

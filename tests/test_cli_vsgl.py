@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""`python -m vsgl_addon vsgl SCENE.blend --out VSGLS.npz ...` (issue 3 item 4)."""
+"""`python -m vsgl_addon vsgl SCENE.blend --out VSGLS.npz ...`."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Direct light (vsgl_addon/passes/direct_light.py, glsl/direct_light/): GLSL against the numpy
-reference, shadows against ray casts, and the issue's acceptance test against Cycles.
+reference, shadows against ray casts, and the acceptance test against Cycles.
 
 Calibration against Cycles (test_matches_cycles): a plane and a box under each light type (light
 radius 0, sun angle 0, area light 5 cm), materials "diffuse" (Principled, Specular IOR Level 0, so

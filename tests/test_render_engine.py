@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The VSGL render engine and `python -m vsgl_addon render` (issue 4 items 3-5)."""
+"""The VSGL render engine and `python -m vsgl_addon render`."""
 
 from __future__ import annotations
 

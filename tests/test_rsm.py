@@ -1,4 +1,4 @@
-"""Reflective shadow maps on the GPU (vsgl_addon/passes/rsm.py; issue 3 item 2).
+"""Reflective shadow maps on the GPU (vsgl_addon/passes/rsm.py).
 
 Scenes are built as plain SceneDescriptions in numpy (fast, exact geometry); one test goes through
 Blender (scene_builders + extract_scene) to check the units of the extraction meet the pass's.
@@ -175,7 +175,7 @@ def test_closed_forms_match_quadrature():
     assert lambertian_power_on_square(math.pi, a, h) == pytest.approx(cosine_weighted, rel=1e-6)
 
 
-# --- Flux calibration (the issue's test) --------------------------------------------------------
+# --- Flux calibration against Cycles ---------------------------------------------------------------
 
 GREY = (0.5, 0.25, 0.75)  # Rd per channel: the total Φ·Rd / Rd must be the same in all three
 

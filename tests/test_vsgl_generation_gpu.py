@@ -388,7 +388,7 @@ def test_mip_atlas_matches_reference_chains(compiled):
             generation.free()
 
 
-# --- Statistics of the GPU estimator (issue 3 item 5, measured on the GPU) ----------------------
+# --- Statistics of the GPU estimator (measured on the GPU) ----------------------
 
 
 @pytest.mark.parametrize("kernel", ["modified", "original"])

@@ -29,7 +29,7 @@ RENDER_PASSES = {
 }
 
 #: Timings and counts of the last frame rendered in this process (read by the render command's
-#: report and, later, the UI). Render engine instances are short-lived, so they cannot hold it.
+#: report and the statistics panel). Render engine instances are short-lived, so they cannot hold it.
 last_frame_statistics: dict = {}
 
 

@@ -4,8 +4,8 @@ in Render Properties when VSGL is the render engine.
 
 Both places draw the same sections with the same functions:
 
-* **Light Passes**: the parameters of the passes, grouped by pass in PASS_SECTIONS. A later pass
-  (e.g. VSGL visibility with its δ, or the disk radius of shading) adds its row there: a
+* **Light Passes**: the parameters of the passes, grouped by pass in PASS_SECTIONS. A new pass
+  (e.g. VSGL visibility, the VPLs' δ, MRP-ASG's disk radius) adds its row there: a
   (heading, property names) entry, nothing else changes;
 * **Viewport Overlay**: on/off, display mode, resolution, intensity, and the state of its updates;
 * **Look-Dev**: the preview and render-to-file operators;

@@ -57,7 +57,7 @@ What is measured, all at one image size (default 240x180, demo.blend's camera):
   Combined(off). Timed on a second render (the first compiles shaders).
 * **Temporal stability**: 30 frames of the spot turning 1° per frame about the
   world Z axis, N = 256, K = 1, RSM 128², seed 0, at half the image size; mean absolute
-  frame-to-frame change (over covered pixels and RGB) per kernel mode (the issue's measure, the
+  frame-to-frame change (over covered pixels and RGB) per kernel mode (the flicker target's measure, the
   verdict's), also relative to the mean indirect, and the mean absolute second difference
   |I(t+1) − 2I(t) + I(t−1)| ("jitter": a change smooth in time cancels, jumps remain). Context:
   2-VSGL and brute force (every texel of a 64² RSM as a VPL). Decomposition (context, not the
@@ -76,7 +76,7 @@ What is measured, all at one image size (default 240x180, demo.blend's camera):
   N = 256 with K = 4, N = 256 with RSM 64² and 256², and N = 256 with the paper's shared positions
   (the rest per-lobe, the add-on's default): the same turn ("pan"), and a "spin" of the spot
   1°/frame about its own cone axis, which leaves the lighting the same in every frame (a round cone) while the RSM and its PDF rotate under the fixed lattice, so
-  all of its change is flicker. The issue's measure has a verdict for each turn at the section's
+  all of its change is flicker. The target's measure has a verdict for each turn at the section's
   settings (N = 256, K = 1, RSM 128²): the median over lattice seeds 0–4 (the original kernel's
   spikes come and go with the seed).
 * **Peak memory**: a fresh subprocess renders a 1024² frame with N = 4096 (RSM 256²) with the

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Temporal stability: the spot turning 1°/frame, the frame-to-frame change of each kernel mode (the
-issue's measure), its decomposition into motion and flicker proper, and sweeps over N, K, RSM size
+flicker target's measure), its decomposition into motion and flicker proper, and sweeps over N, K, RSM size
 and positions for a turn with real motion (pan) and one without (spin)."""
 
 from __future__ import annotations
@@ -55,12 +55,12 @@ def turning_frames(scene, frames: int, width: int, height: int, motion: str):
 
 
 def mean_abs_step(sequence) -> float:
-    """mean_t mean|x(t) − x(t−1)|: the issue's frame-to-frame change of a sequence of images."""
+    """mean_t mean|x(t) − x(t−1)|: the flicker target's frame-to-frame change of a sequence of images."""
     return float(np.mean([np.abs(b - a).mean() for a, b in zip(sequence, sequence[1:])]))
 
 
 def change_sweep(scene, frames: int, width: int, height: int, motion: str, configurations, seed: int = 0) -> dict:
-    """The issue's measure (mean |I(t) − I(t−1)| over covered pixels and RGB, lattice seed `seed`) of both kernel
+    """The flicker target's measure (mean |I(t) − I(t−1)| over covered pixels and RGB, lattice seed `seed`) of both kernel
     modes for each (N, K, RSM size, positional distribution) in `configurations`, the spot turning
     1°/frame by `motion` (see `turned`)."""
     from vsgl_addon.settings import VSGLSettings
@@ -104,7 +104,7 @@ def change_sweep(scene, frames: int, width: int, height: int, motion: str, confi
 
 def flicker(scene, frames: int, width: int, height: int, with_brute: bool, n=256, k=1.0, rsm_size=128,
             brute_rsm=64, seeds=16) -> dict:
-    """The spot turning 1°/frame: per-mode change and jitter (the issue's measure) and, for the two
+    """The spot turning 1°/frame: per-mode change and jitter (the flicker target's measure) and, for the two
     kernel modes, its decomposition into motion and flicker proper with `seeds` extra lattice seeds.
 
     Each frame's own image I(t) uses seed 0. For "modified" and "original" the frame is also rendered

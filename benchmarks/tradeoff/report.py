@@ -175,7 +175,7 @@ def _stability_section(results) -> list[str]:
     lines = []
     lines.append(f"\n## Temporal stability\n\n{st['frames']} frames, spot turning 1°/frame about world Z, N = {st['n']}, "
                  f"K = {st['k']:g}, RSM {st['rsm']}², seed 0, {st['size'][0]}x{st['size'][1]}. Change = mean "
-                 "|I(t) − I(t−1)| over covered pixels and RGB (the issue's measure: includes the light's real motion); "
+                 "|I(t) − I(t−1)| over covered pixels and RGB (the target's measure: includes the light's real motion); "
                  "jitter = mean |I(t+1) − 2 I(t) + I(t−1)| (second difference: a change smooth in time cancels, "
                  "jumps remain). Context rows: 2-VSGL, and brute force = every texel of a "
                  f"{st['brute_rsm']}² RSM as a VPL.\n")
@@ -220,7 +220,7 @@ def _stability_section(results) -> list[str]:
                      f"{st['modified']['deviation']:.3e}, original {st['original']['deviation']:.3e}; the two modes' "
                      f"seed-averaged images differ by {st['expected_gap']:.3e} = "
                      f"{100 * st['expected_gap_relative']:.2f} % of the mean indirect (their different blur).\n")
-    lines.append("**The issue's measure across N, K and RSM size, and for a turn that does not move the light**, "
+    lines.append("**The flicker target's measure across N, K and RSM size, and for a turn that does not move the light**, "
                  "same frames, seed 0: *pan* is the turn above (about world Z: the "
                  "lit spot moves, so every image has the lighting's real motion in it); *spin* turns the spot 1°/frame "
                  "about its own cone axis: its cone is round, so the lighting is the same in every frame and every "
@@ -267,7 +267,7 @@ def _targets_section(results, plan, demo_settings, verdict_configuration) -> lis
                      and o["positions"] == default_positions), None)
     if demo_row is None:
         demo_row = next(o for o in ours if o["kernel"] == "modified" and o["n"] == 256 and o["k"] == 1.0)
-    lines.append("## Targets (issue 4)\n")
+    lines.append("## Targets\n")
     lines.append("| target | figure | verdict |")
     lines.append("|---|---|---|")
     lines.append(f"| mean indirect within 10 % of Cycles | demo settings ({demo_row['kernel']}, N = {demo_row['n']}, "
@@ -281,7 +281,7 @@ def _targets_section(results, plan, demo_settings, verdict_configuration) -> lis
                  f"({per_n}); worst {worst:.2f} ({default_positions} positions; with the paper's shared "
                  f"positions: {per_n_shared}) | "
                  f"{verdict(bool(ratios) and worst <= 0.6)} |")
-    # The issue's measure for both readings of "a light turning 1° per frame" at the flicker section's
+    # The flicker target's measure for both readings of "a light turning 1° per frame" at the flicker section's
     # settings: the pan (real motion in every image) and the spin (no real motion: all change is flicker).
     def sweep_text(motion):
         sweep = next(sweep for sweep in sweeps if sweep["motion"] == motion)

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Direct light on the GPU: spot, point, sun and area lights over the camera G-buffer, with shadows
-from the lights' RSM depth, Principled diffuse + GGX specular in Blender's units (issue 4 item 2).
+from the lights' RSM depth, Principled diffuse + GGX specular in Blender's units.
 Never touches ``bpy.context``.
 
     scene_gpu = SceneGPU(scene)

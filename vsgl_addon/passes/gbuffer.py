@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Camera G-buffer on the GPU: what the camera sees, per pixel, for direct light and VSGL shading
-(issue 4 item 1). Never touches ``bpy.context``: takes a :class:`~vsgl_addon.passes.scene_gpu.SceneGPU`
+"""Camera G-buffer on the GPU: what the camera sees, per pixel, for direct light and VSGL shading.
+Never touches ``bpy.context``: takes a :class:`~vsgl_addon.passes.scene_gpu.SceneGPU`
 (the scene's triangles, uploaded once and shared with the RSM pass), the camera's view and
 projection matrices and a resolution.
 

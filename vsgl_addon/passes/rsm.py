@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Reflective shadow maps (RSMs) on the GPU: one VPL per texel (formulas.md §4; 000 §4; issue 3
-item 2). Never touches ``bpy.context``: takes the plain :class:`SceneDescription`.
+"""Reflective shadow maps (RSMs) on the GPU: one VPL per texel (formulas.md §4; 000 §4).
+Never touches ``bpy.context``: takes the plain :class:`SceneDescription`.
 
     scene_gpu = SceneGPU(scene)                       # triangles uploaded once per scene
     views = render_rsm_views(scene_gpu, light_index, size=256)
@@ -17,7 +17,7 @@ light that hits nothing yields no views (zero flux).
 :class:`~vsgl_addon.passes.vsgl_generation.RSMTextures` reads, so the textures feed VSGL generation
 directly): ``position`` (y, λs), ``normal`` (n facing the light, Principled roughness),
 ``flux_diffuse`` (Φ·Rd, Φ₁), ``flux_specular`` (Φ·Rs, dω), ``specular_axis`` (ξs, coverage), and a
-32-bit float depth attachment (for shadows later). Φ₁ is the texel flux of a white light, Φ = Φ₁ ×
+32-bit float depth attachment (the light's shadow map). Φ₁ is the texel flux of a white light, Φ = Φ₁ ×
 light colour; dω is the texel's solid angle (sr), or its area on the sun's plane (m²) for a sun.
 Texels that see nothing are all zero. Texture rows start at the bottom of the view (row 0 =
 NDC y = −1), as ``GPUTexture.read`` returns them; ``to_numpy`` keeps that order.

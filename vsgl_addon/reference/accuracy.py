@@ -45,7 +45,7 @@ least-squares fit (GGX's tails); Eq. 34 errs by ~e^(−min η) (5e-5 at η = 10,
 ~35), so 001's "large error below 50" is the convolution's (rough surfaces: the ASG lobe of 003 has
 ηy = 1/(4α²), below 50 for α > 0.07), as is its error for broad SGs (λ = 1) off axis.
 
-**SG×ASG convolution, ν (issue item).** 000 app. C uses ν = λ/2 for an SG of sharpness λ
+**SG×ASG convolution, ν.** 000 app. C uses ν = λ/2 for an SG of sharpness λ
 (exp(λ(ω·p − 1)) = exp(−(λ/2)|ω − p|²), a Gaussian of the same "bandwidth" units as the ASG's
 η); 001 Eq. 11 writes the SG's sharpness itself in that place. The quadrature settles it: with
 ν = λ/2 the convolution is accurate to a fraction of a percent on axis and a few percent one
