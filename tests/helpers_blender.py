@@ -67,3 +67,18 @@ def scratch_dir(prefix: str) -> Iterator[Path]:
         yield path
     finally:
         shutil.rmtree(path, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def installed_extension(prefix: str) -> Iterator[tuple[Path, dict[str, str]]]:
+    """(folder, BLENDER_* environment): a scratch folder under /tmp and a clean Blender user profile
+    in it with the extension built from this checkout installed and enabled."""
+    with scratch_dir(prefix) as folder:
+        build = run_blender("--command", "extension", "build", "--source-dir", str(REPO),
+                            "--output-dir", str(folder))
+        assert build.returncode == 0, describe(build)
+        environment = {"BLENDER_USER_RESOURCES": str(folder / "user")}
+        install = run_blender("--command", "extension", "install-file", "-r", "user_default", "-e",
+                              str(next(folder.glob("*.zip"))), blender_env=environment)
+        assert install.returncode == 0, describe(install)
+        yield folder, environment

@@ -231,12 +231,33 @@ def build(seed: int, resolution=(32, 24)) -> GeneratedScene:
     return generated
 
 
+def render_through_engine(scene, exr_path=None) -> dict:
+    """Render ``scene`` with the VSGL engine through Blender's render pipeline (the add-on registered
+    for the call): the engine's statistics of the frame (empty when no frame came out), and the
+    multilayer EXR of every pass at ``exr_path`` when given."""
+    from vsgl_addon import engine, register, unregister
+
+    register()
+    try:
+        scene.render.engine = "VSGL"
+        engine.last_frame_statistics.clear()
+        bpy.ops.render.render(scene=scene.name)
+        statistics = dict(engine.last_frame_statistics)
+        if exr_path is not None:
+            scene.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
+            scene.render.image_settings.color_depth = "32"
+            bpy.data.images["Render Result"].save_render(str(exr_path), scene=scene)
+    finally:
+        unregister()
+    return statistics
+
+
 # --- the user's data, dumped to plain values -------------------------------------------------------
 
 _DATA_COLLECTIONS = ("scenes", "objects", "meshes", "materials", "lights", "cameras", "collections",
                      "worlds", "images", "node_groups")
 _SKIP = {"rna_type", "vsgl", "is_evaluated", "original", "session_uid", "is_dirty", "users",
-         "use_fake_user", "is_runtime_data", "tag", "is_missing", "bound_box",
+         "use_fake_user", "is_runtime_data", "tag", "is_missing", "bound_box", "use_nodes",
          "depsgraph"}  # a view layer's depsgraph is evaluated state, not the user's data
 _ITEMS = 64  # items of one RNA collection that are dumped in full; longer ones by count and hash
 

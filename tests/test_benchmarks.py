@@ -22,6 +22,12 @@ def test_vsgl_generation_benchmark_prints_its_table():
     assert "| RSM | N |" in result.stdout and "overhead" in result.stdout
 
 
+def test_vsgl_shading_cost_benchmark_prints_its_table_and_ratios():
+    result = _run("benchmarks/vsgl_shading_cost.py", "--repeats", 1, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert "| 256² | 1024 |" in result.stdout and "4× the VSGLs" in result.stdout
+
+
 def test_speed_accuracy_benchmark_quick_run_writes_table_plot_and_targets():
     result = _run("benchmarks/speed_accuracy.py", "--quick", timeout=600)
     assert result.returncode == 0, result.stderr

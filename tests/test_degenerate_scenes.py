@@ -12,6 +12,7 @@ import pytest
 from mathutils import Matrix
 
 import scene_builders as sb
+import scene_generator
 from vsgl_addon.renderer import FrameRenderer
 from vsgl_addon.scene import extract_scene
 from vsgl_addon.settings import VSGLSettings
@@ -63,20 +64,8 @@ def test_degenerate_transform_renders_finite_frames(name):
 
 
 @pytest.mark.gpu
-def test_engine_renders_a_zero_scale_object(tmp_path):
+def test_engine_renders_a_zero_scale_object():
     """Through Blender's render pipeline: the frame is written, not lost."""
-    import bpy
-
-    from vsgl_addon import engine, register, unregister
-
-    scene = _scene_with(TRANSFORMS["zero-z"])
-    register()
-    try:
-        scene.render.engine = "VSGL"
-        engine.last_frame_statistics.clear()
-        bpy.ops.render.render(scene=scene.name)
-        statistics = dict(engine.last_frame_statistics)
-    finally:
-        unregister()
+    statistics = scene_generator.render_through_engine(_scene_with(TRANSFORMS["zero-z"]))
     assert statistics.get("resolution") == [48, 36]
     assert statistics["counts"]["triangles"] == 2 + 2 + 12

@@ -62,21 +62,8 @@ def test_generated_scene_renders_through_the_engine(seed, tmp_path):
     what the add-on could not model is said in the statistics' warning lines."""
     import OpenEXR
 
-    from vsgl_addon import engine, register, unregister
-
     generated = scene_generator.build(seed)
-    scene = bpy.context.scene
-    register()
-    try:
-        scene.render.engine = "VSGL"
-        engine.last_frame_statistics.clear()
-        bpy.ops.render.render(scene=scene.name)
-        statistics = dict(engine.last_frame_statistics)
-        scene.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
-        scene.render.image_settings.color_depth = "32"
-        bpy.data.images["Render Result"].save_render(str(tmp_path / "frame.exr"), scene=scene)
-    finally:
-        unregister()
+    statistics = scene_generator.render_through_engine(bpy.context.scene, tmp_path / "frame.exr")
     assert statistics.get("resolution") == [32, 24], f"no frame from {generated}"
     assert all(isinstance(line, str) and "\n" not in line for line in statistics["warnings"])
     with OpenEXR.File(str(tmp_path / "frame.exr"), separate_channels=True) as exr:

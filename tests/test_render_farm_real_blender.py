@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from helpers_blender import REPO, describe, run_blender, scratch_dir
+from helpers_blender import REPO, describe, installed_extension, run_blender
 from test_render_engine import read_layers
 
 pytestmark = pytest.mark.real_blender
@@ -30,15 +30,9 @@ for frame, (light_x, sphere_y) in ((1, (0.8, 0.2)), (3, (-0.6, 0.9))):
 
 @pytest.fixture(scope="module")
 def installed_profile():
-    with scratch_dir("vsgl-farm-") as folder:
-        build = run_blender("--command", "extension", "build", "--source-dir", str(REPO),
-                            "--output-dir", str(folder))
-        assert build.returncode == 0, describe(build)
-        environment = {"BLENDER_USER_RESOURCES": str(folder / "user")}
-        install = run_blender("--command", "extension", "install-file", "-r", "user_default", "-e",
-                              str(folder / "vsgl-0.1.0.zip"), blender_env=environment)
-        assert install.returncode == 0, describe(install)
-        yield folder, environment
+    """A clean Blender user profile with the built extension installed and enabled."""
+    with installed_extension("vsgl-farm-") as installed:
+        yield installed
 
 
 def _render(folder, environment, output, *frames):

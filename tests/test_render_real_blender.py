@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from helpers_blender import REPO, describe, run_blender, scratch_dir
+from helpers_blender import REPO, describe, installed_extension, run_blender
 from test_render_engine import LAYERS, PERCENTAGE_SIZES, read_layers
 
 pytestmark = pytest.mark.real_blender
@@ -17,15 +17,8 @@ pytestmark = pytest.mark.real_blender
 @pytest.fixture(scope="module")
 def installed_profile():
     """A clean Blender user profile with the built extension installed and enabled."""
-    with scratch_dir("vsgl-render-") as folder:
-        build = run_blender("--command", "extension", "build", "--source-dir", str(REPO),
-                            "--output-dir", str(folder))
-        assert build.returncode == 0, describe(build)
-        environment = {"BLENDER_USER_RESOURCES": str(folder / "user")}
-        install = run_blender("--command", "extension", "install-file", "-r", "user_default", "-e",
-                              str(folder / "vsgl-0.1.0.zip"), blender_env=environment)
-        assert install.returncode == 0, describe(install)
-        yield folder, environment
+    with installed_extension("vsgl-render-") as installed:
+        yield installed
 
 
 def _render(folder, environment, *frames):
