@@ -34,6 +34,9 @@ SUN_ANGLES_DEG = (0.0, 0.5, 10.0, 90.0, 180.0)
 AREA_SIZES = (0.0, 1e-3, 1.0, 10.0)
 AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 LIGHT_RADII = (0.0, 0.1, 2.0)
+# Object scales of lights: a spot's cone, an area's size follow them; zero hides a light.
+LIGHT_SCALES = ((1, 1, 1), (1, 1, 1), (0, 0, 0), (1, 1, 0), (1e-4,) * 3, (1e4,) * 3, (-1, 1, 1),
+                (1e4, 1e4, 1e-4))
 
 TRANSFORMS = ("plain", "zero-axis", "zero-all", "negative", "tiny", "huge", "shear")
 MESHES = ("plane", "box", "zero-area", "collinear", "loose-vertices", "edges-only", "nan-normals")
@@ -140,6 +143,15 @@ def _mesh(kind: str, name: str, material, matrix: Matrix) -> bpy.types.Object:
 
 
 def _light(rng: np.random.Generator, index: int, inside: Matrix | None) -> tuple[bpy.types.Object, str]:
+    obj, text = _light_of_kind(rng, index, inside)
+    scale = LIGHT_SCALES[int(rng.integers(len(LIGHT_SCALES)))]
+    if scale != (1, 1, 1):
+        obj.scale = scale
+        text += f" scale {scale}"
+    return obj, text
+
+
+def _light_of_kind(rng: np.random.Generator, index: int, inside: Matrix | None) -> tuple[bpy.types.Object, str]:
     kind = str(rng.choice(["POINT", "SPOT", "SUN", "AREA"]))
     location = tuple(rng.uniform((-3.0, -3.0, 0.2), (3.0, 3.0, 4.0))) if inside is None else inside.translation
     target = tuple(rng.uniform((-1.0, -1.0, -0.5), (1.0, 1.0, 0.5)))

@@ -246,6 +246,20 @@ def test_degenerate_and_extreme_scales_extract_with_unit_normals(scale):
         assert (agree > 0.999).all(), (name, agree.min())
 
 
+def test_lights_scaled_to_zero_are_skipped_with_one_warning_line_but_a_point_light_stays():
+    sb.plane(size=4.0)
+    sb.spot_light(name="Flat spot", location=(0, 0, 3), scale=(1, 1, 0))
+    sb.area_light(name="Gone area", location=(0, 0, 3), scale=0.0)
+    sb.point_light(name="Point", location=(0, 0, 2), scale=0.0)
+    sb.camera()
+    desc = extract()
+    assert [light.name for light in desc.lights] == ["Point"]
+    point = desc.lights[0]
+    assert np.isfinite(point.matrix_world).all() and np.isfinite(point.direction).all()
+    lines = [line for line in desc.warnings if "lights skipped" in line]
+    assert len(lines) == 1 and "Flat spot (scaled to zero)" in lines[0] and "Gone area" in lines[0]
+
+
 def test_non_finite_normals_fall_back_to_the_face_normal():
     from vsgl_addon import scene_extraction
 

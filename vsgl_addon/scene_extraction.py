@@ -64,6 +64,12 @@ _FALLBACK_SPECULAR_IOR_LEVEL = 0.5
 _FALLBACK_IOR = 1.5
 
 
+UNMODELLED_SCALE = "scaled to zero"
+# Skipped lights worth a warning: what Cycles would render but the add-on cannot (a hidden light, or
+# one of zero power or colour, is skipped because it adds nothing).
+UNMODELLED_LIGHTS = ("unsupported type", UNMODELLED_SCALE)
+
+
 def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
     """The plain description of what ``depsgraph`` renders: geometry, materials, lights, camera."""
     visible = _render_visible_object_uids(depsgraph.view_layer)
@@ -126,6 +132,9 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
         warnings.append(
             "VSGL: light node trees ignored (plain colour and power used): " + ", ".join(light_node_trees)
         )
+    unmodelled = [f"{light.name} ({light.reason})" for light in skipped if light.reason in UNMODELLED_LIGHTS]
+    if unmodelled:
+        warnings.append("VSGL: lights skipped: " + ", ".join(unmodelled))
     if camera_warning:
         warnings.append(camera_warning)
 
@@ -514,8 +523,18 @@ def _read_light(obj: bpy.types.Object, matrix: np.ndarray) -> tuple[Light | None
         return None, "zero power"
     if color.max() <= 0.0:
         return None, "zero colour"
+    linear = matrix[:3, :3]
+    singular = not abs(np.linalg.det(linear)) > 1e-12 * max(np.abs(linear).max(), 1e-100) ** 3
+    if singular and kind != "POINT":
+        # A spot's cone, an area's plane and a sun's direction are the object's axes; scaled to
+        # zero they do not exist (a point light has none: it stays).
+        return None, UNMODELLED_SCALE
     direction = -matrix[:3, 2]
-    direction = direction / np.linalg.norm(direction)
+    length = np.linalg.norm(direction)
+    direction = direction / length if length > 0.0 else np.array([0.0, 0.0, -1.0])
+    if singular:
+        matrix = matrix.copy()
+        matrix[:3, :3] = np.eye(3)
     return (
         Light(
             name=obj.name,
