@@ -8,6 +8,7 @@ void main()
   world_position = position;
   corner_normal = normal;
   face_normal_flat = face_normal;
+  object_index_flat = object_index;
   texcoord = uv;
   gl_Position = view_projection * vec4(position, 1.0);
 }

@@ -266,7 +266,7 @@ RSM = TextureLayout(
 )
 
 #: The camera G-buffer's colour attachments: Principled inputs per pixel (roughness perceptual);
-#: material_coverage repeats coverage in the material attachment.
+#: object_index: SceneDescription.object_names' index of the object seen (light linking).
 GBUFFER = TextureLayout(
     name="gbuffer",
     slots=(
@@ -274,7 +274,7 @@ GBUFFER = TextureLayout(
         Slot("normal", (("normal", 3), ("roughness", 1))),
         Slot("base_color", (("base_color", 3), ("metallic", 1))),
         Slot("material", (("specular_ior_level", 1), ("ior", 1), ("material_index", 1),
-                          ("material_coverage", 1))),
+                          ("object_index", 1))),
     ),
     define_prefix="GBUFFER_ATTACHMENT",
     glsl_prefix="gbuffer",
@@ -306,6 +306,7 @@ RSM_VIEW = TextureLayout(
         "light_position", "light_axis")) + (
         Slot("light_params", (("light_params", 4),)),
         Slot("light_color", (("light_color", 3),)),
+        Slot("light_links", (("light_factors", 2), ("light_index", 1), ("light_links_rows", 1))),
     ),
     define_prefix="RSM_VIEW_ROW",
     glsl_prefix="view_constants",

@@ -77,8 +77,11 @@ class SceneLights:
 
     scene: object  # SceneDescription
     scene_gpu: object  # SceneGPU
-    vsgls: object  # pipeline.SceneVSGLs
+    vsgls: object  # pipeline.SceneVSGLs: every reflector, or those seen by diffuse rays
     timings: dict[str, float] = field(default_factory=dict)
+    # When some object is hidden from diffuse or glossy rays (SceneDescription.receiver_lobe_split):
+    # the VSGLs of the reflectors glossy rays see, for the receivers' specular lobes.
+    glossy_vsgls: object = None
 
     @classmethod
     def build(cls, scene, settings: VSGLSettings) -> "SceneLights":
@@ -86,20 +89,31 @@ class SceneLights:
         scene_gpu = SceneGPU(scene)
         timings = {UPLOAD.name: time.perf_counter() - clock}
         clock = time.perf_counter()
+        vsgls = glossy = None
         try:
-            vsgls = render_scene_vsgls(scene_gpu, settings)
-            if vsgls.generations:
-                _finish(vsgls.generations[-1][2].table)
+            split = scene.receiver_lobe_split
+            vsgls = render_scene_vsgls(scene_gpu, settings, "diffuse" if split else "all")
+            if split:
+                glossy = render_scene_vsgls(scene_gpu, settings, "glossy")
+            for table_set in (vsgls, glossy):
+                if table_set is not None and table_set.generations:
+                    _finish(table_set.generations[-1][2].table)
         except BaseException:
+            for table_set in (vsgls, glossy):
+                if table_set is not None:
+                    table_set.free()
             scene_gpu.free()
             raise
         timings[LIGHT_PASSES.name] = time.perf_counter() - clock
-        return cls(scene, scene_gpu, vsgls, timings)
+        return cls(scene, scene_gpu, vsgls, timings, glossy)
 
     def free(self) -> None:
         if self.vsgls is not None:
             self.vsgls.free()
             self.vsgls = None
+        if self.glossy_vsgls is not None:
+            self.glossy_vsgls.free()
+            self.glossy_vsgls = None
         if self.scene_gpu is not None:
             self.scene_gpu.free()
             self.scene_gpu = None
@@ -154,20 +168,31 @@ class FrameRenderer:
             gbuffer = gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
             _finish(gbuffer.textures["position"])
             lap(gbuffer_pass.PASS.step.name)
-            direct = direct_light.PASS.run(gbuffer, scene.lights, vsgls.views_by_light)
+            direct = direct_light.PASS.run(gbuffer, scene.lights, vsgls.views_by_light, scene_gpu=lights.scene_gpu)
             _finish(direct.textures["diffuse"])
             lap(direct_light.PASS.step.name)
             inputs = shading_inputs.PASS.run(gbuffer)
-            vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, vsgls.tables(),
-                                  diffuse_mode_for_kernel(settings.kernel), shading=self._shading)
+            mode = diffuse_mode_for_kernel(settings.kernel)
+            vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, vsgls.tables(), mode, shading=self._shading)
             _finish(self._shading.diffuse)
+            glossy = lights.glossy_vsgls
+            if glossy is not None:
+                # The receivers' specular lobes see only the reflectors glossy rays see: a second
+                # shading of the same pixels, after the first one's diffuse image is read.
+                indirect_diffuse, _ = self._shading.read()
+                vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, glossy.tables(), mode, shading=self._shading)
+                _finish(self._shading.diffuse)
             lap(vsgl_shading.PASS.step.name)
-            indirect_diffuse, indirect_specular = self._shading.read()
+            if glossy is not None:
+                _, indirect_specular = self._shading.read()
+            else:
+                indirect_diffuse, indirect_specular = self._shading.read()
             direct_diffuse, direct_specular = direct.to_numpy()
             coverage = GBUFFER.unpack_slots(gbuffer.to_numpy(), ["coverage"])["coverage"]
             lap(READ_BACK.name)
+            glossy_count = lights.glossy_vsgls.vsgl_count if lights.glossy_vsgls is not None else 0
             counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in vsgls.views_by_light.values()),
-                      "vsgls": vsgls.vsgl_count, "triangles": int(len(scene.geometry.positions))}
+                      "vsgls": vsgls.vsgl_count + glossy_count, "triangles": int(len(scene.geometry.positions))}
         finally:
             if direct is not None:
                 direct.free()

@@ -25,6 +25,13 @@ from . import views
 LIGHT_TYPES = ("POINT", "SPOT", "SUN", "AREA")
 AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 
+#: Channels of :meth:`SceneDescription.light_links` per (light, object): does the object receive
+#: the light (light linking), block it (shadow linking and the object's shadow-ray visibility),
+#: and is it seen by diffuse and by glossy rays (its bounce reaches receivers' diffuse / glossy lobes).
+LINK_RECEIVES, LINK_BLOCKS, LINK_VISIBLE_DIFFUSE, LINK_VISIBLE_GLOSSY = range(4)
+#: The receivers' lobes a set of VSGLs lights (which objects' bounce it carries, by ray visibility).
+RECEIVER_LOBES = ("all", "diffuse", "glossy")
+
 
 @dataclass(frozen=True)
 class Geometry:
@@ -117,8 +124,13 @@ class Light:
     sun_angle: float  # angular diameter, radians (sun only, else 0)
     shape: str  # area shape, one of AREA_SHAPES (area only, else "")
     size: np.ndarray  # (2,) float64, area width/height in metres, object scale applied (else 0)
-    diffuse_factor: float  # the light's per-component multipliers, kept for the shading passes
+    diffuse_factor: float  # Blender's multipliers of the light for diffuse and glossy reflection
     specular_factor: float
+    # Light linking: (O,) bool per object of SceneDescription.object_names, True where the object
+    # receives this light; None: every object does. Shadow linking likewise for the objects that
+    # block it (before the objects' own shadow-ray visibility).
+    receivers: np.ndarray | None = None
+    blockers: np.ndarray | None = None
 
     @property
     def flux(self) -> np.ndarray:
@@ -190,6 +202,41 @@ class SceneDescription:
     skipped_lights: tuple[SkippedLight, ...] = ()
     # One line per kind of problem, for the UI (e.g. "VSGL: approximated materials (...): A, B").
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    # Ray visibility per object (O, 3) bool: seen by diffuse rays, by glossy rays, casts shadows
+    # (Blender's Object.visible_diffuse / visible_glossy / visible_shadow); None: all True.
+    object_visibility: np.ndarray | None = None
+
+    def visibility(self) -> np.ndarray:
+        """(O, 3) bool: diffuse, glossy, shadow visibility of every object (all True by default)."""
+        if self.object_visibility is None:
+            return np.ones((len(self.object_names), 3), bool)
+        return np.asarray(self.object_visibility, bool).reshape(len(self.object_names), 3)
+
+    @property
+    def uses_light_links(self) -> bool:
+        """Whether any light or object departs from 'everything receives, blocks and is seen'."""
+        return bool(any(light.receivers is not None or light.blockers is not None for light in self.lights)
+                    or not self.visibility().all())
+
+    @property
+    def receiver_lobe_split(self) -> bool:
+        """Whether some object is hidden from diffuse or from glossy rays, so that the receivers'
+        diffuse and glossy lobes see different reflectors (two sets of VSGLs, one per lobe)."""
+        visibility = self.visibility()
+        return bool(not visibility[:, :2].all())
+
+    def light_links(self) -> np.ndarray:
+        """(L, O, 4) float32, the LINK_* channels per light and object (1 or 0)."""
+        visibility = self.visibility()
+        table = np.zeros((len(self.lights), len(self.object_names), 4), np.float32)
+        for index, light in enumerate(self.lights):
+            receives = np.ones(len(self.object_names), bool) if light.receivers is None else light.receivers
+            blocks = np.ones(len(self.object_names), bool) if light.blockers is None else light.blockers
+            table[index, :, LINK_RECEIVES] = receives
+            table[index, :, LINK_BLOCKS] = blocks & visibility[:, 2]
+            table[index, :, LINK_VISIBLE_DIFFUSE] = visibility[:, 0]
+            table[index, :, LINK_VISIBLE_GLOSSY] = visibility[:, 1]
+        return table
 
     @property
     def approximated_materials(self) -> tuple[str, ...]:

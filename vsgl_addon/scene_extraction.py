@@ -30,7 +30,7 @@ and evaluates modifiers with their viewport settings (Subdivision levels, Show i
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import bpy
 import numpy as np
@@ -78,8 +78,12 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
     placements: dict[tuple, list[tuple[np.ndarray, int]]] = {}
     object_names: list[str] = []
     lights: list[Light] = []
+    light_objects: list[bpy.types.Object] = []
     skipped: list[SkippedLight] = []
     light_node_trees: list[str] = []
+    # Per object instance: (the instanced object, its instancer) originals, and its ray visibility.
+    instance_originals: list[tuple] = []
+    visibility: list[tuple[bool, bool, bool]] = []
 
     for inst in depsgraph.object_instances:
         obj = inst.object
@@ -100,6 +104,7 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
                 skipped.append(SkippedLight(obj.name, reason))
             else:
                 lights.append(light)
+                light_objects.append(obj.original)
                 if obj.data.use_nodes and not _plain_light_tree(obj.data.node_tree):
                     light_node_trees.append(obj.name)
             continue
@@ -120,8 +125,12 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
         placement = np.array(inst.matrix_world, np.float64), len(object_names)
         placements.setdefault((key, table), []).append(placement)
         object_names.append(_instance_name(inst, obj))
+        instance_originals.append((obj.original, top.original))
+        visibility.append(tuple(bool(getattr(obj.original, name, True))
+                                for name in ("visible_diffuse", "visible_glossy", "visible_shadow")))
 
     geometry = _place(meshes, placements)
+    lights = [_linked(light, original, instance_originals) for light, original in zip(lights, light_objects)]
     camera, camera_warning = _read_camera(depsgraph)
 
     warnings = []
@@ -146,7 +155,53 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
         object_names=tuple(object_names),
         skipped_lights=tuple(skipped),
         warnings=tuple(warnings),
+        object_visibility=None if all(all(v) for v in visibility) else np.array(visibility, bool).reshape(-1, 3),
     )
+
+
+# --- light and shadow linking -------------------------------------------------------------------
+
+
+def _link_states(collection) -> dict:
+    """Original object -> "INCLUDE" / "EXCLUDE" for every object in a linking ``collection``: its
+    own entries, and the objects of its child collections with the child's state (Blender's
+    CollectionLightLinking), the nearest entry winning."""
+    # collection_objects / collection_children run parallel to objects / children.
+    states = {}
+    for child, entry in zip(collection.children, collection.collection_children):
+        for obj in child.all_objects:
+            states.setdefault(obj.original, entry.light_linking.link_state)
+    for obj, entry in zip(collection.objects, collection.collection_objects):
+        states[obj.original] = entry.light_linking.link_state
+    return states
+
+
+def _link_mask(collection, instance_originals) -> np.ndarray | None:
+    """Per object instance, whether it is in the linking set (Blender's rule: with any included
+    object, only included objects are; with only excluded ones, everything else is); None when
+    there is no collection."""
+    if collection is None:
+        return None
+    states = _link_states(collection)
+    any_included = "INCLUDE" in states.values()
+
+    def state(originals):
+        own, instancer = originals
+        return states.get(own, states.get(instancer))
+
+    return np.array([(state(o) == "INCLUDE") if any_included else (state(o) != "EXCLUDE")
+                     for o in instance_originals], bool)
+
+
+def _linked(light: Light, original, instance_originals) -> Light:
+    linking = getattr(original, "light_linking", None)  # Blender 4.3+
+    if linking is None:
+        return light
+    receivers = _link_mask(linking.receiver_collection, instance_originals)
+    blockers = _link_mask(linking.blocker_collection, instance_originals)
+    if receivers is None and blockers is None:
+        return light
+    return replace(light, receivers=receivers, blockers=blockers)
 
 
 def _plain_light_tree(tree) -> bool:

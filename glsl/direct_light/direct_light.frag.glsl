@@ -1,5 +1,6 @@
 // @require direct_light/light_at_surface.glsl
 // @require lib/shadow.glsl
+// @require lib/light_links.glsl
 //
 // Direct light of one light, full screen over the camera G-buffer (vsgl_addon/passes/gbuffer.py
 // layout), added (blending ONE, ONE) into two RGBA32F targets: diffuse and glossy direct radiance
@@ -7,7 +8,7 @@
 //
 // light_constants (RGBA32F, 1 row): 0 (light position, view count), 1 (light axis, 0),
 // 2 light params (lib/light_emission.glsl), 3 (light colour, 0), 4 (diffuse factor, specular
-// factor, 0, 0), 5-7 rows of world -> light local (mat3), then per RSM view k (k < 6) 5 texels from
+// factor, light index, light-links rows: lib/light_links.glsl), 5-7 rows of world -> light local (mat3), then per RSM view k (k < 6) 5 texels from
 // 8 + 5k: the rows of its view-projection matrix, then (perspective 1 / ortho 0, P00, P22, P23).
 // camera: (position, 1) perspective or (direction towards the camera, 0) orthographic.
 // shadow_params: (RSM size, normal offset in texels, depth bias in texels, shadows on 1 / off 0).
@@ -60,17 +61,19 @@ float direct_light_visibility(vec3 position, vec3 normal, vec3 incoming, int vie
 void main()
 {
   ivec2 pixel = ivec2(gl_FragCoord.xy);
-  vec4 position = texelFetch(gbuffer_position, pixel, 0);
+  GBufferTexel g = gbuffer_load(pixel);
   direct_diffuse = vec4(0.0);
   direct_glossy = vec4(0.0);
-  if (position.w < 0.5) {
+  if (g.coverage < 0.5) {
     return;
   }
-  vec4 normal_roughness = texelFetch(gbuffer_normal, pixel, 0);
-  vec4 base_metallic = texelFetch(gbuffer_base_color, pixel, 0);
-  vec4 material = texelFetch(gbuffer_material, pixel, 0);
-  vec3 normal = normal_roughness.xyz;
-  vec3 outgoing = camera.w > 0.5 ? camera.xyz - position.xyz : camera.xyz;
+  vec4 factors = light_constant(4);
+  // Light linking: an object outside the light's receivers gets none of its light.
+  if (light_links_fetch(light_links, int(factors.w + 0.5), int(factors.z + 0.5), g.object_index).x < 0.5) {
+    return;
+  }
+  vec3 normal = g.normal;
+  vec3 outgoing = camera.w > 0.5 ? camera.xyz - g.position : camera.xyz;
   outgoing = safe_normalize(outgoing, normal);
 
   vec4 light0 = light_constant(0);
@@ -79,24 +82,23 @@ void main()
   vec3 light_axis = light_constant(1).xyz;
   vec4 params = light_constant(2);
   vec3 color = light_constant(3).rgb;
-  vec4 factors = light_constant(4);
   mat3 light_to_local = transpose(mat3(light_constant(5).xyz, light_constant(6).xyz,
                                        light_constant(7).xyz));
 
   vec3 incoming;
   float irradiance = direct_light_irradiance(params, light_position, light_axis, light_to_local,
-                                             position.xyz, normal, incoming);
+                                             g.position, normal, incoming);
   if (!(irradiance > 0.0)) {
     return;
   }
   if (shadow_params.w > 0.5) {
-    irradiance *= direct_light_visibility(position.xyz, normal, incoming, view_count);
+    irradiance *= direct_light_visibility(g.position, normal, incoming, view_count);
     if (!(irradiance > 0.0)) {
       return;
     }
   }
-  PrincipledTerms terms = principled_terms(base_metallic.rgb, base_metallic.a, material.x,
-                                           material.y, normal_roughness.w, dot(normal, outgoing));
+  PrincipledTerms terms = principled_terms(g.base_color, g.metallic, g.specular_ior_level, g.ior,
+                                           g.roughness, dot(normal, outgoing));
   vec3 diffuse, glossy;
   direct_light_radiance(terms, incoming, outgoing, normal, irradiance, diffuse, glossy);
   direct_diffuse = vec4(diffuse * color * factors.x, 0.0);

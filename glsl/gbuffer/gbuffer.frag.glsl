@@ -30,6 +30,6 @@ void main()
   r.specular_ior_level = material_params.z;
   r.ior = material_params.w;
   r.material_index = material_index;
-  r.material_coverage = 1.0;
+  r.object_index = object_index_flat;
   gbuffer_store(r);
 }

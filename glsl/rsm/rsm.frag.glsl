@@ -1,5 +1,6 @@
 // @require lib/image.glsl
 // @require lib/light_emission.glsl
+// @require lib/light_links.glsl
 // @require lib/principled.glsl
 // @require lib/sg.glsl
 //
@@ -21,7 +22,14 @@
 // view_constants_load (rows declared in vsgl_addon/layouts.py RSM_VIEW): the rows of mat3
 // view -> world and of mat3 world -> light local (inverse of the light's 3x3 world matrix, scale
 // included), light_position, light_axis (unit, where the light points), light_params (the light
-// parameters of lib/light_emission.glsl), light_color.
+// parameters of lib/light_emission.glsl), light_color, light_factors (Blender's diffuse and
+// specular factors of the light), light_index and light_links_rows (lib/light_links.glsl).
+//
+// rsm_mode.x selects what one draw covers, for shadow linking: 0 every object, 1 the objects that
+// block the light (they write depth: the shadow map holds only them), 2 the others (depth tested,
+// not written: a reflector that casts no shadow). rsm_mode.y keeps the flux of the reflectors seen
+// by every ray (0), by diffuse rays only (1) or by glossy rays only (2): the VSGLs for the
+// receivers' diffuse and glossy lobes when some object is hidden from one ray type.
 
 // Largest RSM side whose texel solid angles use the exact formula; larger sizes integrate cos^3
 // by 3x3 Gauss-Legendre (see texel_solid_angle).
@@ -70,6 +78,15 @@ mat3 rows_to_mat3(vec3 r0, vec3 r1, vec3 r2)
 void main()
 {
   RSMViewConstants view = view_constants_load(0);
+  vec4 links = light_links_fetch(light_links, int(view.light_links_rows + 0.5), int(view.light_index + 0.5),
+                                 object_index_flat);
+  bool blocks = links.y > 0.5;
+  if ((rsm_mode.x == 1 && !blocks) || (rsm_mode.x == 2 && blocks)) {
+    discard;
+  }
+  // The texel reflects the light only if its object receives it (light linking) and, for one
+  // receiver lobe's VSGLs, is seen by that lobe's rays.
+  float lit = links.x * (rsm_mode.y == 1 ? links.z : 1.0) * (rsm_mode.y == 2 ? links.w : 1.0);
   mat3 view_to_world = rows_to_mat3(view.view_to_world_row0, view.view_to_world_row1, view.view_to_world_row2);
   mat3 light_to_local = rows_to_mat3(view.world_to_local_row0, view.world_to_local_row1,
                                      view.world_to_local_row2);
@@ -126,15 +143,18 @@ void main()
   float sharpness;
   specular_lobe_warp(incoming, normal, terms.alpha, axis, sharpness);
 
+  flux_white *= lit;
   vec3 flux = flux_white * light_color;
   RSMTexel r;
   r.position = world_position;
   r.specular_sharpness = sharpness;
   r.normal = normal;
   r.roughness = roughness;
-  r.flux_diffuse = flux * terms.diffuse;
+  // Blender's light factors scale the light's diffuse and glossy reflection, here at the reflector
+  // as Cycles does at the first surface the light reaches.
+  r.flux_diffuse = flux * terms.diffuse * view.light_factors.x;
   r.flux_white = flux_white;
-  r.flux_specular = flux * terms.specular_albedo;
+  r.flux_specular = flux * terms.specular_albedo * view.light_factors.y;
   r.texel_measure = texel_measure;
   r.specular_axis = axis;
   r.coverage = 1.0;

@@ -43,11 +43,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..layouts import GBUFFER
 from ..reference.lights import light_params
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
 from .gbuffer import ATTACHMENTS as GBUFFER_ATTACHMENTS
 from .gpu_util import fullscreen_triangle_batch, read_texture, texture_from_array
+from .scene_gpu import light_links_rows
 
 MAX_VIEWS = 6
 #: Defaults of the shadow test, in texels of the RSM view at the point.
@@ -57,7 +59,7 @@ DEPTH_BIAS = 1.0
 
 def _interface() -> ShaderInterface:
     samplers = [("FLOAT_2D", f"gbuffer_{name}") for name in GBUFFER_ATTACHMENTS]
-    samplers.append(("FLOAT_2D", "light_constants"))
+    samplers += [("FLOAT_2D", "light_constants"), ("FLOAT_2D", "light_links")]
     samplers += [("FLOAT_2D", f"rsm_depth_{k}") for k in range(MAX_VIEWS)]
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("VEC4", "shadow_params")],
@@ -81,6 +83,11 @@ def _fullscreen_batch():
     return PASS.resource("fullscreen_triangle", lambda: fullscreen_triangle_batch(shader()))
 
 
+def _no_links():
+    """A 1×1 light-links texture for scenes without light linking (never read: rows 0)."""
+    return PASS.resource("no_links", lambda: texture_from_array(np.ones((1, 1, 4), np.float32)))
+
+
 def _dummy():
     """A 1×1 depth texture for the unused view slots (never read)."""
     import gpu
@@ -88,7 +95,7 @@ def _dummy():
     return PASS.resource("dummy_depth", lambda: gpu.types.GPUTexture((1, 1), format="DEPTH_COMPONENT32F"))
 
 
-def light_constants(light, views) -> np.ndarray:
+def light_constants(light, views, light_index: int = 0, links_rows: int = 0) -> np.ndarray:
     """(1, 8 + 5·MAX_VIEWS, 4) float32: the per-light constants of direct_light.frag.glsl."""
     constants = np.zeros((1, 8 + 5 * MAX_VIEWS, 4), np.float32)
     constants[0, 0] = (*np.asarray(light.position, np.float64), float(len(views)))
@@ -96,7 +103,8 @@ def light_constants(light, views) -> np.ndarray:
     constants[0, 1, :3] = axis / np.linalg.norm(axis)
     constants[0, 2] = light_params(light)
     constants[0, 3, :3] = np.asarray(light.color, np.float64)
-    constants[0, 4, :2] = (float(light.diffuse_factor), float(light.specular_factor))
+    constants[0, 4] = (float(light.diffuse_factor), float(light.specular_factor), float(light_index),
+                       float(links_rows))
     constants[0, 5:8, :3] = np.linalg.inv(np.asarray(light.matrix_world, np.float64)[:3, :3])
     for k, view in enumerate(views[:MAX_VIEWS]):
         base = 8 + 5 * k
@@ -129,12 +137,16 @@ class DirectLight:
 
 
 def render_direct_light(gbuffer, lights, views_by_light, *, shadows: bool = True,
-                        normal_offset: float = NORMAL_OFFSET, depth_bias: float = DEPTH_BIAS) -> DirectLight:
+                        normal_offset: float = NORMAL_OFFSET, depth_bias: float = DEPTH_BIAS,
+                        scene_gpu=None) -> DirectLight:
     """Direct light of ``lights`` (a sequence of scene lights) on ``gbuffer``.
 
     ``views_by_light``: a dict (or sequence) light index -> list of :class:`RSMView` of that light
     (``render_rsm_views``); all views must share one RSM size. A light without views is skipped
-    when ``shadows`` (it hits nothing), lit unshadowed otherwise.
+    when ``shadows`` (it hits nothing), lit unshadowed otherwise. ``scene_gpu`` (the
+    :class:`SceneGPU` the G-buffer was drawn from, whose lights ``lights`` are) brings the lights'
+    receivers (light linking); without it every object receives every light. Shadow linking needs
+    nothing here: the RSM depth holds only each light's blockers.
     """
     import time
 
@@ -156,6 +168,8 @@ def render_direct_light(gbuffer, lights, views_by_light, *, shadows: bool = True
         gpu.state.blend_set("ADDITIVE_PREMULT")
         program.bind()
         program.uniform_float("camera", tuple(float(v) for v in gbuffer.camera_vector))
+        links_rows = light_links_rows(scene_gpu.scene) if scene_gpu is not None else 0
+        program.uniform_sampler("light_links", scene_gpu.light_links() if links_rows else _no_links())
         for name in GBUFFER_ATTACHMENTS:
             program.uniform_sampler(f"gbuffer_{name}", gbuffer.textures[name])
         for index, light in enumerate(lights):
@@ -169,7 +183,7 @@ def render_direct_light(gbuffer, lights, views_by_light, *, shadows: bool = True
             if len(sizes) > 1:
                 raise ValueError(f"light {light.name!r}: RSM views of different sizes {sorted(sizes)}")
             size = sizes.pop() if sizes else 1
-            constants = texture_from_array(light_constants(light, views))
+            constants = texture_from_array(light_constants(light, views, index, links_rows))
             keep_alive.append(constants)
             program.uniform_sampler("light_constants", constants)
             for k in range(MAX_VIEWS):
@@ -189,7 +203,8 @@ PASS = GPUPass(
     label="Direct Light",
     step=Step("direct_light", "Direct Light"),
     shaders={"direct_light": ShaderSpec(_interface, {"vertex": "fullscreen_triangle.vert.glsl",
-                                                     "fragment": "direct_light/direct_light.frag.glsl"})},
+                                                     "fragment": "direct_light/direct_light.frag.glsl"},
+                                        code=lambda: {"fragment": GBUFFER.glsl("samplers_load")})},
     reads=("gbuffer", "rsm_depth"),
     writes=("direct_light",),
     run=render_direct_light,

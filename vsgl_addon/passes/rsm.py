@@ -64,7 +64,8 @@ from ..reference.vsgl import RSM
 from ..views import RSMViewSpec, light_view_specs, view_sees_triangles
 from .contract import LIGHT_PASSES, GPUPass, ShaderSpec
 from .gpu_util import matrix, read_texture, texture_from_array
-from .scene_gpu import VERTEX_STAGE, SceneGPU, scene_shader_interface
+from ..scene_description import RECEIVER_LOBES
+from .scene_gpu import VERTEX_STAGE, SceneGPU, light_links_rows, scene_shader_interface
 
 #: Largest RSM side (a 2048² view holds five 64 MB colour textures).
 MAX_RSM_SIZE = 4096
@@ -79,9 +80,11 @@ ATTACHMENTS = RSM_LAYOUT.slot_names
 def _interface():
     return scene_shader_interface(
         # (perspective 1 / ortho 0, half extent x, y, size)
-        push_constants=[("VEC4", "view_params")],
-        # view_constants: a one-column RGBA32F table, vsgl_addon.layouts.RSM_VIEW (_view_constants).
-        samplers=[("FLOAT_2D", "view_constants")],
+        # (objects drawn, receiver lobe): see glsl/rsm/rsm.frag.glsl
+        push_constants=[("VEC4", "view_params"), ("IVEC2", "rsm_mode")],
+        # view_constants: a one-column RGBA32F table, vsgl_addon.layouts.RSM_VIEW (_view_constants);
+        # light_links: SceneGPU.light_links (glsl/lib/light_links.glsl).
+        samplers=[("FLOAT_2D", "view_constants"), ("FLOAT_2D", "light_links")],
         fragment_outputs=[("VEC4", f"rsm_{name}") for name in RSM_LAYOUT.slot_names],
     )
 
@@ -173,7 +176,7 @@ class RSMView:
         self.textures.clear()
 
 
-def _view_constants(light, spec: RSMViewSpec) -> np.ndarray:
+def _view_constants(light, spec: RSMViewSpec, light_index: int = 0, links_rows: int = 0) -> np.ndarray:
     """(rows, 1, 4) float32: the per-view constants of glsl/rsm/rsm.frag.glsl (layouts.RSM_VIEW)."""
     view_to_world = spec.view_to_world[:3, :3]
     world_to_local = np.linalg.inv(np.asarray(light.matrix_world, np.float64)[:3, :3])
@@ -183,41 +186,60 @@ def _view_constants(light, spec: RSMViewSpec) -> np.ndarray:
     values.update(light_position=np.asarray(light.position, np.float64)[None],
                   light_axis=(axis / np.linalg.norm(axis))[None],
                   light_params=np.asarray(light_params(light), np.float64)[None],
-                  light_color=np.asarray(light.color, np.float64)[None])
+                  light_color=np.asarray(light.color, np.float64)[None],
+                  light_factors=np.array([[light.diffuse_factor, light.specular_factor]], np.float64),
+                  light_index=np.array([light_index], np.float64),
+                  light_links_rows=np.array([links_rows], np.float64))
     return RSM_VIEW.pack(values, 1)
 
 
-def _render(scene_gpu: SceneGPU, light, spec: RSMViewSpec, size: int, textures: dict):
+#: rsm_mode.x of glsl/rsm/rsm.frag.glsl: which objects one draw covers.
+DRAW_ALL, DRAW_BLOCKERS, DRAW_NON_BLOCKERS = 0, 1, 2
+
+
+def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int, textures: dict,
+            receiver_lobe: str = "all"):
     import gpu
 
+    light = scene_gpu.scene.lights[light_index]
     program = shader()
     targets = [textures[name] for name in RSM_LAYOUT.slot_names]
     framebuffer = gpu.types.GPUFrameBuffer(depth_slot=textures["depth"], color_slots=targets)
-    constants = texture_from_array(_view_constants(light, spec))
+    constants = texture_from_array(_view_constants(light, spec, light_index, light_links_rows(scene_gpu.scene)))
+    # Shadow linking and objects that cast no shadow: the blockers first, writing depth (the shadow
+    # map direct light reads), then the rest depth-tested only, so they reflect light without
+    # occluding it (what lies behind such an object is not in the map: one layer per texel).
+    draws = [(DRAW_BLOCKERS, True), (DRAW_NON_BLOCKERS, False)] if scene_gpu.has_non_blockers(light_index) \
+        else [(DRAW_ALL, True)]
     with framebuffer.bind():
         framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
         gpu.state.viewport_set(0, 0, size, size)
         gpu.state.blend_set("NONE")
         gpu.state.depth_test_set("LESS")
-        gpu.state.depth_mask_set(True)
         gpu.state.face_culling_set("NONE")
         program.bind()
         program.uniform_float("view_projection", matrix(spec.view_projection))
         program.uniform_sampler("view_constants", constants)
+        program.uniform_sampler("light_links", scene_gpu.light_links())
         program.uniform_float("view_params", (1.0 if spec.perspective else 0.0, spec.half_extent[0],
                                               spec.half_extent[1], float(size)))
-        scene_gpu.draw(program)
+        for draw, writes_depth in draws:
+            gpu.state.depth_mask_set(writes_depth)
+            program.uniform_int("rsm_mode", (draw, RECEIVER_LOBES.index(receiver_lobe)))
+            scene_gpu.draw(program)
         gpu.state.depth_test_set("NONE")
         gpu.state.depth_mask_set(False)
     return framebuffer, constants
 
 
-def render_rsm_views(scene, light_index: int, size: int = 256) -> list[RSMView]:
+def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: str = "all") -> list[RSMView]:
     """Render the RSM views of ``scene.lights[light_index]`` at ``size`` x ``size`` texels.
 
     ``scene`` is a :class:`SceneGPU` (reuse it for every light) or a SceneDescription (uploaded for
     this call only). Views whose frustum holds no triangle are skipped, so a light that hits
-    nothing returns []. Free each view with :meth:`RSMView.free` when done.
+    nothing returns []. Free each view with :meth:`RSMView.free` when done. ``receiver_lobe``
+    (scene_description.RECEIVER_LOBES) keeps only the flux of reflectors seen by diffuse or by
+    glossy rays.
     """
     import gpu
 
@@ -232,7 +254,7 @@ def render_rsm_views(scene, light_index: int, size: int = 256) -> list[RSMView]:
             continue
         textures = {name: gpu.types.GPUTexture((size, size), format="RGBA32F") for name in RSM_LAYOUT.slot_names}
         textures["depth"] = gpu.types.GPUTexture((size, size), format="DEPTH_COMPONENT32F")
-        framebuffer, constants = _render(scene_gpu, light, spec, size, textures)
+        framebuffer, constants = _render(scene_gpu, light_index, spec, size, textures, receiver_lobe)
         views.append(RSMView(light_index, light, spec, size, textures, framebuffer, constants))
     return views
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..scene_description import LINK_BLOCKS
 from ..shaders import ShaderInterface
 from .gpu_util import texture_from_array
 
@@ -38,9 +39,9 @@ def scene_shader_interface(push_constants, samplers, fragment_outputs) -> Shader
         ],
         samplers=[("FLOAT_2D", "base_color_image"), *samplers],
         vertex_inputs=[("VEC3", "position"), ("VEC3", "normal"), ("VEC3", "face_normal"),
-                       ("VEC2", "uv")],
+                       ("VEC2", "uv"), ("FLOAT", "object_index")],
         varyings=[("VEC3", "world_position"), ("VEC3", "corner_normal"), ("VEC2", "texcoord")],
-        flat_varyings=[("VEC3", "face_normal_flat")],
+        flat_varyings=[("VEC3", "face_normal_flat"), ("FLOAT", "object_index_flat")],
         fragment_outputs=list(fragment_outputs),
     )
 
@@ -80,6 +81,7 @@ class SceneGPU:
             fmt.attr_add(id="normal", comp_type="F32", len=3, fetch_mode="FLOAT")
             fmt.attr_add(id="face_normal", comp_type="F32", len=3, fetch_mode="FLOAT")
             fmt.attr_add(id="uv", comp_type="F32", len=2, fetch_mode="FLOAT")
+            fmt.attr_add(id="object_index", comp_type="F32", len=1, fetch_mode="FLOAT")
             vbo = gpu.types.GPUVertBuf(fmt, 3 * count)
 
             def fill(name, array, width):
@@ -90,10 +92,14 @@ class SceneGPU:
             fill("normal", np.asarray(geometry.normals)[order], 3)
             fill("face_normal", face_normals, 3)
             fill("uv", np.asarray(geometry.uvs)[order], 2)
+            # Exact as a float up to 2^24 objects.
+            fill("object_index", np.repeat(np.asarray(geometry.object_index, np.float64)[order], 3), 1)
             self.vertex_buffer = vbo
             self.batch = gpu.types.GPUBatch(type="TRIS", buf=vbo)
         self._images: dict[int, object] = {}
         self._white = None
+        self._light_links = None
+        self._non_blockers = None
 
     def material_image(self, material_index: int):
         """The base colour texture of a material, or a 1x1 white one (uploaded once)."""
@@ -105,6 +111,24 @@ class SceneGPU:
         if material_index not in self._images:
             self._images[material_index] = texture_from_array(np.asarray(material.base_color_image, np.float32))
         return self._images[material_index]
+
+    def light_links(self):
+        """The scene's light and shadow links and ray visibility (SceneDescription.light_links) as one
+        RGBA32F texture for glsl/lib/light_links.glsl: object o of light l at texel
+        (o mod LIGHT_LINKS_WIDTH, l * rows + o div LIGHT_LINKS_WIDTH), ``rows`` per light (uploaded
+        once; a 1 x 1 texture when no light or object uses them)."""
+        if self._light_links is None:
+            self._light_links = texture_from_array(light_links_array(self.scene))
+        return self._light_links
+
+    def has_non_blockers(self, light_index: int) -> bool:
+        """Whether some object does not block light ``light_index`` (shadow linking, or an object
+        that casts no shadow): its RSM then takes two draws."""
+        if light_links_rows(self.scene) == 0:
+            return False
+        if self._non_blockers is None:
+            self._non_blockers = (self.scene.light_links()[..., LINK_BLOCKS] < 0.5).any(axis=1)
+        return bool(self._non_blockers[light_index])
 
     def draw(self, program, per_material=None) -> None:
         """Draw every material's triangles with ``program`` (bound, with the interface of
@@ -128,3 +152,28 @@ class SceneGPU:
         self.vertex_buffer = None
         self._images.clear()
         self._white = None
+        self._light_links = None
+
+
+#: Objects per texture row of the light-links texture (glsl/lib/light_links.glsl's LIGHT_LINKS_WIDTH).
+LIGHT_LINKS_WIDTH = 4096
+
+
+def light_links_rows(scene) -> int:
+    """Texture rows per light of the light-links texture (0 when the scene uses no links)."""
+    if not scene.uses_light_links or not scene.lights:
+        return 0
+    return max(1, -(-len(scene.object_names) // LIGHT_LINKS_WIDTH))
+
+
+def light_links_array(scene) -> np.ndarray:
+    """(rows x lights, width, 4) float32 of :meth:`SceneGPU.light_links` (1 x 1 when unused)."""
+    rows = light_links_rows(scene)
+    if rows == 0:
+        return np.ones((1, 1, 4), np.float32)
+    table = scene.light_links()  # (L, O, 4)
+    lights, objects = table.shape[:2]
+    width = min(objects, LIGHT_LINKS_WIDTH) if objects else 1
+    padded = np.ones((lights, rows * width, 4), np.float32)
+    padded[:, :objects] = table
+    return np.ascontiguousarray(padded.reshape(lights * rows, width, 4))
