@@ -35,6 +35,7 @@ AREA_SIZES = (0.0, 1e-3, 1.0, 10.0)
 AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 LIGHT_RADII = (0.0, 0.1, 2.0)
 # Object scales of lights: a spot's cone, an area's size follow them; zero hides a light.
+LIGHT_FACTORS = (0.0, 0.5, 1.0, 10.0)
 LIGHT_SCALES = ((1, 1, 1), (1, 1, 1), (0, 0, 0), (1, 1, 0), (1e-4,) * 3, (1e4,) * 3, (-1, 1, 1),
                 (1e4, 1e4, 1e-4))
 
@@ -148,7 +149,28 @@ def _light(rng: np.random.Generator, index: int, inside: Matrix | None) -> tuple
     if scale != (1, 1, 1):
         obj.scale = scale
         text += f" scale {scale}"
+    if rng.random() < 0.4:
+        obj.data.diffuse_factor, obj.data.specular_factor = (float(v) for v in rng.choice(LIGHT_FACTORS, 2))
+        text += f" factors {obj.data.diffuse_factor:g}/{obj.data.specular_factor:g}"
     return obj, text
+
+
+def _link(light: bpy.types.Object, objects: list, rng: np.random.Generator) -> str:
+    """Light linking and shadow linking of ``light`` to random members of ``objects``, with random
+    include / exclude states (an empty collection too)."""
+    words = []
+    for kind in ("receiver", "blocker"):
+        if rng.random() < 0.5 or not objects:
+            continue
+        collection = bpy.data.collections.new(f"{light.name} {kind}s")
+        members = [o for o in objects if rng.random() < 0.5]
+        for obj in members:
+            collection.objects.link(obj)
+        for entry in collection.collection_objects:
+            entry.light_linking.link_state = str(rng.choice(["INCLUDE", "EXCLUDE"]))
+        setattr(light.light_linking, f"{kind}_collection", collection)
+        words.append(f"{kind}s {len(members)}")
+    return ", ".join(words)
 
 
 def _light_of_kind(rng: np.random.Generator, index: int, inside: Matrix | None) -> tuple[bpy.types.Object, str]:
@@ -221,12 +243,18 @@ def build(seed: int, resolution=(32, 24)) -> GeneratedScene:
         _crowd(CROWD_SIZE)
         generated.crowd = CROWD_SIZE
     mesh_count = 0 if seed % 8 == 5 else int(rng.integers(1, 6))
-    closed_boxes = []
+    closed_boxes, objects = [], []
     for i in range(mesh_count):
         kind, transform = str(rng.choice(MESHES)), str(rng.choice(TRANSFORMS))
         material_kind = str(rng.choice(MATERIALS))
         matrix = _transform(transform, rng)
-        _mesh(kind, f"{kind}.{i}", _material(material_kind, rng, i), matrix)
+        obj = _mesh(kind, f"{kind}.{i}", _material(material_kind, rng, i), matrix)
+        objects.append(obj)
+        hidden = [name for name in ("visible_diffuse", "visible_glossy", "visible_shadow") if rng.random() < 0.15]
+        for name in hidden:
+            setattr(obj, name, False)
+        if hidden:
+            material_kind += " not " + "/".join(name.removeprefix("visible_") for name in hidden)
         if kind == "box" and transform == "plain":
             closed_boxes.append(matrix)
         generated.meshes.append(f"{kind} {transform} {material_kind}")
@@ -236,8 +264,9 @@ def build(seed: int, resolution=(32, 24)) -> GeneratedScene:
     light_count = 0 if seed % 8 == 3 else int(rng.integers(1, 4))
     for i in range(light_count):
         inside = closed_boxes[0] if closed_boxes and i == 0 and rng.random() < 0.5 else None
-        _, text = _light(rng, i, inside)
-        generated.lights.append(text)
+        light, text = _light(rng, i, inside)
+        links = _link(light, objects, rng)
+        generated.lights.append(f"{text} linked {links}" if links else text)
     generated.camera = str(rng.choice(CAMERAS))
     _camera(generated.camera, rng, resolution)
     return generated

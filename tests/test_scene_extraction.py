@@ -260,6 +260,36 @@ def test_lights_scaled_to_zero_are_skipped_with_one_warning_line_but_a_point_lig
     assert len(lines) == 1 and "Flat spot (scaled to zero)" in lines[0] and "Gone area" in lines[0]
 
 
+def test_light_and_shadow_linking_and_ray_visibility_come_through():
+    a, b, c = (sb.plane(name, size=1.0, location=(2.0 * i, 0, 0)) for i, name in enumerate("ABC"))
+    b.visible_diffuse = False
+    c.visible_glossy = c.visible_shadow = False
+    spot = sb.spot_light(name="Linked", location=(0, 0, 3))
+    sb.point_light(name="Plain", location=(0, 0, 2))
+    receivers = bpy.data.collections.new("Receivers")  # A included, B excluded
+    receivers.objects.link(a)
+    receivers.objects.link(b)
+    receivers.collection_objects[1].light_linking.link_state = "EXCLUDE"
+    blockers = bpy.data.collections.new("Blockers")  # only exclusions: everything else blocks
+    inner = bpy.data.collections.new("Inner")
+    inner.objects.link(c)
+    blockers.children.link(inner)
+    blockers.collection_children[0].light_linking.link_state = "EXCLUDE"
+    spot.light_linking.receiver_collection = receivers
+    spot.light_linking.blocker_collection = blockers
+    sb.camera()
+    desc = extract()
+    assert desc.object_names == ("A", "B", "C")
+    linked, plain = (next(light for light in desc.lights if light.name == n) for n in ("Linked", "Plain"))
+    assert linked.receivers.tolist() == [True, False, False]  # with an inclusion, only included ones
+    assert linked.blockers.tolist() == [True, True, False]
+    assert plain.receivers is None and plain.blockers is None
+    assert desc.visibility().tolist() == [[True, True, True], [False, True, True], [True, False, False]]
+    assert desc.receiver_lobe_split and desc.uses_light_links
+    links = desc.light_links()
+    assert links[0, :, 1].tolist() == [1.0, 1.0, 0.0] and links[1, :, 1].tolist() == [1.0, 1.0, 0.0]
+
+
 def test_non_finite_normals_fall_back_to_the_face_normal():
     from vsgl_addon import scene_extraction
 
