@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-import bpy  # noqa: F401  (before mathutils: the bpy module provides it)
+import bpy
 import numpy as np
 import pytest
 from mathutils import Matrix
@@ -69,3 +69,25 @@ def test_engine_renders_a_zero_scale_object():
     statistics = scene_generator.render_through_engine(_scene_with(TRANSFORMS["zero-z"]))
     assert statistics.get("resolution") == [48, 36]
     assert statistics["counts"]["triangles"] == 2 + 2 + 12
+
+
+def test_what_cannot_be_modelled_is_one_warning_line_in_the_json_report(tmp_path):
+    """A spot light scaled to zero (its cone is gone) is skipped: the render goes on, and the
+    command line's report and output say so in one line."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    _scene_with(_scaled(1, 1, 1))
+    sb.spot_light(name="Flattened", location=(0.5, -0.5, 3), look_at_point=(0, 0, 0), scale=(1, 1, 0))
+    blend = tmp_path / "flattened.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    result = subprocess.run([sys.executable, "-m", "vsgl_addon", "render", str(blend), "--out",
+                             str(tmp_path / "out.exr"), "--vsgl-count", "16", "--report", str(tmp_path / "r.json")],
+                            cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "r.json").read_text())
+    lines = [line for line in report["warnings"] if "Flattened" in line]
+    assert lines == ["VSGL: lights skipped: Flattened (scaled to zero)"]
+    assert report["counts"]["lights"] == 1
