@@ -608,8 +608,11 @@ def _read_light(obj: bpy.types.Object, matrix: np.ndarray) -> tuple[Light | None
             sun_angle=sun_angle,
             shape=shape,
             size=size,
-            diffuse_factor=float(light.diffuse_factor),
-            specular_factor=float(light.specular_factor),
+            # Blender's Diffuse / Specular factors of the light, and the light object's diffuse and
+            # glossy ray visibility, which is how Cycles (which ignores the factors) drops the same
+            # contributions: both scale the light's diffuse and glossy reflection.
+            diffuse_factor=float(light.diffuse_factor) * float(bool(getattr(obj, "visible_diffuse", True))),
+            specular_factor=float(light.specular_factor) * float(bool(getattr(obj, "visible_glossy", True))),
         ),
         "",
     )
