@@ -2,7 +2,24 @@
 
 from __future__ import annotations
 
+import atexit
+import os
+import shutil
+import tempfile
+
 import pytest
+
+# The bpy module (and every Python or Blender this suite starts) reads and writes a Blender user
+# profile: by default ~/.config/blender/<version>, i.e. whatever preferences, start-up file or
+# add-ons an earlier session or a developer left there. Before anything imports bpy, point it at an
+# empty profile of this pytest process, and drop the caller's BLENDER_* variables, so the suite
+# sees the same Blender on every machine and every run (helpers_blender gives real-blender calls a
+# clean profile of their own).
+for _name in [name for name in os.environ if name.startswith("BLENDER_")]:
+    del os.environ[_name]
+_USER_PROFILE = tempfile.mkdtemp(prefix="vsgl-bpy-user-")
+atexit.register(shutil.rmtree, _USER_PROFILE, True)
+os.environ["BLENDER_USER_RESOURCES"] = _USER_PROFILE
 
 
 @pytest.fixture(scope="session")

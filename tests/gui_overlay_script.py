@@ -7,8 +7,13 @@ Drives the interface from a timer, as an artist would through the sidebar: shows
 looks through the camera, switches the overlay on and changes its settings, waiting each time
 until the overlay's refined image is drawn, and takes a screenshot of the whole screen with
 ImageMagick's `import` (the same X server the tool's own screenshot uses). Writes result.json in
-the folder: screenshots, the 3D viewport's region, where sample points of the walls and floor fall
-on the screen, and the measured update times. Touches $REAL_BLENDER_SHOT_NOW when done.
+the folder: screenshots (file names in the folder), the 3D viewport's region, where sample points of
+the walls and floor fall on the screen, and the measured update times. Touches
+$REAL_BLENDER_SHOT_NOW when done.
+
+No step waits a fixed time: each waits for a condition (the refined overlay, then two redraws of
+the viewport, its sidebar and the properties editor after the change), so a slow, loaded machine
+takes longer but takes the same screenshots. TIMEOUT only turns a hang into an error.
 """
 
 import json
@@ -50,9 +55,34 @@ def viewport():
 
 def screenshot(name):
     path = os.path.join(OUT, name + ".png")
-    subprocess.run(["import", "-window", "root", path], check=True, timeout=30)
-    result["shots"][name] = path
+    subprocess.run(["import", "-window", "root", path], check=True, timeout=120)
+    result["shots"][name] = os.path.basename(path)
     log(f"shot {name}")
+
+
+# Draws of the regions the screenshots show, counted by draw callbacks: a step's screenshot is
+# taken once each has been drawn twice since the step's change (the first of those frames is then
+# on the X server, whatever the machine's load).
+draws = {"viewport": 0, "sidebar": 0, "properties": 0}
+
+
+def _counter(name):
+    def count():
+        draws[name] += 1
+    return count
+
+
+_draw_handles = [(space, space.draw_handler_add(_counter(name), (), region, "POST_PIXEL"), region)
+                 for name, space, region in (("viewport", bpy.types.SpaceView3D, "WINDOW"),
+                                             ("sidebar", bpy.types.SpaceView3D, "UI"),
+                                             ("properties", bpy.types.SpaceProperties, "WINDOW"))]
+REDRAWS = 2
+
+
+def redraw_everything():
+    for window in bpy.context.window_manager.windows:
+        for area in window.screen.areas:
+            area.tag_redraw()
 
 
 def refined_and_drawn():
@@ -173,7 +203,7 @@ STEPS = [
     (vsgl_tab, False, None, None),
     (None, False, "01_sidebar_overlay_off", None),
     (overlay_on, True, "02_overlay_on_indirect_only", "first"),
-    (mode_added, False, "03_overlay_added_to_solid", None),
+    (mode_added, True, "03_overlay_added_to_solid", None),
     (fewer_vsgls, True, "04_vsgl_count_4", "parameter_change"),
     (restore_vsgls, True, None, None),
     (orbit, True, "05_after_orbit_view_only", "view_change"),
@@ -184,14 +214,29 @@ STEPS = [
     (resources_after_off, False, None, None),
     (render_properties_and_preview, False, "08_render_properties", None),
 ]
-state = {"step": 0, "phase": "act", "since": 0.0, "first_update": 0}
-TIMEOUT = 60.0
+state = {"step": 0, "phase": "start", "since": time.perf_counter(), "first_update": 0, "draws": {}}
+# A hang guard per wait, not a speed requirement (a refined overlay takes about 3 s here).
+TIMEOUT = 120.0
+POLL = 0.05
 
 
 def finish():
+    for space, handle, region in _draw_handles:
+        space.draw_handler_remove(handle, region)
     with open(os.path.join(OUT, "result.json"), "w") as f:
         json.dump(result, f, indent=1, default=str)
     open(os.environ["REAL_BLENDER_SHOT_NOW"], "w").close()
+
+
+def _check_timeout(what):
+    if time.perf_counter() - state["since"] > TIMEOUT:
+        raise RuntimeError(f"{what} not after {TIMEOUT} s at step {state['step']}: draws {draws}")
+
+
+def start_redraw():
+    """Every draw from now on (after this timer call returns) shows the step's change so far."""
+    state.update(phase="redraw", since=time.perf_counter(), draws=dict(draws))
+    redraw_everything()
 
 
 def tick():
@@ -200,34 +245,48 @@ def tick():
             finish()
             return None
         action, wait, shot, label = STEPS[state["step"]]
+        if state["phase"] == "start":  # the window is up and its viewport draws
+            if draws["viewport"] < REDRAWS:
+                _check_timeout("no viewport drawn")
+                return POLL
+            state["phase"] = "act"
         cache = overlay_module().cache
         if state["phase"] == "act":
+            state.update(first_update=cache.updates)
             if action is not None:
                 action()
                 log(f"did {action.__name__}")
-            state.update(phase="wait", since=time.perf_counter(), first_update=cache.updates)
-            return 0.3
-        if state["phase"] == "wait":
+            start_redraw()
             if wait:
-                if not refined_and_drawn():
-                    if time.perf_counter() - state["since"] > TIMEOUT:
-                        raise RuntimeError(f"no refined overlay after {TIMEOUT} s at step {state['step']}")
-                    return 0.1
-                if label:
-                    result["timings"][label] = {
-                        "updates": [dict(entry) for entry in cache.history if entry["index"] >= state["first_update"]],
-                        "until_refined_seconds": time.perf_counter() - state["since"]}
-            viewport()[1].tag_redraw()
+                state["phase"] = "refine"
+            return POLL
+        if state["phase"] == "refine":
+            # The overlay learns the viewport's new view when the viewport draws: before that, the
+            # cache can still call the old view refined.
+            if draws["viewport"] == state["draws"]["viewport"] or not refined_and_drawn():
+                _check_timeout("no refined overlay")
+                return POLL
+            if label:
+                result["timings"][label] = {
+                    "updates": [dict(entry) for entry in cache.history if entry["index"] >= state["first_update"]],
+                    "until_refined_seconds": time.perf_counter() - state["since"]}
+            start_redraw()
+            return POLL
+        if state["phase"] == "redraw":
+            behind = [name for name, count in draws.items() if count - state["draws"][name] < REDRAWS]
+            if behind:
+                _check_timeout(f"{behind} not redrawn")
+                redraw_everything()
+                return POLL
             state["phase"] = "shoot"
-            return 0.7  # let the window redraw
         if shot:
             screenshot(shot)
         state.update(step=state["step"] + 1, phase="act")
-        return 0.1
+        return POLL
     except Exception:
         result["errors"].append(traceback.format_exc())
         finish()
         return None
 
 
-bpy.app.timers.register(tick, first_interval=1.5)
+bpy.app.timers.register(tick, first_interval=POLL)

@@ -34,21 +34,33 @@ def run_blender(
 
     ``blender_env`` holds the ``BLENDER_*`` variables to pass (e.g. BLENDER_USER_RESOURCES); any
     BLENDER_* of the calling environment is dropped so a developer's own profile never leaks in.
+    Without a BLENDER_USER_RESOURCES of the caller, the call gets an empty profile of its own:
+    otherwise it would use the one kept in real-blender's root, which outlives every run.
     """
+    with contextlib.ExitStack() as stack:
+        env = blender_environment(blender_env)
+        if "BLENDER_USER_RESOURCES" not in env:
+            env["BLENDER_USER_RESOURCES"] = str(stack.enter_context(scratch_dir("vsgl-profile-")))
+        return subprocess.run(
+            [str(REAL_BLENDER), "run", *args],
+            cwd=REPO,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+
+
+def blender_environment(blender_env: Mapping[str, str] | None = None) -> dict[str, str]:
+    """This process's environment without its BLENDER_* variables, plus ``blender_env`` (BLENDER_*
+    only: real-blender passes nothing else): the environment of a real-blender call."""
     if not os.access(REAL_BLENDER, os.X_OK):
         pytest.fail(f"{REAL_BLENDER} not found or not executable (tools/setup-env sets it up)")
     env = {k: v for k, v in os.environ.items() if not k.startswith("BLENDER_")}
     for key, value in (blender_env or {}).items():
         assert key.startswith("BLENDER_"), f"real-blender passes only BLENDER_* variables, not {key}"
         env[key] = value
-    return subprocess.run(
-        [str(REAL_BLENDER), "run", *args],
-        cwd=REPO,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-    )
+    return env
 
 
 def describe(proc: subprocess.CompletedProcess[str]) -> str:

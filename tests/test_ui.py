@@ -55,6 +55,9 @@ class RecordingLayout:
 @pytest.fixture
 def registered():
     vsgl_addon.unregister()
+    # Module state the panels draw from: a render or overlay of an earlier test (of any file) filled it.
+    overlay.cache.free()
+    engine.last_frame_statistics.clear()
     bpy.ops.wm.open_mainfile(filepath=str(REPO / "demo.blend"), load_ui=False)
     vsgl_addon.register()
     yield bpy.context.scene
