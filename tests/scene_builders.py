@@ -302,3 +302,27 @@ def camera(
 def world_matrix(obj: bpy.types.Object) -> Matrix:
     """The object's world matrix from its own transform (parentless objects), without a depsgraph."""
     return Matrix.LocRotScale(Vector(obj.location), Euler(obj.rotation_euler).to_quaternion(), Vector(obj.scale))
+
+
+FRAME_IMAGES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "coverage")
+
+
+def render_frame(scene, settings, width: int, height: int):
+    """One frame of the add-on's renderer (FrameRenderer) of ``scene``: a bpy scene (its evaluated
+    depsgraph is extracted) or a SceneDescription, from its camera; its GPU resources are freed."""
+    from vsgl_addon.renderer import FrameRenderer
+    from vsgl_addon.scene import extract_scene
+
+    description = extract_scene(depsgraph(scene)) if isinstance(scene, bpy.types.Scene) else scene
+    renderer = FrameRenderer()
+    try:
+        return renderer.render(description, settings, width, height)
+    finally:
+        renderer.free()
+
+
+def assert_finite_frame(images, label: str = "") -> None:
+    """Every image of a FrameImages is finite and non-negative (no NaN or Inf reaches a pixel)."""
+    for name in FRAME_IMAGES:
+        image = getattr(images, name)
+        assert np.all(np.isfinite(image)) and image.min() >= 0.0, f"{name} {label}"

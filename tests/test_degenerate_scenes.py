@@ -7,14 +7,11 @@ from __future__ import annotations
 import math
 
 import bpy
-import numpy as np
 import pytest
 from mathutils import Matrix
 
 import scene_builders as sb
 import scene_generator
-from vsgl_addon.renderer import FrameRenderer
-from vsgl_addon.scene import extract_scene
 from vsgl_addon.settings import VSGLSettings
 
 
@@ -50,16 +47,8 @@ TRANSFORMS = {
 @pytest.mark.gpu
 @pytest.mark.parametrize("name", list(TRANSFORMS))
 def test_degenerate_transform_renders_finite_frames(name):
-    scene = _scene_with(TRANSFORMS[name])
-    description = extract_scene(sb.depsgraph(scene))
-    renderer = FrameRenderer()
-    try:
-        images = renderer.render(description, VSGLSettings(vsgl_count=64, rsm_size=64), 48, 36)
-    finally:
-        renderer.free()
-    for attribute in ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "coverage"):
-        image = getattr(images, attribute)
-        assert np.all(np.isfinite(image)) and image.min() >= 0.0, attribute
+    images = sb.render_frame(_scene_with(TRANSFORMS[name]), VSGLSettings(vsgl_count=64, rsm_size=64), 48, 36)
+    sb.assert_finite_frame(images, name)
     assert images.direct.max() > 0.0 and images.indirect.max() > 0.0
 
 

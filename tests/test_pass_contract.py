@@ -82,7 +82,6 @@ def test_compile_all_and_free_all_cover_every_pass():
 @pytest.mark.gpu
 def test_a_frame_times_exactly_the_declared_steps_and_each_run_result_frees():
     import scene_builders as sb
-    from vsgl_addon.renderer import FrameRenderer
     from vsgl_addon.scene import extract_scene
     from vsgl_addon.settings import VSGLSettings
 
@@ -91,11 +90,7 @@ def test_a_frame_times_exactly_the_declared_steps_and_each_run_result_frees():
     sb.spot_light(power=500.0, location=(0, 0, 2), look_at_point=(0, 0, 0))
     sb.camera()
     description = extract_scene(sb.depsgraph(scene))
-    renderer = FrameRenderer()
-    try:
-        frame = renderer.render(description, VSGLSettings(vsgl_count=8, rsm_size=16), 16, 12)
-    finally:
-        renderer.free()
+    frame = sb.render_frame(description, VSGLSettings(vsgl_count=8, rsm_size=16), 16, 12)
     assert list(frame.timings) == [step.name for step in passes.STEPS if step is not passes.SCENE_EXTRACTION]
     assert set(frame.counts) == set(passes.COUNT_LABELS)
 

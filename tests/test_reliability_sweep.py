@@ -11,12 +11,10 @@ import pytest
 
 import scene_generator
 import scene_builders as sb
-from vsgl_addon.renderer import FrameRenderer
 from vsgl_addon.scene import extract_scene
 from vsgl_addon.settings import VSGLSettings
 
 SEEDS = range(24)
-IMAGES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "coverage")
 
 
 def _settings(seed: int) -> VSGLSettings:
@@ -38,17 +36,9 @@ def test_generated_scene_renders_finite_without_touching_user_data_or_leaking(se
     before = scene_generator.rna_dump()
     settings = _settings(seed)
     with scene_generator.GPUResourceTracker() as tracker:
-        description = extract_scene(sb.depsgraph(scene))
-        renderer = FrameRenderer()
-        try:
-            images = renderer.render(description, settings, 32, 24)
-        finally:
-            renderer.free()
-        del renderer
+        images = sb.render_frame(scene, settings, 32, 24)
         passes.free_all_shaders()
-    for name in IMAGES:
-        image = getattr(images, name)
-        assert np.all(np.isfinite(image)) and image.min() >= 0.0, f"{name} of {generated}"
+    sb.assert_finite_frame(images, f"of {generated}")
     assert len(tracker.made) >= 3, "the tracker saw no GPU resource: it is not counting"
     assert tracker.alive() == [], f"GPU resources alive after the render of {generated}"
     differences = scene_generator.dump_differences(before, scene_generator.rna_dump())
