@@ -1,0 +1,194 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The scene point sets (vsgl_addon/scene_points.py) and the float64 imperfect-shadow-map twin
+(vsgl_addon/reference/ism.py) against brute force and quadrature."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vsgl_addon import scene_points as sp
+from vsgl_addon.reference import ism
+from vsgl_addon.scene_description import Geometry
+
+
+def _geometry(triangles) -> Geometry:
+    tris = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
+    count = len(tris)
+    face = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    normals = np.repeat((face / np.maximum(np.linalg.norm(face, axis=1, keepdims=True), 1e-30))[:, None], 3, 1)
+    return Geometry(tris, normals.astype(np.float32), np.zeros((count, 3, 2), np.float32),
+                    np.zeros(count, np.int32), np.arange(count, dtype=np.int32))
+
+
+def _quad(x0, y0, x1, y1, z=0.0):
+    a, b, c, d = (x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)
+    return [(a, b, c), (a, c, d)]
+
+
+# --- Scene point sets ------------------------------------------------------------------------
+
+
+def test_point_sets_are_area_weighted_and_stratified_per_set():
+    # Three rectangles of areas 1, 4 and 0.25, a zero-area triangle and a collinear one.
+    tris = (_quad(0, 0, 1, 1) + _quad(2, 0, 4, 2) + _quad(5, 0, 5.5, 0.5)
+            + [((0, 0, 1), (0, 0, 1), (0, 0, 1)), ((0, 0, 2), (1, 0, 2), (2, 0, 2))])
+    geometry = _geometry(tris)
+    points = sp.scene_point_sets(geometry, 500, 7, seed=3)
+    assert points.positions.shape == (7, 500, 3) and points.normals.shape == (7, 500, 3)
+    area = sp.triangle_areas(geometry.positions)
+    share = area / area.sum()
+    for s in range(7):
+        counts = np.bincount(points.triangle[s], minlength=len(area))
+        # Stratification: each triangle gets its share of every set to within 2 points.
+        assert np.all(np.abs(counts - 500 * share) <= 2.0), counts
+        assert counts[-2:].sum() == 0  # no point on a triangle without area
+    # On their triangles: barycentric coordinates in [0, 1], normal = the face normal.
+    tri = np.asarray(geometry.positions, np.float64)[points.triangle]
+    p = points.positions.astype(np.float64)
+    e1, e2, q = tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :], p - tri[..., 0, :]
+    gram = np.stack([np.stack([(e1 * e1).sum(-1), (e1 * e2).sum(-1)], -1),
+                     np.stack([(e1 * e2).sum(-1), (e2 * e2).sum(-1)], -1)], -2)
+    uv = np.linalg.solve(gram, np.stack([(q * e1).sum(-1), (q * e2).sum(-1)], -1)[..., None])[..., 0]
+    assert uv.min() >= -1e-5 and (uv.sum(-1)).max() <= 1 + 1e-5
+    np.testing.assert_allclose(points.normals, np.broadcast_to([0, 0, 1], points.normals.shape), atol=1e-6)
+
+
+def test_point_sets_are_uniform_on_a_triangle_and_fixed_by_the_seed():
+    geometry = _geometry(_quad(0, 0, 1, 1))
+    points = sp.scene_point_sets(geometry, 4000, 4, seed=0)
+    xy = points.positions[..., :2].reshape(-1, 2).astype(np.float64)
+    # Uniform on the unit square: every quarter holds a quarter of the points (Monte Carlo, 4σ).
+    quarter = ((xy[:, 0] < 0.5) & (xy[:, 1] < 0.5)).mean()
+    assert abs(quarter - 0.25) < 4 * np.sqrt(0.25 * 0.75 / len(xy))
+    assert abs(xy.mean(axis=0) - 0.5).max() < 4 * np.sqrt(1 / 12 / len(xy))
+    again = sp.scene_point_sets(geometry, 4000, 4, seed=0)
+    np.testing.assert_array_equal(points.positions, again.positions)  # a static scene does not flicker
+    other = sp.scene_point_sets(geometry, 4000, 4, seed=1)
+    assert not np.array_equal(points.positions, other.positions)
+    assert not np.array_equal(points.positions[0], points.positions[1])  # each set its own points
+    assert sp.set_index(9, 4) == 1
+
+
+@pytest.mark.parametrize("count,sets", [(1, 1), (1, 16384), (1 << 12, 1)])
+def test_point_sets_at_the_ends_of_their_ranges_and_empty_scenes(count, sets):
+    points = sp.scene_point_sets(_geometry(_quad(0, 0, 1, 1)), count, sets)
+    assert points.positions.shape == (sets, count, 3) and np.isfinite(points.positions).all()
+    empty = sp.scene_point_sets(Geometry.empty(), count, sets)
+    assert np.all(empty.triangle == -1) and np.isfinite(empty.normals).all()
+    with pytest.raises(ValueError):
+        sp.scene_point_sets(_geometry(_quad(0, 0, 1, 1)), 0, sets)
+
+
+# --- Octahedral projection --------------------------------------------------------------------
+
+
+def test_octahedral_round_trip_and_full_sphere_cover():
+    rng = np.random.default_rng(5)
+    d = rng.normal(size=(20000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = np.concatenate([d, np.eye(3), -np.eye(3), [[1, 1, 0], [0, -1, -1e-12]]])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    uv = ism.octahedral_encode(d)
+    assert np.abs(uv).max() <= 1.0
+    upper = d[:, 2] >= 0.0  # the upper hemisphere is the inner diamond, the lower one folds outside it
+    assert np.all(np.abs(uv[upper]).sum(-1) <= 1.0 + 1e-12) and np.all(np.abs(uv[~upper]).sum(-1) >= 1.0 - 1e-12)
+    np.testing.assert_allclose(ism.octahedral_decode(uv), d, atol=1e-12)
+
+
+@pytest.mark.parametrize("size", [8, 64])
+def test_octahedral_texel_solid_angles_cover_4pi_with_bounded_distortion(size):
+    """Quadrature of dω = |∂ω/∂u × ∂ω/∂v| du dv over each texel (8×8 Gauss-Legendre nodes, the
+    Jacobian by central differences): the texels add up to 4π, and the largest is less than 3√3
+    times the smallest (the module's claim: the continuous map's density ratio)."""
+    order, h = 8, 1e-6
+    nodes, weights = np.polynomial.legendre.leggauss(order)
+    offsets = (nodes + 1.0) / 2.0  # in [0, 1] of a texel
+    grid = (np.arange(size)[:, None] + offsets[None, :]).reshape(-1) / size * 2.0 - 1.0
+    w1 = np.tile(weights / 2.0 * (2.0 / size), size)
+    u, v = np.meshgrid(grid, grid, indexing="xy")
+    uv = np.stack([u, v], -1)
+    du = (ism.octahedral_decode(uv + [h, 0]) - ism.octahedral_decode(uv - [h, 0])) / (2 * h)
+    dv = (ism.octahedral_decode(uv + [0, h]) - ism.octahedral_decode(uv - [0, h])) / (2 * h)
+    jacobian = np.linalg.norm(np.cross(du, dv), axis=-1) * w1[None, :] * w1[:, None]
+    solid = jacobian.reshape(size, order, size, order).sum(axis=(1, 3))
+    assert solid.sum() == pytest.approx(4 * np.pi, rel=1e-3)
+    ratio = solid.max() / solid.min()
+    print(f"octahedral {size}²: texel solid angle max/min {ratio:.2f}")
+    assert 1.0 < ratio < 3.0 * np.sqrt(3.0)
+    # Texel centres decode into their own texel.
+    centres = ism.texel_directions(size)
+    rows, columns = np.mgrid[0:size, 0:size]
+    np.testing.assert_array_equal(ism.ism_texel(centres, size), np.stack([columns, rows], -1))
+
+
+def test_octahedral_wrap_neighbours_are_adjacent_directions():
+    """Across every edge of the square the wrapped neighbour is the texel next to it on the sphere:
+    its centre is about one texel's angle away, never across the map."""
+    size = 32
+    centres = ism.texel_directions(size)
+    texel_angle = np.sqrt(4 * np.pi) / size
+    edge = np.arange(size)
+    for column, row, dc, dr in [(np.zeros(size, int), edge, -1, 0), (np.full(size, size - 1), edge, 1, 0),
+                                (edge, np.zeros(size, int), 0, -1), (edge, np.full(size, size - 1), 0, 1)]:
+        c, r = ism.octahedral_wrap(column + dc, row + dr, size)
+        assert ((0 <= c) & (c < size) & (0 <= r) & (r < size)).all()
+        angle = np.arccos(np.clip((centres[row, column] * centres[r, c]).sum(-1), -1, 1))
+        assert angle.max() < 2.0 * texel_angle, angle.max() / texel_angle
+
+
+# --- Splat, pull-push, lookup -----------------------------------------------------------------
+
+
+def test_splat_keeps_the_nearest_point_per_texel_as_brute_force():
+    rng = np.random.default_rng(2)
+    points = rng.uniform(-3, 3, size=(3000, 3))
+    origin = np.array([0.2, -0.1, 0.3])
+    size = 8
+    depth = ism.splat(points, origin, size)
+    texel = ism.ism_texel(points - origin, size)
+    distance = np.linalg.norm(points - origin, axis=1)
+    for row in range(size):
+        for column in range(size):
+            here = (texel[:, 0] == column) & (texel[:, 1] == row)
+            assert depth[row, column] == (distance[here].min() if here.any() else ism.EMPTY)
+    assert np.all(ism.splat(np.zeros((0, 3)), origin, 4) == ism.EMPTY)
+    assert np.all(ism.splat(origin[None], origin, 4) == ism.EMPTY)  # the origin's own point
+
+
+def test_pull_push_fills_holes_and_keeps_what_was_splatted():
+    rng = np.random.default_rng(4)
+    truth = 2.0 + rng.random((16, 16))
+    holes = rng.random((16, 16)) < 0.6
+    depth = np.where(holes, ism.EMPTY, truth)
+    filled = ism.pull_push(depth)
+    assert np.isfinite(filled).all()
+    np.testing.assert_array_equal(filled[~holes], truth[~holes])
+    assert filled.min() >= truth[~holes].min() and filled.max() <= truth[~holes].max()  # a mean of neighbours
+    one = np.full((8, 8), ism.EMPTY)
+    one[3, 5] = 1.5
+    assert np.all(ism.pull_push(one) == 1.5)
+    assert np.all(ism.pull_push(np.full((1, 1), 2.0)) == 2.0)
+    assert np.all(ism.pull_push(np.full((4, 4), ism.EMPTY)) == ism.EMPTY)
+    with pytest.raises(ValueError):
+        ism.pull_push(np.zeros((6, 6)))
+
+
+def test_a_wall_shadows_what_lies_behind_it_and_a_floor_does_not_shadow_itself():
+    """A VSGL 1.5 m above a floor, a wall at x = 1 between it and receivers beyond; receivers on the
+    lit floor before the wall see it (no acne at their slope-scaled bias)."""
+    scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
+    points = sp.scene_point_sets(scene, 60000, 1, seed=0)
+    origin = np.array([0.0, 0.0, 1.5])
+    depth = ism.pull_push(ism.splat(points.positions[0], origin, 32))
+    up = np.array([0.0, 0.0, 1.0])
+    behind = np.stack([np.full(50, 2.5), np.linspace(-1, 1, 50), np.full(50, 0.5)], -1)
+    before = np.stack([np.full(50, -2.0), np.linspace(-1, 1, 50), np.zeros(50)], -1)
+    assert ism.ism_visibility(depth, origin, behind).max() == 0.0
+    assert ism.ism_visibility(depth, origin, before, normals=up).min() == 1.0
+    assert ism.ism_pcf(depth, origin, before, radius=1, normals=up).min() == 1.0
+    assert ism.ism_pcf(depth, origin, behind, radius=1).max() == 0.0
+    # Half in the wall's shadow, half past its end: the filtered test is partial there.
+    edge = np.array([[2.5, 2.0 * 2.5, 0.5]])
+    value = ism.ism_pcf(depth, origin, edge, radius=3)
+    assert 0.0 < value[0] < 1.0

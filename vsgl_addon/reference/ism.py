@@ -1,0 +1,178 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Float64 twin of the imperfect shadow maps (ISMs) that give VSGLs visibility (000 §5 uses a 64²
+ISM per VSGL; Ritschel et al. 2008): the octahedral projection, the point splat, the pull-push hole
+fill and the filtered lookup.
+
+**Projection: octahedral, the whole sphere in one square.** A VSGL's lobes are spherical Gaussians
+with support on the whole sphere, and the diffuse lobe of a cluster of varied normals (000 Eq. 6's
+Toksvig-shortened axis) reaches past any hemisphere; receivers at grazing angles from the lobe
+axis are common (a floor's bounce onto the wall beside it). A paraboloid about the lobe axis covers
+one hemisphere and would cut those receivers off; two paraboloids double the seams. The octahedral
+map (d / |d|₁ folded onto the square) covers every direction with one tile, has no singularity,
+keeps neighbouring texels neighbouring across its folds (``octahedral_wrap``), and its texels' solid
+angles stay within a factor 3√3 ≈ 5.2 of each other (the density ratio of dω/(du dv) = |d|₁³ between
+an octahedron face's centre and its vertices; 4.9 at 64², measured by quadrature in
+tests/test_reference_ism.py; one paraboloid's is 4 over half the sphere), so one map serves both
+lobes of a VSGL at one position.
+
+**Depth** is the radial distance |p − o| from the ISM's origin o (a VSGL lobe's mean position),
+stored per texel as the nearest splatted point. Positive floats keep their order as unsigned
+integers, so the GPU splat is an ``imageAtomicMin`` on the float's bits (blender-gpu.md).
+
+**Pull-push** (Ritschel et al. 2008 after Grossman and Dally): *pull* builds a pyramid whose texel
+is the mean of its valid children, valid when any child is; *push* fills each hole of a level from
+its parent, coarsest first. A map with one valid texel comes out full; valid texels keep their depth.
+
+**Lookup**: a receiver at x sees the ISM's origin when |x − o| ≤ stored + bias. The bias (the
+texel's footprint at the receiver's distance, slope-scaled by the receiver's incidence, plus a
+floor) keeps the surface a VSGL sits on from shadowing itself. ``ism_pcf`` averages that test over the (2k+1)² texels around
+the receiver's, wrapping across the octahedral folds: the VSGL is a Gaussian of positions (σ_v), not
+a point, so its shadow is soft, and k follows σ_v / |x − o| in texels.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .numerics import f64
+
+#: Stored depth of a texel no point reached.
+EMPTY = np.inf
+
+
+def octahedral_encode(directions) -> np.ndarray:
+    """(..., 2) octahedral coordinates in [−1, 1]² of directions (..., 3) (need not be unit)."""
+    d = f64(directions)
+    d = d / np.maximum(np.abs(d).sum(axis=-1, keepdims=True), 1e-300)
+    xy = d[..., :2]
+    sign = np.where(xy >= 0.0, 1.0, -1.0)
+    folded = (1.0 - np.abs(xy[..., ::-1])) * sign
+    return np.where((d[..., 2] < 0.0)[..., None], folded, xy)
+
+
+def octahedral_decode(uv) -> np.ndarray:
+    """(..., 3) unit directions of octahedral coordinates (..., 2) in [−1, 1]²."""
+    uv = f64(uv)
+    z = 1.0 - np.abs(uv[..., 0]) - np.abs(uv[..., 1])
+    sign = np.where(uv >= 0.0, 1.0, -1.0)
+    xy = np.where((z < 0.0)[..., None], (1.0 - np.abs(uv[..., ::-1])) * sign, uv)
+    d = np.concatenate([xy, z[..., None]], axis=-1)
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def ism_texel(directions, size: int) -> np.ndarray:
+    """(..., 2) int64 texel (column, row) of directions in a ``size`` × ``size`` octahedral map."""
+    uv = octahedral_encode(directions)
+    return np.clip(np.floor((uv * 0.5 + 0.5) * size), 0, size - 1).astype(np.int64)
+
+
+def texel_directions(size: int) -> np.ndarray:
+    """(size, size, 3) unit directions of the texel centres, [row, column]."""
+    centres = (np.arange(size) + 0.5) / size * 2.0 - 1.0
+    u, v = np.meshgrid(centres, centres, indexing="xy")
+    return octahedral_decode(np.stack([u, v], axis=-1))
+
+
+def octahedral_wrap(column, row, size: int):
+    """The texel a neighbourhood reaches past the square's edge: across an edge of the octahedral
+    map lies the mirror image about the edge's midpoint (the fold), so (−1 − c, S − 1 − r) for a
+    column off the left, and likewise for the other edges."""
+    column, row = np.asarray(column).copy(), np.asarray(row).copy()
+    for _ in range(2):  # a corner reaches off two edges
+        off = (column < 0) | (column >= size)
+        column = np.where(column < 0, -1 - column, np.where(column >= size, 2 * size - 1 - column, column))
+        row = np.where(off, size - 1 - row, row)
+        off = (row < 0) | (row >= size)
+        row = np.where(row < 0, -1 - row, np.where(row >= size, 2 * size - 1 - row, row))
+        column = np.where(off, size - 1 - column, column)
+    return column, row
+
+
+def splat(points, origin, size: int, min_distance: float = 0.0) -> np.ndarray:
+    """(size, size) float64 map [row, column] of the nearest radial distance of ``points`` (N, 3)
+    seen from ``origin`` (3,) per texel; EMPTY where none lands. Points closer than
+    ``min_distance`` (the origin's own point) are not splatted."""
+    offsets = f64(points).reshape(-1, 3) - f64(origin)
+    distance = np.linalg.norm(offsets, axis=-1)
+    keep = np.isfinite(distance) & (distance > max(min_distance, 1e-300))
+    texel = ism_texel(offsets[keep], size)
+    depth = np.full((size, size), EMPTY)
+    np.minimum.at(depth, (texel[:, 1], texel[:, 0]), distance[keep])
+    return depth
+
+
+def pull_push(depth) -> np.ndarray:
+    """The map with its holes (EMPTY) filled (see the module documentation); ``size`` a power of
+    two. A map with no valid texel stays EMPTY."""
+    depth = f64(depth)
+    size = depth.shape[0]
+    if size & (size - 1) or depth.shape != (size, size):
+        raise ValueError(f"pull-push needs a square power-of-two map, got {depth.shape}")
+    levels, valid = [np.where(np.isfinite(depth), depth, 0.0)], [np.isfinite(depth)]
+    while levels[-1].shape[0] > 1:
+        d, w = levels[-1], valid[-1].astype(np.float64)
+        half = d.shape[0] // 2
+        total = (d * w).reshape(half, 2, half, 2).sum(axis=(1, 3))
+        count = w.reshape(half, 2, half, 2).sum(axis=(1, 3))
+        levels.append(np.where(count > 0, total / np.maximum(count, 1.0), 0.0))
+        valid.append(count > 0)
+    filled, known = levels[-1], valid[-1]
+    for d, w in zip(reversed(levels[:-1]), reversed(valid[:-1])):
+        parent = np.repeat(np.repeat(filled, 2, axis=0), 2, axis=1)
+        parent_known = np.repeat(np.repeat(known, 2, axis=0), 2, axis=1)
+        filled = np.where(w, d, parent)
+        known = w | parent_known
+    return np.where(known, filled, EMPTY)
+
+
+#: Largest tan of the receiver's incidence the slope-scaled bias follows (as lib/shadow.glsl).
+ISM_MAX_SLOPE = 8.0
+
+
+def ism_bias(distance, size: int, tan_incidence=0.0, slope: float = 1.0, floor: float = 1e-3):
+    """Depth bias at radial ``distance``: ``slope`` texel footprints (a texel spans about
+    sqrt(4π)/size rad) × (1 + tan θ), θ the receiver's incidence from the ISM's origin (capped at
+    ISM_MAX_SLOPE: a surface seen at grazing angles spans more depth per texel), plus ``floor``
+    metres."""
+    tan_incidence = np.minimum(f64(tan_incidence), ISM_MAX_SLOPE)
+    return slope * f64(distance) * np.sqrt(4.0 * np.pi) / size * (1.0 + tan_incidence) + floor
+
+
+def tan_incidence(normals, offsets, distance):
+    """tan of the angle between receiver normals and the direction towards the ISM's origin."""
+    cos_theta = np.clip(np.abs((f64(normals) * -f64(offsets)).sum(axis=-1)) / np.maximum(distance, 1e-300), 0, 1)
+    return np.sqrt(np.maximum(1.0 - cos_theta * cos_theta, 0.0)) / np.maximum(cos_theta, 1e-3)
+
+
+def _receiver(depth, origin, receivers, normals, bias, footprint=1.0):
+    size = depth.shape[0]
+    offsets = f64(receivers) - f64(origin)
+    distance = np.linalg.norm(offsets, axis=-1)
+    if bias is None:
+        slope = 0.0 if normals is None else tan_incidence(normals, offsets, distance)
+        bias = ism_bias(distance, size, slope, slope=footprint)
+    return ism_texel(offsets, size), distance, f64(bias)
+
+
+def ism_visibility(depth, origin, receivers, normals=None, bias=None) -> np.ndarray:
+    """1 where receivers (..., 3) see the ISM's origin (nothing stored nearer than them, less the
+    bias; default :func:`ism_bias`, slope-scaled by the receivers' ``normals`` when given), 0 where
+    the map holds something in front."""
+    texel, distance, bias = _receiver(depth, origin, receivers, normals, bias)
+    stored = f64(depth)[texel[..., 1], texel[..., 0]]
+    return (distance <= stored + bias).astype(np.float64)
+
+
+def ism_pcf(depth, origin, receivers, radius: int, normals=None, bias=None) -> np.ndarray:
+    """The visibility test averaged over the (2·radius + 1)² texels around each receiver's texel,
+    wrapping across the octahedral folds (percentage-closer filtering). The default bias spans the
+    filter's footprint (1 + radius texels): a neighbour texel of a sloped surface lies nearer."""
+    size = depth.shape[0]
+    depth = f64(depth)
+    texel, distance, bias = _receiver(depth, origin, receivers, normals, bias, footprint=1.0 + radius)
+    total = np.zeros(distance.shape)
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            column, row = octahedral_wrap(texel[..., 0] + dx, texel[..., 1] + dy, size)
+            total += distance <= depth[row, column] + bias
+    return total / (2 * radius + 1) ** 2
