@@ -134,3 +134,40 @@ def test_every_pass_shader_compiles_in_blender_5_2():
         """))
         proc = run_blender("-b", "--factory-startup", "--python-exit-code", "1", "--python", str(script))
     assert proc.returncode == 0 and "VSGL-SHADERS-COMPILED" in proc.stdout, describe(proc)
+
+
+def test_the_ism_pass_compiles_and_matches_its_twin_in_blender_5_2():
+    """The imperfect-shadow-map pass (not yet in PASSES) in 5.2: its compute stages compile, and a
+    scene's maps equal the float64 twin's but for texels at rounding edges."""
+    with scratch_dir("vsgl-ism-") as folder:
+        script = folder / "ism.py"
+        script.write_text(textwrap.dedent(f"""
+            import sys
+            import numpy as np
+            sys.path.insert(0, {str(REPO)!r})
+            from vsgl_addon.gpu_context import ensure_gpu_context
+            from vsgl_addon import scene_points as sp
+            from vsgl_addon.passes import ism as ism_pass
+            from vsgl_addon.reference import ism
+            from vsgl_addon.scene_description import Geometry
+            ensure_gpu_context()
+            tris = np.array([[(-4, -4, 0), (4, -4, 0), (4, 4, 0)], [(-4, -4, 0), (4, 4, 0), (-4, 4, 0)],
+                             [(1, -2, 0), (1, 2, 0), (1, 2, 3)]], np.float32)
+            geometry = Geometry(tris, np.zeros_like(tris), np.zeros((3, 3, 2), np.float32),
+                                np.zeros(3, np.int32), np.arange(3, dtype=np.int32))
+            points = sp.scene_point_sets(geometry, 2048, 2, seed=1)
+            origins = np.array([[0.0, 0.0, 1.5], [2.0, 0.0, 1.0], [-1.0, 1.0, 0.5]])
+            sets = [0, 1, 0]
+            atlas = ism_pass.PASS.run(points, origins, sets, 16)
+            got = atlas.read()
+            ism_pass.PASS.free(atlas)
+            expected = np.stack([ism.pull_push(ism.splat(points.positions[s], o, 16)) for o, s in zip(origins, sets)])
+            close = float(np.isclose(got, expected, rtol=1e-5).mean())
+            ism_pass.PASS.free_shaders()
+            print("VSGL-ISM", close, bool(np.isfinite(got).all()))
+        """))
+        proc = run_blender("-b", "--factory-startup", "--python-exit-code", "1", "--python", str(script))
+    line = next((line for line in proc.stdout.splitlines() if line.startswith("VSGL-ISM")), None)
+    assert proc.returncode == 0 and line is not None, describe(proc)
+    _, close, finite = line.split()
+    assert float(close) > 0.99 and finite == "True", line

@@ -1,0 +1,26 @@
+// Imperfect shadow maps, push (twin: reference/ism.py pull_push): a level's holes take their
+// parent's filled depth, coarsest level first; one invocation per texel. ism_own is this level's
+// pulled (mean, valid) (level 0: the splatted R32UI atlas, ism_first_level = 1), ism_parent the
+// level above after its push (r = depth, g = known). Writes (depth, known) into ism_filled.
+void main()
+{
+  ivec2 texel = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 size = imageSize(ism_filled);
+  if (any(greaterThanEqual(texel, size))) {
+    return;
+  }
+  float depth = 0.0;
+  bool valid = false;
+  if (ism_first_level != 0) {
+    uint bits = imageLoad(ism_atlas, texel).r;
+    valid = bits != 0xFFFFFFFFu;
+    depth = valid ? uintBitsToFloat(bits) : 0.0;
+  }
+  else {
+    vec4 own = texelFetch(ism_own, texel, 0);
+    valid = own.g > 0.5;
+    depth = own.r;
+  }
+  vec4 parent = texelFetch(ism_parent, texel / 2, 0);
+  imageStore(ism_filled, texel, valid ? vec4(depth, 1.0, 0.0, 0.0) : parent);
+}

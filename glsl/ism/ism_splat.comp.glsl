@@ -1,0 +1,24 @@
+// @require lib/ism.glsl
+//
+// Imperfect shadow maps, splat (vsgl_addon/passes/ism.py; twin: reference/ism.py splat): one
+// invocation per (point, map). Map m, with origin and point set from ism_origins[m] (xyz, set),
+// keeps in its tile of the R32UI atlas the nearest radial distance of the set's points per texel:
+// positive floats order as their bits, so imageAtomicMin of floatBitsToUint is a float minimum.
+// Texels no point reaches keep the clear value 0xFFFFFFFF (empty).
+void main()
+{
+  int point = int(gl_GlobalInvocationID.x);
+  int map_index = int(gl_GlobalInvocationID.y);
+  if (point >= ism_params.x || map_index >= ism_params.y) {
+    return;
+  }
+  vec4 origin = texelFetch(ism_origins, ivec2(map_index, 0), 0);
+  vec3 offset = texelFetch(scene_points, ivec2(point, int(origin.w + 0.5)), 0).xyz - origin.xyz;
+  float distance = length(offset);
+  if (!(distance > ism_min_distance)) {
+    return;  // the origin's own point, or a non-finite one
+  }
+  int size = ism_params.z;
+  ivec2 tile = ivec2(map_index % ism_params.w, map_index / ism_params.w) * size;
+  imageAtomicMin(ism_atlas, tile + ism_texel(offset, size), floatBitsToUint(distance));
+}

@@ -1,0 +1,101 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The imperfect-shadow-map pass on the GPU (vsgl_addon/passes/ism.py, glsl/ism/, glsl/lib/ism.glsl)
+against its float64 twin (vsgl_addon/reference/ism.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from glsl_harness import as_gpu_floats, evaluate_glsl
+from test_reference_ism import _geometry, _quad
+from vsgl_addon import scene_points as sp
+from vsgl_addon.passes import ism as ism_pass
+from vsgl_addon.reference import ism
+
+pytestmark = pytest.mark.gpu
+
+
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def test_glsl_octahedral_projection_matches_the_reference():
+    rng = np.random.default_rng(1)
+    d = as_gpu_floats(np.concatenate([_unit(rng.normal(size=(4000, 3))), np.eye(3), -np.eye(3)]))
+    got = evaluate_glsl("octahedral_encode(d)", {"d": d}, 2, libraries=["lib/ism.glsl"])
+    np.testing.assert_allclose(got, ism.octahedral_encode(d), atol=3e-7)
+    back = evaluate_glsl("octahedral_decode(uv)", {"uv": as_gpu_floats(got)}, 3, libraries=["lib/ism.glsl"])
+    np.testing.assert_allclose(back, d, atol=2e-6)
+    for size in (1, 8, 64):
+        texel = evaluate_glsl(f"vec2(ism_texel(d, {size}))", {"d": d}, 2, libraries=["lib/ism.glsl"])
+        expected = ism.ism_texel(d, size)
+        # float32 may put a direction within rounding of a texel edge into the neighbour.
+        uv = (ism.octahedral_encode(d) * 0.5 + 0.5) * size
+        near_edge = np.any(np.abs(uv - np.round(uv)) < 1e-5, axis=-1)
+        assert np.array_equal(texel[~near_edge], expected[~near_edge]), size
+
+
+def _atlas(points, origins, set_index, size, **kwargs):
+    atlas = ism_pass.PASS.run(points, origins, set_index, size, **kwargs)
+    try:
+        return atlas.read()
+    finally:
+        ism_pass.PASS.free(atlas)
+
+
+def _reference(points, origins, set_index, size, min_distance=0.0):
+    return np.stack([ism.pull_push(ism.splat(points.positions[s], o, size, min_distance))
+                     for o, s in zip(np.asarray(origins, np.float64), set_index)])
+
+
+def test_splat_and_pull_push_match_the_reference_on_texel_centres():
+    """Points on the directions of texel centres (no rounding can move them to a neighbour), at
+    random distances, two sets, five maps in a 3 × 2 atlas: the same depths as the float64 twin."""
+    size, rng = 16, np.random.default_rng(7)
+    directions = ism.texel_directions(size).reshape(-1, 3)
+    origins = rng.uniform(-1, 1, size=(5, 3))
+    sets = []
+    for s in range(2):
+        chosen = directions[rng.choice(len(directions), 120, replace=False)]
+        sets.append(chosen * rng.uniform(0.5, 4.0, size=(120, 1)))
+    positions = np.stack(sets)  # relative to origin 0 for set 0; other maps see them off-centre
+    points = sp.ScenePoints((positions + origins[0]).astype(np.float32), np.zeros_like(positions, np.float32),
+                            np.zeros(positions.shape[:2], np.int64))
+    set_index = np.array([0, 1, 0, 1, 0])
+    got = _atlas(points, origins[:1].repeat(5, 0), set_index, size)
+    expected = _reference(points, origins[:1].repeat(5, 0), set_index, size)
+    np.testing.assert_allclose(got, expected, rtol=2e-6)
+    assert np.isfinite(got).all()
+
+
+def test_a_scene_s_maps_match_the_reference_but_for_texels_at_rounding_edges():
+    scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
+    points = sp.scene_point_sets(scene, 4096, 3, seed=2)
+    origins = np.array([[0.0, 0.0, 1.5], [-1.0, 0.5, 0.2], [2.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
+    set_index = sp.set_index(np.arange(len(origins)), points.set_count)
+    got = _atlas(points, origins, set_index, 32)
+    expected = _reference(points, origins, set_index, 32)
+    close = np.isclose(got, expected, rtol=1e-5)
+    assert close.mean() > 0.995, close.mean()
+    assert np.isfinite(got).all()
+
+
+@pytest.mark.parametrize("size,per_set", [(1, 1), (8, 1), (8, 3), (64, 16384)])
+def test_extremes_one_texel_maps_one_point_and_a_map_no_point_reaches(size, per_set):
+    points = sp.scene_point_sets(_geometry(_quad(-1, -1, 1, 1)), per_set, 2, seed=0)
+    origins = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
+    got = _atlas(points, origins, [0, 1], size)
+    expected = _reference(points, origins, [0, 1], size)
+    np.testing.assert_allclose(got, expected, rtol=2e-6)
+    # A map whose origin is its only point holds nothing: the point is not its own occluder.
+    lone = sp.ScenePoints(np.zeros((1, 1, 3), np.float32), np.zeros((1, 1, 3), np.float32), np.zeros((1, 1), np.int64))
+    assert np.all(_atlas(lone, np.zeros((1, 3)), [0], size) == ism.EMPTY)
+
+
+def test_the_pass_declares_its_contract():
+    assert set(ism_pass.PASS.shaders) == {"splat", "pull", "push"}
+    ism_pass.PASS.compile_shaders()
+    ism_pass.PASS.free_shaders()
+    with pytest.raises(ValueError):
+        ism_pass.PASS.run(sp.scene_point_sets(_geometry(_quad(0, 0, 1, 1)), 4, 1), np.zeros((1, 3)), [0], 12)

@@ -1,0 +1,187 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Imperfect shadow maps (ISMs) on the GPU: one octahedral depth map per origin (a VSGL lobe's
+position; 000 §5, Ritschel et al. 2008), all in one atlas. The twin of
+:mod:`vsgl_addon.reference.ism` (projection, splat, pull-push; why octahedral is said there).
+
+Three compute stages (``glsl/ism/``):
+
+1. ``ism_splat.comp.glsl``: one invocation per (point, map). Map m splats point set
+   ``set_index[m]`` of :func:`vsgl_addon.scene_points.scene_point_sets` (an RGBA32F texture, one
+   row per set) with ``imageAtomicMin`` on the distance's float bits into its tile of an R32UI atlas
+   (shared/reference/blender-gpu.md: about 7× faster than drawing points on llvmpipe).
+2. ``ism_pull.comp.glsl``: the pyramid of the atlas, one dispatch per level (RG32F: mean depth of
+   the valid children, valid); tiles are aligned power-of-two squares, so each level is every
+   tile's own pyramid.
+3. ``ism_push.comp.glsl``: holes take their parent's depth, coarsest level first, down to level 0.
+
+The result, :class:`ISMAtlas`, holds the filled RG32F level 0 (r = depth, g = 1 where any point
+of the map's set landed; a map no point reached has g = 0). Needs a GPU context, main thread.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..reference.ism import EMPTY
+from ..shaders import ShaderInterface
+from .contract import GPUPass, ShaderSpec, Step
+from .gpu_util import read_texture, texture_from_array
+
+#: Largest atlas side (llvmpipe's and most GPUs' texture limit), and the sides an ISM may have.
+MAX_ATLAS_SIDE = 16384
+ISM_SIZE_RANGE = (1, 256)
+#: Points of one set are one texture row.
+MAX_POINTS_PER_SET = 16384
+_GROUP = (64, 1, 1)
+_LEVEL_GROUP = (8, 8, 1)
+
+
+def _splat_interface() -> ShaderInterface:
+    return ShaderInterface(
+        # (points per set, map count, map side, tiles per atlas row)
+        push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_min_distance")],
+        samplers=[("FLOAT_2D", "scene_points"), ("FLOAT_2D", "ism_origins")],
+        images=[("R32UI", "UINT_2D", "ism_atlas")],
+        local_group_size=_GROUP,
+    )
+
+
+def _pull_interface() -> ShaderInterface:
+    return ShaderInterface(push_constants=[("INT", "ism_first_level")], samplers=[("FLOAT_2D", "ism_fine")],
+                           images=[("R32UI", "UINT_2D", "ism_atlas"), ("RG32F", "FLOAT_2D", "ism_coarse")],
+                           local_group_size=_LEVEL_GROUP)
+
+
+def _push_interface() -> ShaderInterface:
+    return ShaderInterface(push_constants=[("INT", "ism_first_level")],
+                           samplers=[("FLOAT_2D", "ism_own"), ("FLOAT_2D", "ism_parent")],
+                           images=[("R32UI", "UINT_2D", "ism_atlas"), ("RG32F", "FLOAT_2D", "ism_filled")],
+                           local_group_size=_LEVEL_GROUP)
+
+
+def atlas_layout(map_count: int, size: int) -> tuple[int, int]:
+    """(tiles per row, rows of tiles) of an atlas of ``map_count`` maps of ``size``²: square-ish."""
+    columns = max(1, math.ceil(math.sqrt(map_count)))
+    rows = max(1, math.ceil(map_count / columns))
+    if max(columns, rows) * size > MAX_ATLAS_SIDE:
+        raise ValueError(f"{map_count} ISMs of {size}² do not fit a {MAX_ATLAS_SIDE}² atlas")
+    return columns, rows
+
+
+@dataclass
+class ISMAtlas:
+    """The filled maps on the GPU: ``texture`` RG32F, map m in tile (m mod columns, m div columns)."""
+
+    texture: object
+    size: int
+    count: int
+    columns: int
+    rows: int
+    seconds: dict = field(default_factory=dict)
+
+    def read(self) -> np.ndarray:
+        """(count, size, size) float64 depths [map, row, column]; EMPTY where the map has nothing."""
+        s = self.size
+        array = read_texture(self.texture, self.columns * s, self.rows * s, channels=2).astype(np.float64)
+        tiles = array.reshape(self.rows, s, self.columns, s, 2).transpose(0, 2, 1, 3, 4).reshape(-1, s, s, 2)
+        tiles = tiles[:self.count]
+        return np.where(tiles[..., 1] > 0.5, tiles[..., 0], EMPTY)
+
+    def free(self) -> None:
+        self.texture = None
+
+
+def _groups(count: int, size: int) -> int:
+    return max(1, -(-count // size))
+
+
+def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance: float = 0.0) -> ISMAtlas:
+    """The ISMs of ``origins`` (M, 3), map m splatting set ``set_index[m]`` of ``points`` (a
+    :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two)."""
+    import gpu
+
+    size = int(size)
+    if not ISM_SIZE_RANGE[0] <= size <= ISM_SIZE_RANGE[1] or size & (size - 1):
+        raise ValueError(f"ISM size must be a power of two in {ISM_SIZE_RANGE}, got {size}")
+    origins = np.asarray(origins, np.float64).reshape(-1, 3)
+    count = len(origins)
+    if points.points_per_set > MAX_POINTS_PER_SET:
+        raise ValueError(f"at most {MAX_POINTS_PER_SET} points per set, got {points.points_per_set}")
+    columns, rows = atlas_layout(count, size)
+    width, height = columns * size, rows * size
+    point_texture = texture_from_array(np.concatenate(
+        [points.positions, np.ones((*points.positions.shape[:2], 1), np.float32)], axis=-1))
+    table = np.zeros((1, max(count, 1), 4), np.float32)
+    table[0, :count, :3] = origins
+    table[0, :count, 3] = np.asarray(set_index).reshape(-1)[:count]
+    origin_texture = texture_from_array(table)
+    atlas = gpu.types.GPUTexture((width, height), format="R32UI")
+    atlas.clear(format="UINT", value=(-1,))  # every texel empty: 0xFFFFFFFF
+    if count:
+        splat = PASS.shader("splat")
+        splat.bind()
+        splat.uniform_int("ism_params", (points.points_per_set, count, size, columns))
+        splat.uniform_float("ism_min_distance", float(min_distance))
+        splat.uniform_sampler("scene_points", point_texture)
+        splat.uniform_sampler("ism_origins", origin_texture)
+        splat.image("ism_atlas", atlas)
+        gpu.compute.dispatch(splat, _groups(points.points_per_set, _GROUP[0]), count, 1)
+    # Pull: level l of every tile from level l - 1 (level 0 is the splatted atlas itself).
+    levels = int(math.log2(size))
+    pulled = []
+    pull = PASS.shader("pull")
+    for level in range(1, levels + 1):
+        coarse = gpu.types.GPUTexture((width >> level, height >> level), format="RG32F")
+        pull.bind()
+        pull.uniform_int("ism_first_level", 1 if level == 1 else 0)
+        pull.uniform_sampler("ism_fine", pulled[-1] if pulled else _unknown(1, 1))
+        pull.image("ism_atlas", atlas)
+        pull.image("ism_coarse", coarse)
+        gpu.compute.dispatch(pull, _groups(width >> level, _LEVEL_GROUP[0]), _groups(height >> level, _LEVEL_GROUP[1]), 1)
+        pulled.append(coarse)
+    # Push: from the top level down; level 0 reads the atlas. A 1² map has no pyramid: its parent is
+    # a texture of unknowns of the atlas's own size.
+    filled = pulled[-1] if pulled else _unknown(width, height)
+    push = PASS.shader("push")
+    for level in range(levels - 1, -1, -1):
+        target = gpu.types.GPUTexture((width >> level, height >> level), format="RG32F")
+        push.bind()
+        push.uniform_int("ism_first_level", 1 if level == 0 else 0)
+        push.uniform_sampler("ism_own", pulled[level - 1] if level > 0 else filled)
+        push.uniform_sampler("ism_parent", filled)
+        push.image("ism_atlas", atlas)
+        push.image("ism_filled", target)
+        gpu.compute.dispatch(push, _groups(width >> level, _LEVEL_GROUP[0]), _groups(height >> level, _LEVEL_GROUP[1]), 1)
+        filled = target
+    if levels == 0:
+        target = gpu.types.GPUTexture((width, height), format="RG32F")
+        push.bind()
+        push.uniform_int("ism_first_level", 1)
+        push.uniform_sampler("ism_own", filled)
+        push.uniform_sampler("ism_parent", filled)
+        push.image("ism_atlas", atlas)
+        push.image("ism_filled", target)
+        gpu.compute.dispatch(push, _groups(width, _LEVEL_GROUP[0]), _groups(height, _LEVEL_GROUP[1]), 1)
+        filled = target
+    return ISMAtlas(filled, size, count, columns, rows)
+
+
+def _unknown(width: int, height: int):
+    """An RG32F texture of unknowns (g = 0): the parent of a level with none above it."""
+    return texture_from_array(np.zeros((height, width, 4), np.float32))
+
+
+PASS = GPUPass(
+    name="ism",
+    label="Imperfect Shadow Maps",
+    step=Step("ism", "Imperfect Shadow Maps"),
+    shaders={"splat": ShaderSpec(_splat_interface, {"compute": "ism/ism_splat.comp.glsl"}),
+             "pull": ShaderSpec(_pull_interface, {"compute": "ism/ism_pull.comp.glsl"}),
+             "push": ShaderSpec(_push_interface, {"compute": "ism/ism_push.comp.glsl"})},
+    reads=("scene_points", "ism_origins"),
+    writes=("ism_atlas",),
+    run=build_ism_atlas,
+)
