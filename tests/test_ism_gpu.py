@@ -99,3 +99,28 @@ def test_the_pass_declares_its_contract():
     ism_pass.PASS.free_shaders()
     with pytest.raises(ValueError):
         ism_pass.PASS.run(sp.scene_point_sets(_geometry(_quad(0, 0, 1, 1)), 4, 1), np.zeros((1, 3)), [0], 12)
+
+
+def test_glsl_filtered_lookup_matches_the_reference():
+    """ism_pcf on a scene's filled map, for receivers all around the origin (every fold of the
+    octahedral map) at radii 0, 1 and 3, with their normals (slope-scaled bias)."""
+    scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
+    points = sp.scene_point_sets(scene, 20000, 1, seed=4)
+    origin = np.array([0.0, 0.0, 1.5])
+    size = 16
+    depth = ism.pull_push(ism.splat(points.positions[0], origin, size))
+    rng = np.random.default_rng(9)
+    receivers = as_gpu_floats(rng.uniform([-4, -4, -1], [4, 4, 3], size=(3000, 3)))
+    normals = as_gpu_floats(_unit(rng.normal(size=(3000, 3))))
+    # The atlas as the pass leaves it: one tile at (16, 0) of a 2 × 1 atlas, r = depth, g = known.
+    atlas = np.zeros((size, 2 * size, 4))
+    atlas[:, size:, 0] = np.where(np.isfinite(depth), depth, 0.0)
+    atlas[:, size:, 1] = np.isfinite(depth)
+    for radius in (0, 1, 3):
+        got = evaluate_glsl(f"ism_pcf(ism_atlas, ivec2({size}, 0), {size}, origin, receiver, normal, {radius})",
+                            {"origin": np.tile(origin, (3000, 1)), "receiver": receivers, "normal": normals}, 1,
+                            libraries=["lib/ism.glsl"], images={"ism_atlas": atlas})
+        expected = ism.ism_pcf(depth, origin, receivers, radius, normals=normals)
+        # A receiver within float32 rounding of a texel edge or of its bias may count one texel more or less.
+        assert np.mean(np.abs(got - expected) < 1e-6) > 0.99, radius
+        assert np.abs(got - expected).max() <= 1.0 / (2 * radius + 1) ** 2 + 1e-6

@@ -28,3 +28,54 @@ ivec2 ism_texel(vec3 d, int size)
   vec2 cell = floor((octahedral_encode(d) * 0.5 + 0.5) * float(size));
   return clamp(ivec2(cell), ivec2(0), ivec2(size - 1));
 }
+
+// Largest tan of the receiver's incidence the slope-scaled bias follows (reference ISM_MAX_SLOPE).
+const float ISM_MAX_SLOPE = 8.0;
+
+// Depth bias at radial distance: `slope` texel footprints (a texel spans about sqrt(4 pi) / size
+// rad) times (1 + tan of the receiver's incidence), plus `floor_metres` (reference ism_bias).
+float ism_bias(float distance, int size, float tan_incidence, float slope, float floor_metres)
+{
+  return slope * distance * 3.5449077018110318 / float(size) * (1.0 + min(tan_incidence, ISM_MAX_SLOPE)) +
+         floor_metres;
+}
+
+// The texel across an edge of an octahedral map: the mirror image about the edge's midpoint
+// (reference octahedral_wrap).
+ivec2 octahedral_wrap(ivec2 texel, int size)
+{
+  for (int i = 0; i < 2; i++) {
+    if (texel.x < 0 || texel.x >= size) {
+      texel.x = texel.x < 0 ? -1 - texel.x : 2 * size - 1 - texel.x;
+      texel.y = size - 1 - texel.y;
+    }
+    if (texel.y < 0 || texel.y >= size) {
+      texel.y = texel.y < 0 ? -1 - texel.y : 2 * size - 1 - texel.y;
+      texel.x = size - 1 - texel.x;
+    }
+  }
+  return texel;
+}
+
+// Percentage-closer visibility of the origin of the map in tile `tile` (texels, of side `size`) of
+// the filled atlas (r = depth, g = known; vsgl_addon/passes/ism.py) from `receiver` with unit
+// `normal`: the share of the (2 radius + 1)^2 texels around the receiver's whose stored depth is
+// not nearer than the receiver less the bias, which spans the filter's footprint (reference
+// ism_pcf). A texel no point reached (g = 0) hides nothing.
+float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal, int radius)
+{
+  vec3 offset = receiver - origin;
+  float distance = length(offset);
+  float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
+  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
+  float bias = ism_bias(distance, size, tan_theta, 1.0 + float(radius), 1e-3);
+  ivec2 centre = ism_texel(offset, size);
+  float lit = 0.0;
+  for (int dy = -radius; dy <= radius; dy++) {
+    for (int dx = -radius; dx <= radius; dx++) {
+      vec4 stored = texelFetch(atlas, tile + octahedral_wrap(centre + ivec2(dx, dy), size), 0);
+      lit += (stored.g < 0.5 || distance <= stored.r + bias) ? 1.0 : 0.0;
+    }
+  }
+  return lit / float((2 * radius + 1) * (2 * radius + 1));
+}
