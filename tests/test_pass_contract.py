@@ -118,6 +118,6 @@ def test_shader_specs_are_read_at_compile_time():
     spec = passes.vsgl_shading.PASS.shaders["cosine"]
     assert isinstance(spec, ShaderSpec)
     assert "VSGLRecord vsgl_table_load" in spec.code()["fragment"]
-    assert spec.defines() == {"VSGL_DIFFUSE_MODE": 0}
+    assert spec.defines()["VSGL_DIFFUSE_MODE"] == 0 and spec.defines()["VSGL_VISIBILITY"] == 0
     with pytest.raises(dataclasses.FrozenInstanceError):
         spec.stages = {}

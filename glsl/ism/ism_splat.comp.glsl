@@ -1,8 +1,10 @@
 // @require lib/ism.glsl
 //
 // Imperfect shadow maps, splat (vsgl_addon/passes/ism.py; twin: reference/ism.py splat): one
-// invocation per (point, map). Map m, with origin and point set from ism_origins[m] (xyz, set),
-// keeps in its tile of the R32UI atlas the nearest radial distance of the set's points per texel:
+// invocation per (point, map). Map m, with origin and point set from column m of ism_origins (row
+// 0: xyz, set; row 1: the map's own minimum distance, so that the points of the reflector a VSGL
+// stands for do not shadow its light), keeps in its tile of the R32UI atlas the nearest radial
+// distance of the set's points beyond that minimum per texel:
 // positive floats order as their bits, so imageAtomicMin of floatBitsToUint is a float minimum.
 // Texels no point reaches keep the clear value 0xFFFFFFFF (empty).
 void main()
@@ -15,7 +17,8 @@ void main()
   vec4 origin = texelFetch(ism_origins, ivec2(map_index, 0), 0);
   vec3 offset = texelFetch(scene_points, ivec2(point, int(origin.w + 0.5)), 0).xyz - origin.xyz;
   float distance = length(offset);
-  if (!(distance > ism_min_distance)) {
+  float min_distance = texelFetch(ism_origins, ivec2(map_index, 1), 0).x;
+  if (!(distance > min_distance)) {
     return;  // the origin's own point, or a non-finite one
   }
   int size = ism_params.z;

@@ -1,5 +1,6 @@
 // @require lib/math.glsl
 // @require lib/vsgl_shading.glsl
+// @require lib/ism.glsl
 //
 // Indirect light from VSGLs (000 app. C), one fragment per pixel of the camera G-buffer's position
 // and normal attachments and the shading inputs (unpacked by the generated code of
@@ -10,6 +11,26 @@
 // diffuse = Rd * sum, indirect specular = F0 * sum_s + sum_f (Schlick is linear in F0); alpha =
 // coverage, or 0 when `accumulate` is set (later tables are added by blending).
 // VSGL_DIFFUSE_MODE is a compile-time define (0: cosine pulled out, 1: 003's SG convolution).
+//
+// VSGL_VISIBILITY 1: each lobe's light is weighted by its visibility from the pixel, a filtered
+// lookup in the lobe position's imperfect shadow map (000 sec. 5; lib/ism.glsl, atlas of
+// vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, maps per VSGL (1 when
+// both lobes share a position, else 2: map 2i the diffuse lobe's, 2i + 1 the specular lobe's)).
+// A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
+// sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS.
+
+#if VSGL_VISIBILITY
+float vsgl_visibility(int map_index, vec3 mean, float variance, VSGLReceiver rc)
+{
+  int size = ism_params.x;
+  ivec2 tile = ivec2(map_index % ism_params.y, map_index / ism_params.y) * size;
+  float distance = length(rc.position - mean);
+  float texel_angle = 3.5449077018110318 / float(size);  // sqrt(4 pi) / size
+  float radius = sqrt(max(variance, 0.0)) / max(distance, 1e-30) / texel_angle;
+  return ism_pcf(ism_atlas, tile, size, mean, rc.position, rc.normal,
+                 int(clamp(radius + 0.5, 0.0, float(VSGL_ISM_MAX_RADIUS))));
+}
+#endif
 
 void main()
 {
@@ -38,8 +59,17 @@ void main()
     if (shared_positions == 0) {
       specular_position = vsgl_position(rc.position, vsgl.specular_mean, vsgl.specular_variance);
     }
-    vsgl_accumulate(rc, diffuse_position, vsgl.diffuse_amplitude, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
-                    specular_position, vsgl.specular_amplitude, vsgl.specular_axis, vsgl.specular_sharpness,
+    vec3 diffuse_amplitude = vsgl.diffuse_amplitude;
+    vec3 specular_amplitude = vsgl.specular_amplitude;
+#if VSGL_VISIBILITY
+    int maps = ism_params.z;
+    float diffuse_visibility = vsgl_visibility(i * maps, vsgl.diffuse_mean, vsgl.diffuse_variance, rc);
+    diffuse_amplitude *= diffuse_visibility;
+    specular_amplitude *= maps == 1 ? diffuse_visibility :
+                                      vsgl_visibility(i * maps + 1, vsgl.specular_mean, vsgl.specular_variance, rc);
+#endif
+    vsgl_accumulate(rc, diffuse_position, diffuse_amplitude, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
+                    specular_position, specular_amplitude, vsgl.specular_axis, vsgl.specular_sharpness,
                     VSGL_DIFFUSE_MODE, diffuse, specular, fresnel);
   }
   ShadingInputs inputs = shading_inputs_load(pixel);

@@ -42,7 +42,7 @@ _LEVEL_GROUP = (8, 8, 1)
 def _splat_interface() -> ShaderInterface:
     return ShaderInterface(
         # (points per set, map count, map side, tiles per atlas row)
-        push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_min_distance")],
+        push_constants=[("IVEC4", "ism_params")],
         samplers=[("FLOAT_2D", "scene_points"), ("FLOAT_2D", "ism_origins")],
         images=[("R32UI", "UINT_2D", "ism_atlas")],
         local_group_size=_GROUP,
@@ -98,9 +98,10 @@ def _groups(count: int, size: int) -> int:
     return max(1, -(-count // size))
 
 
-def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance: float = 0.0) -> ISMAtlas:
+def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0) -> ISMAtlas:
     """The ISMs of ``origins`` (M, 3), map m splatting set ``set_index[m]`` of ``points`` (a
-    :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two)."""
+    :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two), leaving out the
+    points nearer than ``min_distance`` (a scalar, or one per map)."""
     import gpu
 
     size = int(size)
@@ -114,9 +115,10 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance: fl
     width, height = columns * size, rows * size
     point_texture = texture_from_array(np.concatenate(
         [points.positions, np.ones((*points.positions.shape[:2], 1), np.float32)], axis=-1))
-    table = np.zeros((1, max(count, 1), 4), np.float32)
+    table = np.zeros((2, max(count, 1), 4), np.float32)
     table[0, :count, :3] = origins
     table[0, :count, 3] = np.asarray(set_index).reshape(-1)[:count]
+    table[1, :count, 0] = np.broadcast_to(np.asarray(min_distance, np.float64), (count,))
     origin_texture = texture_from_array(table)
     atlas = gpu.types.GPUTexture((width, height), format="R32UI")
     atlas.clear(format="UINT", value=(-1,))  # every texel empty: 0xFFFFFFFF
@@ -124,7 +126,6 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance: fl
         splat = PASS.shader("splat")
         splat.bind()
         splat.uniform_int("ism_params", (points.points_per_set, count, size, columns))
-        splat.uniform_float("ism_min_distance", float(min_distance))
         splat.uniform_sampler("scene_points", point_texture)
         splat.uniform_sampler("ism_origins", origin_texture)
         splat.image("ism_atlas", atlas)

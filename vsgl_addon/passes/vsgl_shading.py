@@ -62,23 +62,29 @@ from .vsgl_generation import MAX_VSGL_COUNT
 _MODE_INDEX = {"cosine": 0, "sg-convolution": 1}
 
 
-def _interface() -> ShaderInterface:
+#: Largest radius in texels of the visibility filter (its cost grows with (2r + 1)²).
+ISM_MAX_RADIUS = 1
+
+
+def _interface(visibility: bool = False) -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("INT", "vsgl_count"), ("INT", "accumulate"),
-                        ("INT", "roughness_is_perceptual"), ("INT", "shared_positions")],
+                        ("INT", "roughness_is_perceptual"), ("INT", "shared_positions")]
+        + ([("IVEC4", "ism_params")] if visibility else []),
         samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal")]
         + [("FLOAT_2D", f"shading_inputs_{name}") for name in SHADING_INPUTS.slot_names]
-        + [("FLOAT_2D", "vsgl_table")],
+        + [("FLOAT_2D", "vsgl_table")] + ([("FLOAT_2D", "ism_atlas")] if visibility else []),
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
         fragment_outputs=[("VEC4", "indirect_diffuse"), ("VEC4", "indirect_specular")],
     )
 
 
-def _shader_spec(diffuse_mode: str) -> ShaderSpec:
-    return ShaderSpec(_interface, {"vertex": "fullscreen_triangle.vert.glsl",
-                                   "fragment": "vsgl_shading/vsgl_shading.frag.glsl"},
-                      defines=lambda: {"VSGL_DIFFUSE_MODE": _MODE_INDEX[diffuse_mode]},
+def _shader_spec(diffuse_mode: str, visibility: bool = False) -> ShaderSpec:
+    return ShaderSpec(lambda: _interface(visibility), {"vertex": "fullscreen_triangle.vert.glsl",
+                                                       "fragment": "vsgl_shading/vsgl_shading.frag.glsl"},
+                      defines=lambda: {"VSGL_DIFFUSE_MODE": _MODE_INDEX[diffuse_mode],
+                                       "VSGL_VISIBILITY": int(visibility), "VSGL_ISM_MAX_RADIUS": ISM_MAX_RADIUS},
                       code=lambda: {"fragment": GBUFFER.glsl() + SHADING_INPUTS.glsl("samplers_load")
                                                 + VSGL_TABLE.glsl("sampler_load")})
 
@@ -99,18 +105,20 @@ PASS = GPUPass(
     name="vsgl_shading",
     label="VSGL Shading",
     step=SHADING_STEP,
-    shaders={mode: _shader_spec(mode) for mode in _MODE_INDEX},
+    shaders={**{mode: _shader_spec(mode) for mode in _MODE_INDEX},
+             **{f"{mode}+visibility": _shader_spec(mode, True) for mode in _MODE_INDEX}},
     reads=(GBUFFER.name, SHADING_INPUTS.name, VSGL_TABLE.name),
     writes=("indirect",),
     run=run,
 )
 
 
-def shader(diffuse_mode: str = "cosine"):
-    """The shading shader for `diffuse_mode`, compiled on first use and cached for the process."""
+def shader(diffuse_mode: str = "cosine", visibility: bool = False):
+    """The shading shader for `diffuse_mode` (with VSGL visibility from imperfect shadow maps when
+    `visibility`), compiled on first use and cached for the process."""
     if diffuse_mode not in _MODE_INDEX:
         raise ValueError(f"diffuse_mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
-    return PASS.shader(diffuse_mode)
+    return PASS.shader(f"{diffuse_mode}+visibility" if visibility else diffuse_mode)
 
 
 compile_shaders = PASS.compile_shaders
@@ -167,14 +175,22 @@ class VSGLTable:
     texture: object
     count: int
     shared_positions: bool = False
+    # The imperfect shadow maps of its VSGLs (passes/ism.py ISMAtlas): one per VSGL when the lobes
+    # share a position, else two (map 2i the diffuse lobe's, 2i + 1 the specular's); None: no
+    # visibility, every VSGL lights every pixel it faces.
+    ism: object = None
 
     @classmethod
-    def from_generation(cls, generation) -> "VSGLTable":
+    def from_generation(cls, generation, ism=None) -> "VSGLTable":
         """The current table of a :class:`~vsgl_addon.passes.vsgl_generation.VSGLGeneration`."""
         if generation.table is None:
             raise RuntimeError("the VSGL generation has no table: generate() first")
         return cls(generation.table, int(generation.vsgl_count),
-                   generation.positional_distribution == "shared")
+                   generation.positional_distribution == "shared", ism)
+
+    @property
+    def maps_per_vsgl(self) -> int:
+        return 1 if self.shared_positions else 2
 
 
 def table_array(vsgls) -> np.ndarray:
@@ -241,7 +257,10 @@ class VSGLShading:
         for table in tables:
             if table.count > MAX_VSGL_COUNT:
                 raise ValueError(f"at most {MAX_VSGL_COUNT} VSGLs per table, got {table.count}")
-        program = shader(diffuse_mode)
+        visibility = any(table.ism is not None for table in tables)
+        if visibility and not all(table.ism is not None for table in tables):
+            raise ValueError("either every table has imperfect shadow maps or none has")
+        program = shader(diffuse_mode, visibility)
         batch = _fullscreen_triangle()
         width, height = int(gbuffer.width), int(gbuffer.height)
         self._targets(width, height)
@@ -271,6 +290,10 @@ class VSGLShading:
                     set_uniform(program.uniform_int, "vsgl_count", int(table.count))
                     set_uniform(program.uniform_int, "shared_positions", 1 if table.shared_positions else 0)
                     program.uniform_sampler("vsgl_table", table.texture)
+                    if visibility:
+                        program.uniform_int("ism_params", (table.ism.size, table.ism.columns,
+                                                           table.maps_per_vsgl, 0))
+                        program.uniform_sampler("ism_atlas", table.ism.texture)
                     batch.draw(program)
         finally:
             gpu.state.blend_set(saved[0])

@@ -153,7 +153,7 @@ def _chunks(count, per_chunk):
 
 
 def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, roughness,
-          diffuse_mode="cosine", specular_cosine="normal", per_term=False):
+          diffuse_mode="cosine", specular_cosine="normal", per_term=False, visibility=None):
     """Indirect radiance (diffuse, specular), each (P, 3), at P shading points from N VSGLs.
 
     vsgls     dict with ``VSGL_KEYS`` (rows = VSGLs), e.g. from ``vsgl.generate_vsgls``.
@@ -161,6 +161,8 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
     diffuse_reflectance, specular_f0 (P, 3); roughness (P,) GGX α (clamped to ``ALPHA_MIN``).
     The sum over VSGLs of both lobes (diffuse SG and specular SG of each VSGL).
     ``per_term=True`` also returns the (P, N, 2, 3) contributions (lobe 0 = VSGL diffuse SG).
+    ``visibility`` (P, N, 2): each lobe's visibility from each point (:func:`vsgl_visibility`),
+    weighting its light; None: every lobe is seen.
     """
     if diffuse_mode not in DIFFUSE_MODES:
         raise ValueError(f"diffuse mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
@@ -184,6 +186,8 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
                 f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
                 f64(vsgls[sharp_key]).reshape(-1)[rows][None])
             c_in = amplitude * scale[..., None]
+            if visibility is not None:
+                c_in = c_in * f64(visibility)[:, rows, lobes.index(lobe), None]
             ld = c_in * vsgl_diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
                 * rd[:, None]
             ls = c_in * vsgl_specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
@@ -290,3 +294,31 @@ def per_texel_vsgls(rsm) -> dict:
     """Every RSM texel its own VSGL (the N = M limit, 000 app. B with one VPL per cluster)."""
     rsm = RSM.coerce(rsm)
     return vsgl_parameters(texel_moments(rsm).reshape(-1, MOMENT_CHANNELS))
+
+
+def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
+    """(P, N, 2) visibility of each VSGL lobe from P shading points (glsl/vsgl_shading's
+    vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) in the lobe position's map of
+    ``depths`` (maps, S, S), map maps_per_vsgl·i (+ 1 for the specular lobe when the lobes sit
+    apart), with a radius of σ_v / distance radians in texels, at most ``max_radius``."""
+    from . import ism
+
+    position, normal = f64(position).reshape(-1, 3), f64(normal).reshape(-1, 3)
+    count = len(f64(vsgls["diffuse_variance"]).reshape(-1))
+    size = depths.shape[-1]
+    texel_angle = np.sqrt(4.0 * np.pi) / size
+    result = np.ones((len(position), count, 2))
+    for i in range(count):
+        for lobe, name in enumerate(("diffuse", "specular")):
+            if lobe == 1 and maps_per_vsgl == 1:
+                result[:, i, 1] = result[:, i, 0]
+                continue
+            mean = f64(vsgls[f"{name}_mean"]).reshape(-1, 3)[i]
+            sigma = np.sqrt(max(float(f64(vsgls[f"{name}_variance"]).reshape(-1)[i]), 0.0))
+            distance = np.linalg.norm(position - mean, axis=-1)
+            radius = np.clip(np.floor(sigma / np.maximum(distance, 1e-30) / texel_angle + 0.5), 0, max_radius)
+            for r in np.unique(radius).astype(int):
+                here = radius == r
+                result[here, i, lobe] = ism.ism_pcf(depths[maps_per_vsgl * i + lobe], mean, position[here], r,
+                                                    normals=normal[here])
+    return result

@@ -1,0 +1,109 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""VSGL shading with visibility from imperfect shadow maps (glsl/vsgl_shading/, VSGL_VISIBILITY 1)
+against its float64 twin (reference/vsgl_shading.py shade(visibility=...) and vsgl_visibility)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from test_reference_ism import _geometry, _quad
+from vsgl_addon import scene_points as sp
+from vsgl_addon.passes import ism as ism_pass
+from vsgl_addon.passes import vsgl_shading as shading_pass
+from vsgl_addon.reference import vsgl_shading as vs
+
+pytestmark = pytest.mark.gpu
+
+CAMERA = np.array([-3.0, 0.2, 2.5])
+# A floor, and a wall at x = 0.3 (y in [-2, 2], up to z = 1.5) between the VSGLs (x < 0) and a
+# receiving wall at x = 1.2 facing them.
+SCENE = _geometry(_quad(-2, -2, 2, 2) + [((0.3, -2, 0), (0.3, 2, 0), (0.3, 2, 1.5)),
+                                         ((0.3, -2, 0), (0.3, 2, 1.5), (0.3, -2, 1.5))])
+
+
+def _vsgls(count=6, seed=3):
+    """VSGLs on the floor left of the wall, lobes up and sideways, each lobe at its own position."""
+    rng = np.random.default_rng(seed)
+    mean = np.stack([rng.uniform(-1.5, -0.3, count), rng.uniform(-1, 1, count), np.full(count, 0.02)], -1)
+    axis = np.stack([rng.uniform(0.0, 0.6, count), rng.uniform(-0.3, 0.3, count), np.ones(count)], -1)
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    return {"diffuse_mean": mean, "diffuse_variance": rng.uniform(1e-3, 0.02, count),
+            "diffuse_amplitude": rng.uniform(0.5, 2.0, (count, 3)), "diffuse_axis": axis,
+            "diffuse_sharpness": rng.uniform(1.0, 3.0, count),
+            "specular_mean": mean + [0.05, 0.0, 0.03], "specular_variance": rng.uniform(1e-3, 0.02, count),
+            "specular_amplitude": rng.uniform(0.2, 1.0, (count, 3)), "specular_axis": axis,
+            "specular_sharpness": rng.uniform(5.0, 40.0, count)}
+
+
+def _gbuffer(height=12, width=16):
+    """Half the pixels on the receiving wall behind the occluder, half on the floor before it."""
+    v, u = np.meshgrid(np.linspace(0.1, 1.4, height), np.linspace(-1.5, 1.5, width), indexing="ij")
+    wall = np.arange(width)[None, :] >= width // 2
+    position = np.where(wall[..., None], np.stack([np.full_like(u, 1.2), u, v], -1),
+                        np.stack([-1.8 + 0.1 * v, u, np.zeros_like(u)], -1))
+    normal = np.where(wall[..., None], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]) * np.ones_like(position)
+    return {"position": position, "coverage": np.ones((height, width)), "normal": normal,
+            "roughness": np.full((height, width), 0.3), "diffuse_reflectance": np.full((height, width, 3), 0.7),
+            "specular_f0": np.full((height, width, 3), 0.04)}, np.broadcast_to(wall, (height, width))
+
+
+def _maps(vsgls, size=16):
+    points = sp.scene_point_sets(SCENE, 4096, 8, seed=1)
+    origins = np.stack([vsgls["diffuse_mean"], vsgls["specular_mean"]], 1).reshape(-1, 3)
+    sigma = np.sqrt(np.stack([vsgls["diffuse_variance"], vsgls["specular_variance"]], 1).reshape(-1))
+    return ism_pass.PASS.run(points, origins, sp.set_index(np.arange(len(origins)), 8), size,
+                             min_distance=2.0 * sigma)
+
+
+def test_shading_with_visibility_matches_the_reference_and_the_wall_shadows():
+    vsgls = _vsgls()
+    g, wall = _gbuffer()
+    atlas = _maps(vsgls)
+    table = shading_pass.upload_vsgl_table(vsgls)
+    assert not table.shared_positions
+    seen = shading_pass.VSGLTable(table.texture, table.count, False, atlas)
+    gbuffer = shading_pass.upload_gbuffer(**g)
+    try:
+        gpu_d, gpu_s = shading_pass.shade_gpu(gbuffer, CAMERA, [seen])
+        open_d, _ = shading_pass.shade_gpu(gbuffer, CAMERA, [table])
+        depths = atlas.read()
+    finally:
+        ism_pass.PASS.free(atlas)
+    position = g["position"].reshape(-1, 3).astype(np.float32).astype(np.float64)
+    normal = g["normal"].reshape(-1, 3)
+    view = CAMERA - position
+    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    f32 = {k: np.asarray(v, np.float32).astype(np.float64) for k, v in vsgls.items()}
+    visibility = vs.vsgl_visibility(depths, 2, f32, position, normal, shading_pass.ISM_MAX_RADIUS)
+    ref_d, ref_s = vs.shade(f32, position, normal, view, g["diffuse_reflectance"].reshape(-1, 3),
+                            g["specular_f0"].reshape(-1, 3), g["roughness"].reshape(-1), visibility=visibility)
+    got_d, got_s = gpu_d[..., :3].reshape(-1, 3), gpu_s[..., :3].reshape(-1, 3)
+    assert np.isfinite(got_d).all() and np.isfinite(got_s).all()
+    # A pixel within float32 rounding of a filter texel's edge or its bias may count one texel
+    # more or less; everywhere else the images agree to float32 sums.
+    close = np.all(np.abs(got_d - ref_d) <= 1e-4 * np.abs(ref_d) + 1e-6 * np.abs(ref_d).max(), axis=1)
+    assert close.mean() > 0.97, close.mean()
+    # The occluder: the receiving wall behind it gets (almost) none of the light it gets without
+    # visibility, the floor before it all of it.
+    behind = wall.reshape(-1) & (position[:, 2] < 1.0)
+    unshadowed = open_d[..., :3].reshape(-1, 3)
+    assert got_d[behind].sum() <= 0.05 * unshadowed[behind].sum()
+    before = ~wall.reshape(-1)
+    np.testing.assert_allclose(got_d[before], unshadowed[before], rtol=1e-6)
+
+
+def test_visibility_off_reproduces_today_s_images_exactly():
+    vsgls = _vsgls()
+    g, _ = _gbuffer()
+    gbuffer = shading_pass.upload_gbuffer(**g)
+    table = shading_pass.upload_vsgl_table(vsgls)
+    first = shading_pass.shade_gpu(gbuffer, CAMERA, [table])
+    atlas = _maps(vsgls)
+    try:
+        shading_pass.shade_gpu(gbuffer, CAMERA, [shading_pass.VSGLTable(table.texture, table.count, False, atlas)])
+    finally:
+        ism_pass.PASS.free(atlas)
+    again = shading_pass.shade_gpu(gbuffer, CAMERA, [table])
+    for a, b in zip(first, again):
+        np.testing.assert_array_equal(a, b)
