@@ -124,3 +124,22 @@ def test_glsl_filtered_lookup_matches_the_reference():
         # A receiver within float32 rounding of a texel edge or of its bias may count one texel more or less.
         assert np.mean(np.abs(got - expected) < 1e-6) > 0.99, radius
         assert np.abs(got - expected).max() <= 1.0 / (2 * radius + 1) ** 2 + 1e-6
+
+
+def test_sized_splats_match_the_reference():
+    """Splats sized by the solid angle of each point's share of the surface (point_area > 0)."""
+    scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
+    points = sp.scene_point_sets(scene, 1024, 2, seed=5)
+    area = sp.triangle_areas(scene.positions).sum() / 1024
+    origins = np.array([[0.0, 0.0, 0.5], [0.7, 0.3, 0.2]])
+    atlas = ism_pass.PASS.run(points, origins, [0, 1], 32, point_area=area)
+    try:
+        got = atlas.read()
+    finally:
+        ism_pass.PASS.free(atlas)
+    expected = np.stack([ism.pull_push(ism.splat(points.positions[s], o, 32, normals=points.normals[s],
+                                                 point_area=area)) for o, s in zip(origins, [0, 1])])
+    assert np.isclose(got, expected, rtol=1e-5).mean() > 0.99
+    radius = ism.splat_radius(points.positions[0] - origins[0], 1.0, area, 32)
+    assert radius.max() >= 2  # near points cover several texels, far ones one
+    assert radius.min() == 0

@@ -43,7 +43,8 @@ def _command_demo(arguments) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     arguments = argparse.Namespace(scene=str(DEMO_BLEND), out=str(out), report=str(out.with_suffix(".json")),
                                    resolution=arguments.resolution, vsgl_count=None, k=None, kernel=None,
-                                   rsm_size=None, seed=None, positional_distribution=None, frame=None)
+                                   rsm_size=None, seed=None, positional_distribution=None, visibility=None,
+                                   ism_size=None, ism_points=None, frame=None)
     print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
     return _command_render(arguments)
 
@@ -78,7 +79,9 @@ def _settings(scene, arguments):
         return VSGLSettings.from_properties(scene.vsgl).overridden(
             vsgl_count=arguments.vsgl_count, k=arguments.k, kernel=arguments.kernel,
             rsm_size=arguments.rsm_size, seed=arguments.seed,
-            positional_distribution=arguments.positional_distribution)
+            positional_distribution=arguments.positional_distribution,
+            visibility=None if arguments.visibility is None else arguments.visibility == "on",
+            ism_size=arguments.ism_size, ism_points=arguments.ism_points)
     except SettingsError as error:
         raise UsageError(str(error)) from None
 
@@ -182,6 +185,8 @@ def _command_render(arguments) -> int:
             settings.vsgl_count, settings.k, settings.rsm_size, settings.seed)
         scene.vsgl.kernel = KERNELS.named(settings.kernel).identifier
         scene.vsgl.positional_distribution = POSITIONS.named(settings.positional_distribution).identifier
+        scene.vsgl.visibility, scene.vsgl.ism_size, scene.vsgl.ism_points = (
+            settings.visibility, settings.ism_size, settings.ism_points)
         scene.render.engine = ENGINE_ID
         if arguments.resolution:
             scene.render.resolution_x, scene.render.resolution_y = arguments.resolution
@@ -259,6 +264,9 @@ def build_parser() -> argparse.ArgumentParser:
     vsgl.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
     vsgl.add_argument("--seed", type=_positive_int, metavar="S")
     vsgl.add_argument("--positional-distribution", choices=POSITIONS.names, help=positional_help)
+    vsgl.add_argument("--visibility", choices=("on", "off"), help="VSGL visibility from imperfect shadow maps")
+    vsgl.add_argument("--ism-size", type=_positive_int, metavar="S", help="imperfect shadow map side, a power of two")
+    vsgl.add_argument("--ism-points", type=_positive_int, metavar="P", help="scene points per shadow map")
     vsgl.set_defaults(run=_command_vsgl)
 
     render = commands.add_parser(
@@ -275,6 +283,9 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
     render.add_argument("--seed", type=_positive_int, metavar="S")
     render.add_argument("--positional-distribution", choices=POSITIONS.names, help=positional_help)
+    render.add_argument("--visibility", choices=("on", "off"), help="VSGL visibility from imperfect shadow maps")
+    render.add_argument("--ism-size", type=_positive_int, metavar="S", help="imperfect shadow map side, a power of two")
+    render.add_argument("--ism-points", type=_positive_int, metavar="P", help="scene points per shadow map")
     render.add_argument("--frame", type=int, metavar="F")
     render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")
     render.set_defaults(run=_command_render)

@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .layouts import GBUFFER
-from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, shading_inputs, vsgl_shading
+from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, ism, shading_inputs, vsgl_shading
 from .passes.contract import LIGHT_PASSES
 from .passes.rsm import SceneGPU
-from .pipeline import render_scene_vsgls
+from .pipeline import build_visibility, render_scene_vsgls
 from .reference.vsgl_shading import diffuse_mode_for_kernel
 from .settings import VSGLSettings
 
@@ -105,6 +105,22 @@ class SceneLights:
             scene_gpu.free()
             raise
         timings[LIGHT_PASSES.name] = time.perf_counter() - clock
+        clock = time.perf_counter()
+        try:
+            if settings.visibility:
+                first_map = build_visibility(scene_gpu, vsgls, settings)
+                if glossy is not None:
+                    build_visibility(scene_gpu, glossy, settings, first_map)
+                for table_set in (vsgls, glossy):
+                    if table_set is not None and table_set.isms:
+                        _finish(table_set.isms[-1].texture)
+        except BaseException:
+            for table_set in (vsgls, glossy):
+                if table_set is not None:
+                    table_set.free()
+            scene_gpu.free()
+            raise
+        timings[ism.PASS.step.name] = time.perf_counter() - clock
         return cls(scene, scene_gpu, vsgls, timings, glossy)
 
     def free(self) -> None:

@@ -136,6 +136,10 @@ VSGL_COUNT_RANGE = (1, 4096)
 K_RANGE = (0.25, 16.0)
 # VSGL generation walks a square mip chain, so the RSM side is a power of two (1 x 1 works).
 RSM_SIZE_RANGE = (1, 2048)
+# Imperfect shadow maps (VSGL visibility): a power-of-two side (pull-push halves it), and the points
+# splatted into each (one texture row of at most 16384).
+ISM_SIZE_RANGE = (1, 256)
+ISM_POINTS_RANGE = (1, 16384)
 
 
 class SettingsError(ValueError):
@@ -147,9 +151,9 @@ def _check_range(name, value, low, high):
         raise SettingsError(f"{name} must be in [{low:g}, {high:g}], got {value:g}")
 
 
-def nearest_power_of_two(size: int) -> int:
-    """The power of two nearest to `size` in log scale, within RSM_SIZE_RANGE."""
-    size = min(max(int(size), RSM_SIZE_RANGE[0]), RSM_SIZE_RANGE[1])
+def nearest_power_of_two(size: int, size_range=RSM_SIZE_RANGE) -> int:
+    """The power of two nearest to `size` in log scale, within `size_range` (the RSM's by default)."""
+    size = min(max(int(size), size_range[0]), size_range[1])
     return 2 ** round(math.log2(size))
 
 
@@ -161,6 +165,12 @@ class VSGLSettings:
     rsm_size: int = 128
     seed: int = 0
     positional_distribution: str = "per-lobe"
+    # VSGL visibility (000 §5: a 64² imperfect shadow map per VSGL): on, the map side, and the
+    # scene points splatted into each map. Off by default until its accuracy and cost are measured
+    # on the validation suite against Cycles.
+    visibility: bool = False
+    ism_size: int = 64
+    ism_points: int = 4096
 
     def __post_init__(self):
         _check_range("VSGL count", self.vsgl_count, *VSGL_COUNT_RANGE)
@@ -177,6 +187,10 @@ class VSGLSettings:
         if self.positional_distribution not in POSITIONAL_DISTRIBUTIONS:
             raise SettingsError(f"positional distribution must be one of "
                                 f"{', '.join(POSITIONAL_DISTRIBUTIONS)}, got {self.positional_distribution!r}")
+        _check_range("ISM size", self.ism_size, *ISM_SIZE_RANGE)
+        if self.ism_size & (self.ism_size - 1):
+            raise SettingsError(f"ISM size must be a power of two, got {self.ism_size}")
+        _check_range("points per ISM", self.ism_points, *ISM_POINTS_RANGE)
 
     @classmethod
     def from_properties(cls, properties) -> "VSGLSettings":
@@ -187,7 +201,10 @@ class VSGLSettings:
         return cls(vsgl_count=int(properties.vsgl_count), k=float(properties.k),
                    kernel=KERNELS.identified(properties.kernel).name,
                    rsm_size=nearest_power_of_two(properties.rsm_size), seed=int(properties.seed),
-                   positional_distribution=POSITIONS.identified(properties.positional_distribution).name)
+                   positional_distribution=POSITIONS.identified(properties.positional_distribution).name,
+                   visibility=bool(getattr(properties, "visibility", False)),
+                   ism_size=nearest_power_of_two(getattr(properties, "ism_size", 64), ISM_SIZE_RANGE),
+                   ism_points=int(getattr(properties, "ism_points", 4096)))
 
     def overridden(self, **values) -> "VSGLSettings":
         """A copy with the given values (None means keep), validated."""

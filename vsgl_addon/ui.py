@@ -24,6 +24,7 @@ from .settings import KERNELS
 PASS_SECTIONS = (
     ("Reflective Shadow Maps", ("rsm_size",)),
     ("VSGL Generation", ("kernel", "vsgl_count", "k", "positional_distribution", "seed")),
+    ("VSGL Visibility", ("visibility", "ism_size", "ism_points")),
 )
 OVERLAY_PROPERTIES = ("overlay_mode", "overlay_resolution_scale", "overlay_intensity")
 #: Statistics labels come from the passes' declarations (vsgl_addon.passes.STEPS), so a new pass

@@ -23,5 +23,19 @@ void main()
   }
   int size = ism_params.z;
   ivec2 tile = ivec2(map_index % ism_params.w, map_index / ism_params.w) * size;
-  imageAtomicMin(ism_atlas, tile + ism_texel(offset, size), floatBitsToUint(distance));
+  ivec2 centre = ism_texel(offset, size);
+  uint bits = floatBitsToUint(distance);
+  // The texels the point's share of the surface covers (reference splat_radius): single-texel
+  // splats leave holes in near occluders that the points behind them fill.
+  vec3 normal = texelFetch(scene_point_normals, ivec2(point, int(origin.w + 0.5)), 0).xyz;
+  // The local texel's solid angle (2/size)^2 (|d|_1/|d|)^3 (reference texel_solid_angle).
+  float l1_ratio = (abs(offset.x) + abs(offset.y) + abs(offset.z)) / distance;
+  float texel = 4.0 / float(size * size) * l1_ratio * l1_ratio * l1_ratio;
+  float texels = ism_point_area * abs(dot(normal, offset)) / distance / max(distance * distance, 1e-30) / texel;
+  int radius = int(clamp(ceil(0.5 * sqrt(texels) - 0.25), 0.0, float(ISM_SPLAT_MAX_RADIUS)));
+  for (int dy = -radius; dy <= radius; dy++) {
+    for (int dx = -radius; dx <= radius; dx++) {
+      imageAtomicMin(ism_atlas, tile + octahedral_wrap(centre + ivec2(dx, dy), size), bits);
+    }
+  }
 }

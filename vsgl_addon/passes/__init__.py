@@ -4,6 +4,7 @@ touches ``bpy.context``; its float64 twin lives in ``vsgl_addon.reference``.
 
 * :mod:`.rsm`: reflective shadow maps of every light (000 §4; formulas.md §4).
 * :mod:`.vsgl_generation`: VSGLs from a reflective shadow map (000 §3-4, app. B and D; 003).
+* :mod:`.ism`: imperfect shadow maps of the VSGLs, for their visibility (000 §5).
 * :mod:`.gbuffer`: the camera G-buffer.
 * :mod:`.direct_light`: direct light with RSM-depth shadows.
 * :mod:`.shading_inputs`: the G-buffer's Principled inputs -> Rd and F0 for VSGL shading.
@@ -22,11 +23,11 @@ matrices for uniforms). The texture layouts passes hand each other: :mod:`vsgl_a
 
 import atexit
 
-from . import direct_light, gbuffer, rsm, shading_inputs, vsgl_generation, vsgl_shading
+from . import direct_light, gbuffer, ism, rsm, shading_inputs, vsgl_generation, vsgl_shading
 from .contract import GPUPass, Step
 
 #: Every GPU pass, in the order a frame runs them.
-PASSES: tuple[GPUPass, ...] = (rsm.PASS, vsgl_generation.PASS, gbuffer.PASS, direct_light.PASS,
+PASSES: tuple[GPUPass, ...] = (rsm.PASS, vsgl_generation.PASS, ism.PASS, gbuffer.PASS, direct_light.PASS,
                                shading_inputs.PASS, vsgl_shading.PASS)
 
 #: Steps of a frame that are not GPU passes. Scene extraction is the Blender-facing caller's (the

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..reference.ism import EMPTY
+from ..reference.ism import EMPTY, SPLAT_MAX_RADIUS
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import read_texture, texture_from_array
@@ -42,8 +42,8 @@ _LEVEL_GROUP = (8, 8, 1)
 def _splat_interface() -> ShaderInterface:
     return ShaderInterface(
         # (points per set, map count, map side, tiles per atlas row)
-        push_constants=[("IVEC4", "ism_params")],
-        samplers=[("FLOAT_2D", "scene_points"), ("FLOAT_2D", "ism_origins")],
+        push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_point_area")],
+        samplers=[("FLOAT_2D", "scene_points"), ("FLOAT_2D", "scene_point_normals"), ("FLOAT_2D", "ism_origins")],
         images=[("R32UI", "UINT_2D", "ism_atlas")],
         local_group_size=_GROUP,
     )
@@ -98,10 +98,12 @@ def _groups(count: int, size: int) -> int:
     return max(1, -(-count // size))
 
 
-def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0) -> ISMAtlas:
+def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0) -> ISMAtlas:
     """The ISMs of ``origins`` (M, 3), map m splatting set ``set_index[m]`` of ``points`` (a
     :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two), leaving out the
-    points nearer than ``min_distance`` (a scalar, or one per map)."""
+    points nearer than ``min_distance`` (a scalar, or one per map). ``point_area`` > 0 (the surface
+    each point stands for) sizes every splat to the solid angle it covers (reference splat_radius);
+    0 splats single texels."""
     import gpu
 
     size = int(size)
@@ -113,8 +115,9 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         raise ValueError(f"at most {MAX_POINTS_PER_SET} points per set, got {points.points_per_set}")
     columns, rows = atlas_layout(count, size)
     width, height = columns * size, rows * size
-    point_texture = texture_from_array(np.concatenate(
-        [points.positions, np.ones((*points.positions.shape[:2], 1), np.float32)], axis=-1))
+    ones = np.ones((*points.positions.shape[:2], 1), np.float32)
+    point_texture = texture_from_array(np.concatenate([points.positions, ones], axis=-1))
+    normal_texture = texture_from_array(np.concatenate([points.normals, ones], axis=-1))
     table = np.zeros((2, max(count, 1), 4), np.float32)
     table[0, :count, :3] = origins
     table[0, :count, 3] = np.asarray(set_index).reshape(-1)[:count]
@@ -126,7 +129,9 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         splat = PASS.shader("splat")
         splat.bind()
         splat.uniform_int("ism_params", (points.points_per_set, count, size, columns))
+        splat.uniform_float("ism_point_area", float(point_area))
         splat.uniform_sampler("scene_points", point_texture)
+        splat.uniform_sampler("scene_point_normals", normal_texture)
         splat.uniform_sampler("ism_origins", origin_texture)
         splat.image("ism_atlas", atlas)
         gpu.compute.dispatch(splat, _groups(points.points_per_set, _GROUP[0]), count, 1)
@@ -179,10 +184,11 @@ PASS = GPUPass(
     name="ism",
     label="Imperfect Shadow Maps",
     step=Step("ism", "Imperfect Shadow Maps"),
-    shaders={"splat": ShaderSpec(_splat_interface, {"compute": "ism/ism_splat.comp.glsl"}),
+    shaders={"splat": ShaderSpec(_splat_interface, {"compute": "ism/ism_splat.comp.glsl"},
+                                 defines=lambda: {"ISM_SPLAT_MAX_RADIUS": SPLAT_MAX_RADIUS}),
              "pull": ShaderSpec(_pull_interface, {"compute": "ism/ism_pull.comp.glsl"}),
              "push": ShaderSpec(_push_interface, {"compute": "ism/ism_push.comp.glsl"})},
-    reads=("scene_points", "ism_origins"),
+    reads=("scene", "vsgl_table"),  # the scene's surface points, the VSGLs' lobe positions
     writes=("ism_atlas",),
     run=build_ism_atlas,
 )

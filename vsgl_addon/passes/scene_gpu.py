@@ -100,6 +100,7 @@ class SceneGPU:
         self._white = None
         self._light_links = None
         self._non_blockers = None
+        self._points: dict = {}
 
     def material_image(self, material_index: int):
         """The base colour texture of a material, or a 1x1 white one (uploaded once)."""
@@ -120,6 +121,16 @@ class SceneGPU:
         if self._light_links is None:
             self._light_links = texture_from_array(light_links_array(self.scene))
         return self._light_links
+
+    def scene_points(self, points_per_set: int, set_count: int, seed: int):
+        """The scene's surface point sets for imperfect shadow maps (scene_points.scene_point_sets),
+        drawn once per upload and settings: a static scene's maps do not change."""
+        from ..scene_points import scene_point_sets
+
+        key = (int(points_per_set), int(set_count), int(seed))
+        if key not in self._points:
+            self._points[key] = scene_point_sets(self.scene.geometry, *key)
+        return self._points[key]
 
     def has_non_blockers(self, light_index: int) -> bool:
         """Whether some object does not block light ``light_index`` (shadow linking, or an object

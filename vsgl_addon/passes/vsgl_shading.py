@@ -107,7 +107,7 @@ PASS = GPUPass(
     step=SHADING_STEP,
     shaders={**{mode: _shader_spec(mode) for mode in _MODE_INDEX},
              **{f"{mode}+visibility": _shader_spec(mode, True) for mode in _MODE_INDEX}},
-    reads=(GBUFFER.name, SHADING_INPUTS.name, VSGL_TABLE.name),
+    reads=(GBUFFER.name, SHADING_INPUTS.name, VSGL_TABLE.name, "ism_atlas"),
     writes=("indirect",),
     run=run,
 )

@@ -88,16 +88,56 @@ def octahedral_wrap(column, row, size: int):
     return column, row
 
 
-def splat(points, origin, size: int, min_distance: float = 0.0) -> np.ndarray:
+#: Largest splat radius in texels: a point covers at most (2r + 1)² texels.
+SPLAT_MAX_RADIUS = 3
+
+
+def texel_solid_angle(offsets, size):
+    """Solid angle of the octahedral texel around each direction: (2/size)² / |p|³ with
+    p = d/|d|₁ the point on the octahedron (dω = dA_uv / |p|³ on a face), so from 4/size² on the
+    axes to 3√3 times that at the face centres."""
+    d = f64(offsets)
+    ratio = np.abs(d).sum(axis=-1) / np.maximum(np.linalg.norm(d, axis=-1), 1e-300)  # 1/|p| = |d|₁/|d|
+    return 4.0 / (size * size) * ratio ** 3
+
+
+def splat_radius(offsets, cos_theta, point_area, size):
+    """The half-width in texels of a point's splat: the point stands for ``point_area`` of the
+    surface, which subtends point_area · |cos θ| / d² seen from the origin, n texels of the local
+    :func:`texel_solid_angle`; neighbouring points then lie about √n texels apart, and a splat of
+    half-width ⌈√n / 2 − 1/4⌉ (at most SPLAT_MAX_RADIUS) covers the gap; a point smaller than a
+    texel (n < 1/4) takes its own texel only. A point splatted into one texel
+    leaves holes in a near occluder, which the points behind it then fill: the leak of point-based
+    ISMs (Ritschel et al. 2008); sized splats close those holes with the occluder's own depth."""
+    d = f64(offsets)
+    distance2 = np.maximum((d * d).sum(axis=-1), 1e-300)
+    texels = f64(point_area) * np.abs(f64(cos_theta)) / distance2 / texel_solid_angle(d, size)
+    return np.clip(np.ceil(0.5 * np.sqrt(texels) - 0.25), 0, SPLAT_MAX_RADIUS).astype(np.int64)
+
+
+def splat(points, origin, size: int, min_distance: float = 0.0, normals=None, point_area: float = 0.0) -> np.ndarray:
     """(size, size) float64 map [row, column] of the nearest radial distance of ``points`` (N, 3)
     seen from ``origin`` (3,) per texel; EMPTY where none lands. Points closer than
-    ``min_distance`` (the origin's own point) are not splatted."""
+    ``min_distance`` (the origin's own point) are not splatted. With ``normals`` and the surface
+    area each point stands for (``point_area``), a point covers the texels of :func:`splat_radius`
+    around its own (wrapping across the octahedral folds)."""
     offsets = f64(points).reshape(-1, 3) - f64(origin)
     distance = np.linalg.norm(offsets, axis=-1)
     keep = np.isfinite(distance) & (distance > max(min_distance, 1e-300))
-    texel = ism_texel(offsets[keep], size)
+    offsets, distance = offsets[keep], distance[keep]
+    texel = ism_texel(offsets, size)
     depth = np.full((size, size), EMPTY)
-    np.minimum.at(depth, (texel[:, 1], texel[:, 0]), distance[keep])
+    if normals is None or not point_area > 0.0:
+        np.minimum.at(depth, (texel[:, 1], texel[:, 0]), distance)
+        return depth
+    cos_theta = (f64(normals).reshape(-1, 3)[keep] * offsets).sum(axis=-1) / distance
+    radius = splat_radius(offsets, cos_theta, point_area, size)
+    for r in np.unique(radius):
+        here = radius == r
+        for dy in range(-r, r + 1):
+            for dx in range(-r, r + 1):
+                column, row = octahedral_wrap(texel[here, 0] + dx, texel[here, 1] + dy, size)
+                np.minimum.at(depth, (row, column), distance[here])
     return depth
 
 
