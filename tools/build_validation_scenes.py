@@ -249,8 +249,8 @@ _PALETTE = [(1.0, 0.55, 0.25), (0.3, 0.55, 1.0), (1.0, 0.9, 0.7), (0.5, 1.0, 0.4
 
 
 def many_lights(scene):
-    """A room (open at the camera's side) lit by 24 small coloured point lights: the VSGL budget is
-    shared by many lights, each with its own six-face RSM."""
+    """A room (open at the camera's side) lit by 24 small coloured point lights: many lights, each
+    with its own six-face RSM and its own VSGLs, every one of them lighting every receiver."""
     walls = _principled("White", (0.78, 0.78, 0.78), roughness=0.7)
     floor = _principled("Grey floor", (0.35, 0.35, 0.38), roughness=0.35)
     red = _principled("Red", (0.7, 0.1, 0.08), roughness=0.6)
@@ -304,6 +304,7 @@ def build(name: str, out: Path) -> None:
     scene.render.resolution_x, scene.render.resolution_y = RESOLUTION
     scene.render.resolution_percentage = 100
     out.parent.mkdir(parents=True, exist_ok=True)
+    bpy.context.preferences.filepaths.save_version = 0  # no .blend1 backup beside a rebuilt scene
     # As demo.blend: saved with the add-on registered, so scene.vsgl exists in the file (here with
     # its defaults, which the suite measures).
     register()
