@@ -66,3 +66,8 @@ def test_committed_validation_scenes_are_what_the_script_builds(tmp_path):
         assert fields[5] == (240, 180, 100) and fields[6] == "Camera", fields[0]
         assert fields[2], f"{fields[0]} has no light"
 
+
+
+def test_each_scene_has_a_cached_truth():
+    for blend in SCENES.glob("*.blend"):
+        assert (REPO / "benchmarks" / "reference" / f"{blend.stem}_indirect_240x180.npz").is_file(), blend.name
