@@ -89,7 +89,7 @@ def robust_errors(truth: dict, mask: np.ndarray, ours: np.ndarray) -> dict:
     return {"rel_robust": corrected / mean, "rel_robust_measured": measured / mean, "robust_limit": limit}
 
 
-def measure_scene(name: str, path: Path, width: int, height: int, regenerate: bool) -> dict:
+def measure_scene(name: str, path: Path, about: str, width: int, height: int, regenerate: bool) -> dict:
     from vsgl_addon.renderer import FrameRenderer
     from vsgl_addon.scene import extract_scene
     from vsgl_addon.settings import VSGLSettings
@@ -120,7 +120,7 @@ def measure_scene(name: str, path: Path, width: int, height: int, regenerate: bo
     finally:
         bench.free()
     figures.update({
-        "scene": name, "blend": str(path.relative_to(REPO)), "purpose": purpose(name) if name in SCENES else DEMO_PURPOSE,
+        "scene": name, "blend": str(path.relative_to(REPO)), "purpose": about,
         "settings": str(settings), "frame_seconds": float(sum(frame.timings.values())), "timings": frame.timings,
         "counts": frame.counts, "covered_pixels": int(errors.mask.sum()),
         "mean_truth": errors.mean, "mean_ours": float(ours[errors.mask].mean()),
@@ -200,8 +200,8 @@ def main(argv=None) -> int:
                                dtype=np.float32 if name == "demo" else np.float16)
         return 0
     rows = []
-    for name, path, _ in scenes:
-        row = measure_scene(name, path, width, height, args.regenerate_reference)
+    for name, path, about in scenes:
+        row = measure_scene(name, path, about, width, height, args.regenerate_reference)
         row["resolution"] = [width, height]
         rows.append(row)
     suffix = "_quick" if args.quick else ""

@@ -28,12 +28,14 @@ for path in sys.argv[sys.argv.index("--") + 1:]:
                       len(o.data.vertices) if o.type == "MESH" else 0,
                       tuple(m.name for m in o.data.materials) if o.type == "MESH" else ()) for o in scene.objects)
     lights = sorted((l.name, l.type, round(l.energy, 3), r(l.color), round(l.shadow_soft_size, 3),
-                     round(getattr(l, "spot_size", 0.0), 4), round(getattr(l, "size", 0.0), 3)) for l in bpy.data.lights)
+                     round(getattr(l, "spot_size", 0.0), 4), round(getattr(l, "size", 0.0), 3))
+                    for l in bpy.data.lights)
     materials = []
     for m in sorted(bpy.data.materials, key=lambda m: m.name):
         bsdf = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
         materials.append((m.name, r(bsdf.inputs["Base Color"].default_value),
-                          *(round(bsdf.inputs[k].default_value, 4) for k in ("Roughness", "Metallic", "Specular IOR Level"))))
+                          *(round(bsdf.inputs[k].default_value, 4)
+                            for k in ("Roughness", "Metallic", "Specular IOR Level"))))
     v = scene.vsgl
     print(repr((path.rsplit("/", 1)[-1], objects, lights, materials,
                 (v.vsgl_count, v.k, v.kernel, v.rsm_size, v.seed, v.positional_distribution),
