@@ -55,3 +55,20 @@ def test_speed_accuracy_benchmark_quick_run_writes_table_plot_and_targets():
     for mode in ("modified", "original"):
         assert abs(pan_256[mode]["change"] - stability[mode]["change"]) <= 1e-3 * stability[mode]["change"]
     assert (results / "speed_accuracy_quick.png").stat().st_size > 10_000
+
+
+def test_validation_suite_quick_run_writes_its_table():
+    # Two scenes against their committed truths (nothing is rendered by Cycles); the quick files are
+    # gitignored, removed first so that only this run's can pass.
+    results = REPO / "benchmarks" / "results"
+    for name in ("validation_suite_quick.md", "validation_suite_quick.json"):
+        (results / name).unlink(missing_ok=True)
+    result = _run("benchmarks/validation_suite.py", "--quick", timeout=120)
+    assert result.returncode == 0, result.stderr
+    table = (results / "validation_suite_quick.md").read_text()
+    assert "| scene | mean ours / Cycles | rel RMSE | rel RMSE plain | robust rel RMSE |" in table
+    rows = json.loads((results / "validation_suite_quick.json").read_text())["scenes"]
+    assert [row["scene"] for row in rows] == ["occluder", "cornell_box"]
+    for row in rows:
+        assert row["finite"] and 0.0 < row["mean_ratio"] < 10.0
+        assert f"| {row['scene']} | {row['mean_ratio']:.3f} |" in table

@@ -22,7 +22,7 @@ SUCCESS = "VSGL-EXTENSION-CHECK-OK"
 # What the built zip must hold (top-level names) and what must never be in it.
 REQUIRED = {"__init__.py", "blender_manifest.toml", "LICENSE", "vsgl_addon/__init__.py", "vsgl_addon/properties.py"}
 REQUIRED_DIRS = ("vsgl_addon/", "glsl/")
-FORBIDDEN_TOP = {"tests", "tools", "docs", ".ci", ".venv", ".git", ".gitignore", ".pytest_cache",
+FORBIDDEN_TOP = {"tests", "tools", "benchmarks", "docs", ".ci", ".venv", ".git", ".gitignore", ".pytest_cache",
                  "pyproject.toml", "requirements-dev.txt", "build", "out"}
 
 

@@ -1,0 +1,219 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Our accuracy per scene of the validation suite, against each scene's cached Cycles truth (not a test).
+
+    .venv/bin/python benchmarks/validation_suite.py [--quick] [--regenerate-reference] [--only NAME ...]
+
+The suite: the scenes of tools/build_validation_scenes.py (``benchmarks/scenes/<name>.blend``, each
+stressing one kind of light path) and demo.blend. Per scene, our renderer (FrameRenderer, the
+scene's saved settings: the add-on's defaults for the suite's scenes) renders one frame at 240x180
+after a warm-up frame, and its indirect light is compared with Cycles' one-bounce truth
+(DiffInd·DiffCol + GlossInd·GlossCol, max bounces 1, two seeds; cached in
+``benchmarks/reference/<name>_indirect_240x180.npz``, float16 for the suite's scenes, the demo's is
+the speed/accuracy benchmark's float32 one) over the pixels covered in both:
+
+* mean indirect ours / Cycles;
+* relative RMSE, noise-corrected (sqrt(mean((x − a)(x − b))) / mean, a and b the truth's seeds:
+  the truth's noise is not charged to us) and plain (against the seeds' mean, the truth's noise
+  included);
+* robust relative RMSE: ours and the truth (each seed) clamped at the truth's 99.5th percentile
+  (over covered pixels and RGB) first, so that a few extreme highlight pixels (caustic peaks,
+  fireflies) do not decide the figure; noise-corrected and plain;
+* diffuse and specular splits: noise-corrected relative RMSE of our indirect diffuse against
+  Cycles' DiffInd·DiffCol and of our indirect specular against GlossInd·GlossCol, and each one's
+  share of Cycles' indirect light;
+* our frame time (the sum of the second frame's passes: informative, this machine is shared) and
+  the truth's own noise (RMS of its seeds' difference / 2, relative to its mean).
+
+Writes ``benchmarks/results/validation_suite.{md,json}`` (``_quick`` with --quick: two scenes, for
+the smoke test) and prints the markdown. With every truth cached a full run takes about 30 s
+(many_lights alone ~10 s: N VSGLs per light, 24 lights); rendering the suite's seven truths
+(--regenerate-reference, or a missing file) takes about 18 min here, the demo's 4 min more.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+# The add-on, the tests' Cycles helpers (cycles_truth), this folder (tradeoff, gpu_timing) and the
+# scene builder (its scene list and what each scene tests).
+for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
+    sys.path.insert(0, str(folder))
+
+from build_validation_scenes import RESOLUTION, SCENES, purpose, scene_path  # noqa: E402
+from tradeoff.bench import Bench  # noqa: E402
+from tradeoff.demo import COVERED, DEMO, RESULTS_DIR, log  # noqa: E402
+from tradeoff.metrics import Errors  # noqa: E402
+from tradeoff.truth import load_reference  # noqa: E402
+
+DEMO_PURPOSE = ("demo.blend: a spot-lit glossy red floor bounces onto white walls and a glossy gold sphere "
+                "(glossy-to-glossy, caustics).")
+# Cycles samples per seed of each truth: as many as keep its noise small against its mean within
+# the time budget (measured per scene: the caustic scenes converge slowest, diffuse rooms fastest).
+TRUTH_SAMPLES = {"occluder": 2048, "sun_courtyard": 1024, "cornell_box": 1024, "closed_room": 1024,
+                 "caustic_panel": 8192, "glossy_floor_object": 4096, "many_lights": 2048, "demo": 4096}
+QUICK_SCENES = ("occluder", "cornell_box")
+# The truth's values above this percentile (covered pixels, RGB) are the "extreme highlights".
+ROBUST_PERCENTILE = 99.5
+
+
+def suite() -> list[tuple[str, Path, str]]:
+    """(name, .blend, what it tests) of every scene, in the table's order."""
+    return [(name, scene_path(name), purpose(name)) for name in SCENES] + [("demo", DEMO, DEMO_PURPOSE)]
+
+
+def open_scene(path: Path):
+    import bpy
+
+    bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
+    return bpy.context.scene
+
+
+def robust_errors(truth: dict, mask: np.ndarray, ours: np.ndarray) -> dict:
+    """Relative RMSE (noise-corrected and plain) with ours and the truth's seeds clamped at the
+    truth's ROBUST_PERCENTILE-th percentile: a few extreme pixels no longer dominate."""
+    seeds = [(truth["diffuse_a"] + truth["glossy_a"])[mask], (truth["diffuse_b"] + truth["glossy_b"])[mask]]
+    limit = float(np.percentile(truth["indirect"][mask], ROBUST_PERCENTILE))
+    x = np.minimum(ours[mask], limit)
+    a, b = (np.minimum(seed, limit) for seed in seeds)
+    mean = float(np.mean(np.minimum(truth["indirect"][mask], limit)))
+    corrected = math.sqrt(max(float(np.mean((x - a) * (x - b))), 0.0))
+    measured = float(np.sqrt(np.mean((x - 0.5 * (a + b)) ** 2)))
+    return {"rel_robust": corrected / mean, "rel_robust_measured": measured / mean, "robust_limit": limit}
+
+
+def measure_scene(name: str, path: Path, about: str, width: int, height: int, regenerate: bool) -> dict:
+    from vsgl_addon.renderer import FrameRenderer
+    from vsgl_addon.scene import extract_scene
+    from vsgl_addon.settings import VSGLSettings
+    import bpy
+
+    scene = open_scene(path)
+    settings = VSGLSettings.from_properties(scene.vsgl)
+    dtype = np.float32 if name == "demo" else np.float16
+    truth = load_reference(scene, width, height, TRUTH_SAMPLES[name], regenerate, name=name, source=path,
+                           dtype=dtype)
+    # The truth's render switched the scene to Cycles: open the file again for ours.
+    scene = open_scene(path)
+    description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    renderer = FrameRenderer()
+    try:
+        for _ in range(2):  # the first frame compiles shaders and warms llvmpipe
+            frame = renderer.render(description, settings, width, height)
+    finally:
+        renderer.free()
+    errors = Errors(truth, frame.coverage)
+    figures = errors(frame.indirect_diffuse, frame.indirect_specular)
+    ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
+    figures.update(robust_errors(truth, errors.mask, ours))
+    # Where the error is: per material of the camera's G-buffer (the same pixels as the frame's).
+    bench = Bench(description, width, height)
+    try:
+        figures["regions"] = errors.by_region(ours, bench.material_index, bench.materials)
+    finally:
+        bench.free()
+    figures.update({
+        "scene": name, "blend": str(path.relative_to(REPO)), "purpose": about,
+        "settings": str(settings), "frame_seconds": float(sum(frame.timings.values())), "timings": frame.timings,
+        "counts": frame.counts, "covered_pixels": int(errors.mask.sum()),
+        "mean_truth": errors.mean, "mean_ours": float(ours[errors.mask].mean()),
+        "truth_samples_per_seed": int(truth["samples_per_seed"]),
+        "truth_seconds": float(np.sum(truth["seconds_per_seed"])),
+        "truth_noise_relative": float(truth["noise_relative"]),
+        "truth_file": str(truth["path"].relative_to(REPO)),
+        "truth_file_bytes": truth["path"].stat().st_size})
+    log(f"{name}: mean ratio {figures['mean_ratio']:.3f}, rel RMSE {figures['rel']:.3f} "
+        f"(plain {figures['rel_measured']:.3f}, robust {figures['rel_robust']:.3f}), "
+        f"frame {figures['frame_seconds'] * 1e3:.0f} ms, truth noise {figures['truth_noise_relative']:.3f}")
+    return figures
+
+
+def markdown(rows: list[dict], renderer: str, quick: bool, run_seconds: float) -> str:
+    width, height = rows[0]["resolution"] if rows else RESOLUTION
+    lines = [f"# Validation suite: our indirect light against Cycles, per scene{' (--quick)' if quick else ''}", "",
+             f"`.venv/bin/python benchmarks/validation_suite.py{' --quick' if quick else ''}`; {width}x{height}, "
+             f"each scene's saved settings, GPU: {renderer}; run {run_seconds:.0f} s.", "",
+             "Ratios and errors over the pixels covered in both images. rel RMSE: noise-corrected "
+             "(the truth's own noise is not charged to us) / plain (measured against the mean of the "
+             f"truth's two seeds). Robust: both images clamped at the truth's {ROBUST_PERCENTILE:g}th "
+             "percentile first. Diffuse / specular: noise-corrected relative RMSE of each split against "
+             "Cycles' DiffInd·DiffCol / GlossInd·GlossCol; spec share: GlossInd·GlossCol's share of Cycles' "
+             "indirect. Frame time: informative (shared machine, llvmpipe). Truth noise: RMS of the two "
+             "seeds' difference / 2, relative to the truth's mean.", "",
+             "| scene | mean ours / Cycles | rel RMSE | rel RMSE plain | robust rel RMSE | robust plain | "
+             "diffuse rel RMSE | specular rel RMSE | spec share | frame ms | truth spp × 2 | truth noise |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['scene']} | {r['mean_ratio']:.3f} | {r['rel']:.3f} | {r['rel_measured']:.3f} | "
+                     f"{r['rel_robust']:.3f} | {r['rel_robust_measured']:.3f} | {r['rel_diffuse']:.3f} | "
+                     f"{r['rel_specular']:.3f} | {r['share_specular']:.2f} | {r['frame_seconds'] * 1e3:.0f} | "
+                     f"{r['truth_samples_per_seed']} | {r['truth_noise_relative']:.3f} |")
+    lines += ["", "Where the error is (the material with the largest share of the noise-corrected squared "
+              "error: its share, its relative RMSE and mean ratio ours / Cycles, its share of Cycles' light):", ""]
+    for r in rows:
+        worst, region = max(r["regions"].items(), key=lambda item: item[1]["error_share"])
+        lines.append(f"- {r['scene']}: {worst} — {100 * region['error_share']:.0f} % of the error, rel RMSE "
+                     f"{region['rel']:.2f}, mean ratio {region['mean_ratio']:.2f}, {100 * region['light_share']:.0f} % "
+                     "of the light")
+    lines += ["", "What each scene tests:", ""]
+    lines += [f"- **{r['scene']}** (`{r['blend']}`, {r['settings']}): {r['purpose']}" for r in rows]
+    lines += ["", "Truths: " + "; ".join(
+        f"{r['scene']} {r['truth_samples_per_seed']} × 2 spp in {r['truth_seconds']:.0f} s "
+        f"({r['truth_file_bytes'] / 1e3:.0f} kB)" for r in rows) + "."]
+    return "\n".join(lines) + "\n"
+
+
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help=f"only {', '.join(QUICK_SCENES)} (smoke test)")
+    parser.add_argument("--only", nargs="+", help="only these scenes")
+    parser.add_argument("--regenerate-reference", action="store_true", help="render the Cycles truths again")
+    parser.add_argument("--reference-only", action="store_true", help="make the missing truths, then stop")
+    return parser.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    started = time.perf_counter()
+    from vsgl_addon import register
+
+    register()  # scene.vsgl exists only with the add-on registered
+    from vsgl_addon.gpu_context import ensure_gpu_context
+
+    renderer = ensure_gpu_context()
+    width, height = RESOLUTION
+    chosen = args.only or (QUICK_SCENES if args.quick else None)
+    scenes = [s for s in suite() if chosen is None or s[0] in chosen]
+    if args.reference_only:
+        from tradeoff.truth import reference_path
+
+        for name, path, _ in scenes:
+            if args.regenerate_reference or not reference_path(width, height, name).is_file():
+                load_reference(open_scene(path), width, height, TRUTH_SAMPLES[name], True, name=name, source=path,
+                               dtype=np.float32 if name == "demo" else np.float16)
+        return 0
+    rows = []
+    for name, path, about in scenes:
+        row = measure_scene(name, path, about, width, height, args.regenerate_reference)
+        row["resolution"] = [width, height]
+        rows.append(row)
+    suffix = "_quick" if args.quick else ""
+    text = markdown(rows, renderer, args.quick, time.perf_counter() - started)
+    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+    (RESULTS_DIR / f"validation_suite{suffix}.md").write_text(text)
+    (RESULTS_DIR / f"validation_suite{suffix}.json").write_text(json.dumps(
+        {"renderer": renderer, "quick": args.quick, "resolution": [width, height], "scenes": rows,
+         "robust_percentile": ROBUST_PERCENTILE, "covered_threshold": COVERED}, indent=1, default=str))
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
