@@ -104,9 +104,20 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
     scene = open_scene(path)
     description = extract_scene(bpy.context.evaluated_depsgraph_get())
     renderer = FrameRenderer()
+    visibility = {}
     try:
-        for _ in range(2):  # the first frame compiles shaders and warms llvmpipe
-            frame = renderer.render(description, settings, width, height)
+        # Both ways of VSGL visibility (000 §5), whatever the scene saved; the saved way is the row.
+        for shadowed in (not settings.visibility, settings.visibility):
+            for _ in range(2):  # the first frame compiles shaders and warms llvmpipe
+                frame = renderer.render(description, settings.overridden(visibility=shadowed), width, height)
+            check = Errors(truth, frame.coverage)
+            both = check(frame.indirect_diffuse, frame.indirect_specular)
+            ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
+            both.update(robust_errors(truth, check.mask, ours))
+            visibility["on" if shadowed else "off"] = {
+                "mean_ratio": both["mean_ratio"], "rel": both["rel"], "rel_robust": both["rel_robust"],
+                "frame_seconds": float(sum(frame.timings.values())), "ism_seconds": float(frame.timings.get("ism", 0.0)),
+                "shading_seconds": float(frame.timings.get("vsgl_shading", 0.0))}
     finally:
         renderer.free()
     errors = Errors(truth, frame.coverage)
@@ -122,7 +133,7 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
     figures.update({
         "scene": name, "blend": str(path.relative_to(REPO)), "purpose": about,
         "settings": str(settings), "frame_seconds": float(sum(frame.timings.values())), "timings": frame.timings,
-        "counts": frame.counts, "covered_pixels": int(errors.mask.sum()),
+        "counts": frame.counts, "covered_pixels": int(errors.mask.sum()), "visibility": visibility,
         "mean_truth": errors.mean, "mean_ours": float(ours[errors.mask].mean()),
         "truth_samples_per_seed": int(truth["samples_per_seed"]),
         "truth_seconds": float(np.sum(truth["seconds_per_seed"])),
@@ -155,6 +166,17 @@ def markdown(rows: list[dict], renderer: str, quick: bool, run_seconds: float) -
                      f"{r['rel_robust']:.3f} | {r['rel_robust_measured']:.3f} | {r['rel_diffuse']:.3f} | "
                      f"{r['rel_specular']:.3f} | {r['share_specular']:.2f} | {r['frame_seconds'] * 1e3:.0f} | "
                      f"{r['truth_samples_per_seed']} | {r['truth_noise_relative']:.3f} |")
+    lines += ["", "**VSGL visibility** (imperfect shadow maps, 000 §5; `--visibility` of the render command), "
+              "off against on, same settings otherwise: mean ours / Cycles, noise-corrected and robust relative "
+              "RMSE, and frame, shadow-map and shading time (ms).", "",
+              "| scene | mean off | mean on | rel RMSE off | rel RMSE on | robust off | robust on | "
+              "frame off | frame on | ISM | shading off | shading on |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        off, on = r["visibility"]["off"], r["visibility"]["on"]
+        lines.append(f"| {r['scene']} | {off['mean_ratio']:.3f} | {on['mean_ratio']:.3f} | {off['rel']:.3f} | "
+                     f"{on['rel']:.3f} | {off['rel_robust']:.3f} | {on['rel_robust']:.3f} | "
+                     f"{off['frame_seconds'] * 1e3:.0f} | {on['frame_seconds'] * 1e3:.0f} | {on['ism_seconds'] * 1e3:.0f} | "
+                     f"{off['shading_seconds'] * 1e3:.0f} | {on['shading_seconds'] * 1e3:.0f} |")
     lines += ["", "Where the error is (the material with the largest share of the noise-corrected squared "
               "error: its share, its relative RMSE and mean ratio ours / Cycles, its share of Cycles' light):", ""]
     for r in rows:
