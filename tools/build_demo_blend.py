@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 
-def _principled(name, base_color, roughness, metallic=0.0, specular_ior_level=0.5):
+def principled(name, base_color, roughness, metallic=0.0, specular_ior_level=0.5):
     material = bpy.data.materials.new(name)
     if material.node_tree is None:
         material.use_nodes = True
@@ -49,9 +49,9 @@ def build(out: Path) -> None:
     scene = bpy.context.scene
     scene.name = "VSGL demo"
 
-    floor = _principled("Glossy red floor", (0.8, 0.08, 0.03), roughness=0.25)
-    white = _principled("White wall", (0.8, 0.8, 0.8), roughness=0.6)
-    gold = _principled("Glossy gold", (0.9, 0.65, 0.25), roughness=0.3, metallic=1.0)
+    floor = principled("Glossy red floor", (0.8, 0.08, 0.03), roughness=0.25)
+    white = principled("White wall", (0.8, 0.8, 0.8), roughness=0.6)
+    gold = principled("Glossy gold", (0.9, 0.65, 0.25), roughness=0.3, metallic=1.0)
 
     _plane("Floor", 6.0, (0, 0, 0), (0, 0, 0), floor)
     _plane("Back wall", 6.0, (0, 3, 3), (math.radians(90), 0, 0), white)
@@ -70,14 +70,14 @@ def build(out: Path) -> None:
     spot = bpy.data.objects.new("Spot", spot_data)
     scene.collection.objects.link(spot)
     spot.location = (0.8, -1.2, 4.5)
-    spot.rotation_euler = _look_rotation((-1.2, 1.7, -4.5))
+    spot.rotation_euler = look_rotation((-1.2, 1.7, -4.5))
 
     camera_data = bpy.data.cameras.new("Camera")
     camera_data.lens = 30.0
     camera = bpy.data.objects.new("Camera", camera_data)
     scene.collection.objects.link(camera)
     camera.location = (3.4, -4.4, 2.4)
-    camera.rotation_euler = _look_rotation((-4.0, 5.0, -1.4))
+    camera.rotation_euler = look_rotation((-4.0, 5.0, -1.4))
     scene.camera = camera
 
     world = bpy.data.worlds.new("Black")
@@ -105,7 +105,7 @@ def build(out: Path) -> None:
         unregister()
 
 
-def _look_rotation(direction):
+def look_rotation(direction):
     from mathutils import Vector
 
     return Vector(direction).to_track_quat("-Z", "Y").to_euler()

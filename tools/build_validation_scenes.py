@@ -25,6 +25,8 @@ from pathlib import Path
 import bpy
 from mathutils import Matrix, Vector
 
+from build_demo_blend import look_rotation, principled  # tools/, this script's folder
+
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 SCENE_DIR = REPO / "benchmarks" / "scenes"
@@ -32,19 +34,6 @@ RESOLUTION = (240, 180)
 
 
 # --- Building blocks -----------------------------------------------------------------------------
-
-
-def _principled(name, base_color, roughness, metallic=0.0, specular_ior_level=0.5):
-    material = bpy.data.materials.new(name)
-    if material.node_tree is None:
-        material.use_nodes = True
-    bsdf = next(node for node in material.node_tree.nodes if node.type == "BSDF_PRINCIPLED")
-    bsdf.inputs["Base Color"].default_value = (*base_color, 1.0)
-    bsdf.inputs["Roughness"].default_value = roughness
-    bsdf.inputs["Metallic"].default_value = metallic
-    bsdf.inputs["Specular IOR Level"].default_value = specular_ior_level
-    material.diffuse_color = (*base_color, 1.0)
-    return material
 
 
 def _link(obj, material):
@@ -81,13 +70,9 @@ def _sphere(name, radius, location, material, segments=32, rings=16):
     return _link(sphere, material)
 
 
-def _look_rotation(direction):
-    return Vector(direction).to_track_quat("-Z", "Y").to_euler()
-
-
 def _aim(obj, location, target):
     obj.location = location
-    obj.rotation_euler = _look_rotation(Vector(target) - Vector(location))
+    obj.rotation_euler = look_rotation(Vector(target) - Vector(location))
 
 
 def _light(scene, name, kind, energy, location, target=None, color=(1.0, 1.0, 1.0), **settings):
@@ -137,11 +122,11 @@ def occluder(scene):
     """A spot lights an orange floor patch; a low wall stands between it and a white receiver wall,
     so most of the receiver's bounce light is blocked (we have no VSGL visibility: too bright there),
     while the low wall's lit-side face is an unoccluded control."""
-    floor = _principled("Orange floor", (0.8, 0.45, 0.15), roughness=0.5)
+    floor = principled("Orange floor", (0.8, 0.45, 0.15), roughness=0.5)
     # The same white twice, under two names, so the benchmark's per-material errors tell the
     # occluded receiver from the unoccluded control.
-    occluder_white = _principled("White occluder", (0.8, 0.8, 0.8), roughness=0.6)
-    receiver_white = _principled("White receiver", (0.8, 0.8, 0.8), roughness=0.6)
+    occluder_white = principled("White occluder", (0.8, 0.8, 0.8), roughness=0.6)
+    receiver_white = principled("White receiver", (0.8, 0.8, 0.8), roughness=0.6)
     _plane("Floor", 10.0, (0, 0, 0), (0, 0, 0), floor)
     _box("Occluder", (0.15, 6.0, 1.2), (0.0, 0.0, 0.0), occluder_white)
     _plane("Receiver", (4.0, 6.0), (3.0, 0.0, 2.0), (0, math.radians(-90), 0), receiver_white)
@@ -154,9 +139,9 @@ def occluder(scene):
 def sun_courtyard(scene):
     """A sun from behind a glossy wall over a 40 m ground: the wall's courtyard face is in shadow
     and lit only by the sunlit ground and the sunlit opposite wall (one RSM must cover the ground)."""
-    ground = _principled("Ground", (0.45, 0.42, 0.38), roughness=0.8)
-    plaster = _principled("Plaster", (0.75, 0.72, 0.65), roughness=0.7)
-    glossy = _principled("Glossy tiles", (0.35, 0.5, 0.7), roughness=0.2, specular_ior_level=0.8)
+    ground = principled("Ground", (0.45, 0.42, 0.38), roughness=0.8)
+    plaster = principled("Plaster", (0.75, 0.72, 0.65), roughness=0.7)
+    glossy = principled("Glossy tiles", (0.35, 0.5, 0.7), roughness=0.2, specular_ior_level=0.8)
     _plane("Ground", 40.0, (0, 0, 0), (0, 0, 0), ground)
     _box("North wall", (8.4, 0.2, 3.5), (0.0, 4.1, 0.0), glossy)
     _box("South wall", (8.4, 0.2, 3.5), (0.0, -4.1, 0.0), plaster)
@@ -172,9 +157,9 @@ def sun_courtyard(scene):
 def cornell_box(scene):
     """The Cornell box: red and green side walls bleed onto white walls and two blocks, lit by a small
     area light under the ceiling; the blocks occlude part of the bounce."""
-    white = _principled("White", (0.73, 0.73, 0.73), roughness=0.9)
-    red = _principled("Red", (0.63, 0.065, 0.05), roughness=0.9)
-    green = _principled("Green", (0.14, 0.45, 0.09), roughness=0.9)
+    white = principled("White", (0.73, 0.73, 0.73), roughness=0.9)
+    red = principled("Red", (0.63, 0.065, 0.05), roughness=0.9)
+    green = principled("Green", (0.14, 0.45, 0.09), roughness=0.9)
     _plane("Floor", 2.0, (0, 0, 0), (0, 0, 0), white)
     _plane("Ceiling", 2.0, (0, 0, 2), (math.pi, 0, 0), white)
     _plane("Back wall", 2.0, (0, 1, 1), (math.radians(90), 0, 0), white)
@@ -189,11 +174,11 @@ def cornell_box(scene):
 def closed_room(scene):
     """A closed room with a point light inside: every surface both receives and reflects, nothing
     escapes; a table and a glossy ball occlude and reflect."""
-    walls = _principled("Warm white", (0.8, 0.75, 0.65), roughness=0.7)
-    floor = _principled("Wood", (0.45, 0.28, 0.15), roughness=0.4)
-    ceiling = _principled("Ceiling", (0.85, 0.85, 0.85), roughness=0.8)
-    blue = _principled("Blue", (0.1, 0.2, 0.6), roughness=0.5)
-    yellow = _principled("Glossy yellow", (0.85, 0.65, 0.1), roughness=0.25)
+    walls = principled("Warm white", (0.8, 0.75, 0.65), roughness=0.7)
+    floor = principled("Wood", (0.45, 0.28, 0.15), roughness=0.4)
+    ceiling = principled("Ceiling", (0.85, 0.85, 0.85), roughness=0.8)
+    blue = principled("Blue", (0.1, 0.2, 0.6), roughness=0.5)
+    yellow = principled("Glossy yellow", (0.85, 0.65, 0.1), roughness=0.25)
     _plane("Floor", (5.0, 4.0), (0, 0, 0), (0, 0, 0), floor)
     _plane("Ceiling", (5.0, 4.0), (0, 0, 3), (math.pi, 0, 0), ceiling)
     _plane("North wall", (5.0, 3.0), (0, 2, 1.5), (math.radians(90), 0, 0), walls)
@@ -209,9 +194,9 @@ def closed_room(scene):
 def caustic_panel(scene):
     """A narrow spot on a polished steel panel (Principled roughness 0.28, GGX α ≈ 0.08) throws a
     caustic onto a white wall: glossy-to-diffuse light concentrated in a small, bright patch."""
-    floor = _principled("Dark floor", (0.2, 0.2, 0.2), roughness=0.8)
-    white = _principled("White wall", (0.8, 0.8, 0.8), roughness=0.8)
-    steel = _principled("Polished steel", (0.56, 0.57, 0.58), roughness=0.28, metallic=1.0)
+    floor = principled("Dark floor", (0.2, 0.2, 0.2), roughness=0.8)
+    white = principled("White wall", (0.8, 0.8, 0.8), roughness=0.8)
+    steel = principled("Polished steel", (0.56, 0.57, 0.58), roughness=0.28, metallic=1.0)
     _plane("Floor", 8.0, (0, 0, 0), (0, 0, 0), floor)
     _plane("Wall", (6.0, 4.0), (0, 2.0, 2.0), (math.radians(90), 0, 0), white)
     panel_at, spot_at, target = Vector((0.0, -0.5, 0.8)), Vector((0.0, -3.0, 3.2)), Vector((0.0, 2.0, 2.2))
@@ -229,11 +214,11 @@ def glossy_floor_object(scene):
     """A glossy blue floor under a glossy copper sphere and a glossy white block, lit by a spot from
     the side: each reflects the others' lit sides (glossy-to-glossy), the white wall behind catches
     their bounces."""
-    floor = _principled("Glossy blue floor", (0.15, 0.25, 0.55), roughness=0.15)
+    floor = principled("Glossy blue floor", (0.15, 0.25, 0.55), roughness=0.15)
     # Roughness 0.35, not sharper: the copper's caustics on the floor are what Cycles converges slowest on.
-    copper = _principled("Glossy copper", (0.95, 0.64, 0.54), roughness=0.35, metallic=1.0)
-    block = _principled("Glossy white", (0.8, 0.8, 0.8), roughness=0.3)
-    white = _principled("White wall", (0.8, 0.8, 0.8), roughness=0.7)
+    copper = principled("Glossy copper", (0.95, 0.64, 0.54), roughness=0.35, metallic=1.0)
+    block = principled("Glossy white", (0.8, 0.8, 0.8), roughness=0.3)
+    white = principled("White wall", (0.8, 0.8, 0.8), roughness=0.7)
     _plane("Floor", 8.0, (0, 0, 0), (0, 0, 0), floor)
     _plane("Back wall", (8.0, 4.0), (0, 2.5, 2.0), (math.radians(90), 0, 0), white)
     _sphere("Copper sphere", 0.7, (0.0, 0.3, 0.7), copper, segments=48, rings=24)
@@ -251,9 +236,9 @@ _PALETTE = [(1.0, 0.55, 0.25), (0.3, 0.55, 1.0), (1.0, 0.9, 0.7), (0.5, 1.0, 0.4
 def many_lights(scene):
     """A room (open at the camera's side) lit by 24 small coloured point lights: many lights, each
     with its own six-face RSM and its own VSGLs, every one of them lighting every receiver."""
-    walls = _principled("White", (0.78, 0.78, 0.78), roughness=0.7)
-    floor = _principled("Grey floor", (0.35, 0.35, 0.38), roughness=0.35)
-    red = _principled("Red", (0.7, 0.1, 0.08), roughness=0.6)
+    walls = principled("White", (0.78, 0.78, 0.78), roughness=0.7)
+    floor = principled("Grey floor", (0.35, 0.35, 0.38), roughness=0.35)
+    red = principled("Red", (0.7, 0.1, 0.08), roughness=0.6)
     _plane("Floor", (8.0, 6.0), (0, 0, 0), (0, 0, 0), floor)
     _plane("Ceiling", (8.0, 6.0), (0, 0, 3), (math.pi, 0, 0), walls)
     _plane("Back wall", (8.0, 3.0), (0, 3, 1.5), (math.radians(90), 0, 0), walls)
