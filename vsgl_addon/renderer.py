@@ -88,40 +88,30 @@ class SceneLights:
         clock = time.perf_counter()
         scene_gpu = SceneGPU(scene)
         timings = {UPLOAD.name: time.perf_counter() - clock}
-        clock = time.perf_counter()
-        vsgls = glossy = None
+        sets = []
         try:
-            split = scene.receiver_lobe_split
-            vsgls = render_scene_vsgls(scene_gpu, settings, "diffuse" if split else "all")
-            if split:
-                glossy = render_scene_vsgls(scene_gpu, settings, "glossy")
-            for table_set in (vsgls, glossy):
-                if table_set is not None and table_set.generations:
-                    _finish(table_set.generations[-1][2].table)
-        except BaseException:
-            for table_set in (vsgls, glossy):
-                if table_set is not None:
-                    table_set.free()
-            scene_gpu.free()
-            raise
-        timings[LIGHT_PASSES.name] = time.perf_counter() - clock
-        clock = time.perf_counter()
-        try:
+            clock = time.perf_counter()
+            # Some object hidden from diffuse or glossy rays: one VSGL set per receiver lobe.
+            lobes = ("diffuse", "glossy") if scene.receiver_lobe_split else ("all",)
+            for lobe in lobes:
+                sets.append(render_scene_vsgls(scene_gpu, settings, lobe))
+                if sets[-1].generations:
+                    _finish(sets[-1].generations[-1][2].table)
+            timings[LIGHT_PASSES.name] = time.perf_counter() - clock
+            clock = time.perf_counter()
             if settings.visibility:
-                first_map = build_visibility(scene_gpu, vsgls, settings)
-                if glossy is not None:
-                    build_visibility(scene_gpu, glossy, settings, first_map)
-                for table_set in (vsgls, glossy):
-                    if table_set is not None and table_set.isms:
+                first_map = 0  # each set's maps draw other point sets
+                for table_set in sets:
+                    first_map = build_visibility(scene_gpu, table_set, settings, first_map)
+                    if table_set.isms:
                         _finish(table_set.isms[-1].texture)
+            timings[ism.PASS.step.name] = time.perf_counter() - clock
         except BaseException:
-            for table_set in (vsgls, glossy):
-                if table_set is not None:
-                    table_set.free()
+            for table_set in sets:
+                table_set.free()
             scene_gpu.free()
             raise
-        timings[ism.PASS.step.name] = time.perf_counter() - clock
-        return cls(scene, scene_gpu, vsgls, timings, glossy)
+        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None)
 
     def free(self) -> None:
         if self.vsgls is not None:
