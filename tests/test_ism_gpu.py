@@ -143,3 +143,11 @@ def test_sized_splats_match_the_reference():
     radius = ism.splat_radius(points.positions[0] - origins[0], 1.0, area, 32)
     assert radius.max() >= 2  # near points cover several texels, far ones one
     assert radius.min() == 0
+
+
+def test_maps_that_would_not_fit_one_atlas_get_a_smaller_side(monkeypatch):
+    monkeypatch.setattr(ism_pass, "MAX_ATLAS_SIDE", 256)
+    assert ism_pass.fitting_size(8, 128) == 64 and ism_pass.fitting_size(4, 128) == 128
+    assert ism_pass.fitting_size(10 ** 6, 64) == 1
+    with pytest.raises(ValueError):
+        ism_pass.atlas_layout(8, 128)

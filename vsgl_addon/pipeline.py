@@ -177,7 +177,8 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
         origins = np.stack([table[f"{lobe}_mean"] for lobe in lobes], axis=1).reshape(-1, 3)
         sigma = np.sqrt(np.maximum(np.stack([table[f"{lobe}_variance"] for lobe in lobes], axis=1), 0.0)).reshape(-1)
         maps = np.arange(first_map, first_map + len(origins))
-        vsgls.isms.append(ism_pass.PASS.run(points, origins, maps % POINT_SETS, settings.ism_size,
+        size = ism_pass.fitting_size(len(origins), settings.ism_size)
+        vsgls.isms.append(ism_pass.PASS.run(points, origins, maps % POINT_SETS, size,
                                             min_distance=OWN_REFLECTOR_SIGMAS * sigma, point_area=point_area))
         first_map += len(origins)
     return first_map

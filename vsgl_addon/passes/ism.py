@@ -64,11 +64,23 @@ def _push_interface() -> ShaderInterface:
 
 def atlas_layout(map_count: int, size: int) -> tuple[int, int]:
     """(tiles per row, rows of tiles) of an atlas of ``map_count`` maps of ``size``²: square-ish."""
-    columns = max(1, math.ceil(math.sqrt(map_count)))
-    rows = max(1, math.ceil(map_count / columns))
+    columns, rows = atlas_layout_unchecked(map_count)
     if max(columns, rows) * size > MAX_ATLAS_SIDE:
         raise ValueError(f"{map_count} ISMs of {size}² do not fit a {MAX_ATLAS_SIDE}² atlas")
     return columns, rows
+
+
+def fitting_size(map_count: int, size: int) -> int:
+    """``size``, or the largest power of two below it at which ``map_count`` maps fit one atlas (many
+    VSGLs at a large map side would not: 8192 maps of 256² need a 23296² atlas)."""
+    while size > 1 and max(atlas_layout_unchecked(map_count)) * size > MAX_ATLAS_SIDE:
+        size //= 2
+    return size
+
+
+def atlas_layout_unchecked(map_count: int) -> tuple[int, int]:
+    columns = max(1, math.ceil(math.sqrt(map_count)))
+    return columns, max(1, math.ceil(map_count / columns))
 
 
 @dataclass
@@ -143,7 +155,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         coarse = gpu.types.GPUTexture((width >> level, height >> level), format="RG32F")
         pull.bind()
         pull.uniform_int("ism_first_level", 1 if level == 1 else 0)
-        pull.uniform_sampler("ism_fine", pulled[-1] if pulled else _unknown(1, 1))
+        pull.uniform_sampler("ism_fine", pulled[-1] if pulled else PASS.resource("unread", lambda: _unknown(1, 1)))
         pull.image("ism_atlas", atlas)
         pull.image("ism_coarse", coarse)
         gpu.compute.dispatch(pull, _groups(width >> level, _LEVEL_GROUP[0]), _groups(height >> level, _LEVEL_GROUP[1]), 1)
