@@ -1,0 +1,392 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Glossy interreflection from a rectangle proxy with MRP-ASG, float64 (formulas.md §8).
+
+001 = "rectangle-based MRP-ASG" (the paper in ../shared/papers/001_*). Twin: ``glsl/lib/mrp_asg.glsl``
+(same function names). One rectangle R (centre c_r, unit normal n_r, orthonormal in-plane axes
+u_r, v_r with half extents a_u, a_v, GGX roughness α_r, Schlick F0) reflects one light towards a
+receiver x (position p_x, normal n_x, view o towards the eye, GGX α_x, F0); the result is the
+radiance x sends to the eye through R's specular lobe (001 Eq. 3), in Blender's units.
+
+Steps (001 §3):
+
+1. Specular peak p_y, the point of R's plane whose half vector is n_r (Eq. 12). For a sun (the
+   paper's distant light) ``mrp_peak_distant`` is Eq. 12. For a point, spot or area light the
+   light direction varies over the plane; the exact peak is where the segment from p_x to the
+   light's mirror image crosses the plane (``mrp_peak_local``: the reflected ray through it
+   satisfies h = n_r by construction). No peak when the light or the receiver is not strictly in
+   front of the plane (i·n_r ≤ 0, or the reflection r leaves R's front hemisphere).
+2. Reflected radiance at the peak, L_y (Eqs. 15–17). 001 Eq. 17, L_y ≈ π m_r² f_r (i·n_y), is the
+   one-sample estimate of Eq. 4 with the pdf D(0) cos θ for *unit incident radiance from every
+   direction*; it has no light intensity in it, so it cannot carry a point light's W/sr or a sun's
+   W/m². For Blender's lights (formulas §4) Eq. 4 is exact with the light's irradiance:
+   L_y = f_r(i, r) (i·n_r) E⊥, E⊥ = I(−i)/d_l² for point/spot/area (I in W/sr) and E⊥ = S for a
+   sun (``mrp_peak_radiance``). tests/test_reference_mrp_asg.py shows by quadrature of Eq. 3 that
+   this form matches and Eq. 17 does not (docs/accuracy.md).
+3. Disk integral (Eqs. 19–27), the solid-angle integral at x of the reflected radiance from a disk
+   of radius r_d at p_y in R's plane: E = (π/k)(1 − e^(−k t)) L_y, k = 0.288 cos σ / m_r² − 0.673,
+   t = 1 − 1/(1 + ρ² cos² σ), ρ = r_d / |p_y − p_x| (001 works at unit distance, §3.4),
+   written π t · (1 − e^(−kt))/(kt), finite for k → 0 and k < 0 (kt ≥ −0.673).
+   Eq. 24 derives ψ(θ) for a distant light: only the direction to x turns across the disk. For a
+   local light the direction to the light turns too, by d_x/d_l times as much, so the half vector
+   turns (1 + d_x/d_l) times as fast and the highlight seen from x is that much narrower; to first
+   order in θ the fit's k is multiplied by s² = (1 + d_x/d_l)² (``spread``; 1 for a sun). Only a
+   positive k is scaled (k < 0 is the fit's rough-reflector regime where it is only a floor).
+4. Area ratio A (Eq. 36) from J, the bounding rectangle in R's frame of disk ∩ R (exact).
+   001 divides by the disk's area, π r_d², which gives 4/π for a disk wholly inside R; dividing by
+   the area of the disk's own bounding square, 4 r_d², gives 1 there and the exact 1/2 for a
+   half disk; ``mrp_area_ratio`` uses 4 r_d² (``normalization="paper"`` keeps Eq. 36).
+5. ASG light (Eqs. 18, 28–35): ŷx = (p_x − p_y)/|p_x − p_y|, v = ŷx × n_r, axis z = −ŷx,
+   tangent m = v, bitangent n = ŷx × v; extents l_m = ρ, l_n = ρ (n_r·ŷx); bandwidths (Eq. 32,
+   ε = 0.05) λ = (1 + 1/l_m²)(2.996 − ½ ln(1 + l_m²)), µ likewise; amplitude t = sqrt(λµ)/π · C,
+   C = A E (Eq. 35), so that Eq. 34's integral of the ASG is C.
+6. Receiver (Eqs. 6, 8, 10, 11): D(h) ≈ 1/(π α_x²) G(−r; r_x, λ_h / (4|o·n_x|)), λ_h = 2/α_x²,
+   r_x = 2 (o·n_x) n_x − o; L_x ≈ M(−r_y, o) (−r_y·n_x) ∫ Ga Gi with the SG × ASG convolution of
+   ``asg.sg_asg_convolution`` (ν = λ/2, docs/accuracy.md), M = F G2 / (4 cos cos) of GGX
+   (separable Smith as ``ggx.microfacet_brdf``): M cos = F (−r_y·n_x)/((c_i + s_i)(c_o + s_o)).
+   Mode ``"sg"`` (Eq. 37): the ASG becomes the SG G(v; z, 2 max(λ, µ)) with amplitude t and the
+   SG × SG product integral replaces Eq. 11.
+
+Guards (finite everywhere): receiver in R's plane or at the peak (|p_y − p_x| → 0: no
+contribution), ρ floored at ``EXTENT_FLOOR`` (λ ≤ ~3e8) and the bandwidths at ``BANDWIDTH_FLOOR``
+(Eq. 32 turns negative for l > ~20, a cap wider than a hemisphere), α's at ``ALPHA_MIN``, grazing
+views (``sg.COSINE_FLOOR``), the normal-incidence frame (v = 0: any tangent, the ASG is isotropic
+there since l_n = l_m).
+
+``brute_force_rectangle`` is the truth for the tests: Eq. 3 over R by tensor-product
+Gauss–Legendre on panels refined geometrically towards the peak and towards the receiver lobe's
+mirror point, exact GGX at both ends, the light's exact irradiance at every point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .asg import asg_any_tangent, sg_asg_convolution
+from .ggx import fresnel_schlick, ggx_g1_denominator, microfacet_brdf
+from .lights import light_intensity
+from .numerics import dot, f64, norm, safe_normalize, safe_ratio
+from .quadrature import composite_gauss_legendre
+from .sg import COSINE_FLOOR, ndf_sharpness, sg_product_integral
+
+#: Smallest GGX α at either end (λ_h = 2/α² = 2e6, as the VSGL shading's ALPHA_MIN).
+ALPHA_MIN = 1e-3
+#: Smallest unit-distance disk extent ρ = r_d/|p_y − p_x| (Eq. 32 gives λ ≈ 3e8 there).
+EXTENT_FLOOR = 1e-4
+#: Smallest ASG bandwidth (Eq. 32 is negative for extents above ~20: wider than a hemisphere).
+BANDWIDTH_FLOOR = 1e-3
+#: Fit constants of 001 Eq. 25.
+K_SLOPE = 0.288
+K_OFFSET = 0.673
+#: ε = 0.05 of 001 Eq. 31 gives ln(1/ε) = 2.996 in Eq. 32.
+LOG_INV_EPSILON = 2.996
+MODES = ("asg", "sg")
+AREA_NORMALIZATIONS = ("square", "paper")
+K_FITS = ("energy", "paper")
+
+
+def mrp_peak_distant(position, center, normal, incoming):
+    """Eq. 12 for a distant light towards ``incoming`` (unit, from the surface to the light).
+
+    r = 2 (i·n_r) n_r − i, p_y = p_x − r ((p_x − c_r)·n_r)/(i·n_r). Returns ``(p_y, valid)``;
+    valid when i·n_r > 0 and (p_x − c_r)·n_r > 0 (else p_y = p_x)."""
+    position, center, normal, incoming = map(f64, (position, center, normal, incoming))
+    cos_i = dot(incoming, normal)
+    height = dot(position - center, normal)
+    valid = (cos_i > 0.0) & (height > 0.0)
+    r = 2.0 * cos_i[..., None] * normal - incoming
+    step = safe_ratio(np.where(valid, height, 0.0), np.where(valid, cos_i, 0.0))
+    return position - r * step[..., None], valid
+
+
+def mrp_peak_local(position, center, normal, light_position):
+    """Exact specular peak of a point-like light at ``light_position``: the segment from p_x to
+    the light's mirror image p_l' = p_l − 2 h_l n_r crosses the plane at
+    p_y = p_x + (p_l' − p_x) h_x / (h_x + h_l), h = heights above the plane (Eq. 12's condition
+    h = n_r holds there exactly). Returns ``(p_y, valid)``; valid when h_x > 0 and h_l > 0."""
+    position, center, normal, light_position = map(f64, (position, center, normal, light_position))
+    h_x = dot(position - center, normal)
+    h_l = dot(light_position - center, normal)
+    valid = (h_x > 0.0) & (h_l > 0.0)
+    mirror = light_position - 2.0 * h_l[..., None] * normal
+    fraction = safe_ratio(np.where(valid, h_x, 0.0), np.where(valid, h_x + h_l, 0.0))
+    return position + (mirror - position) * fraction[..., None], valid
+
+
+def mrp_peak_brdf(cos_sigma, roughness, f0):
+    """R's GGX BRDF at its own specular peak (h = n_r, c_i = c_o = cos σ):
+    f_r = F(cos σ) D(1) / (c + s)², D(1) = 1/(π α²), s = sqrt((1 − α²)c² + α²)."""
+    c = np.maximum(f64(cos_sigma), 0.0)
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
+    a2 = alpha * alpha
+    g = ggx_g1_denominator(c, a2)
+    return fresnel_schlick(c, f0) / (np.pi * a2 * g * g)
+
+
+def mrp_peak_radiance(cos_sigma, roughness, f0, irradiance_normal):
+    """L_y = f_r(i, r) (i·n_r) E⊥ in Blender's units (module documentation, step 2):
+    E⊥ = I/d_l² (point, spot, area; I in W/sr towards p_y) or S (sun)."""
+    c = np.maximum(f64(cos_sigma), 0.0)
+    return mrp_peak_brdf(c, roughness, f0) * c * f64(irradiance_normal)
+
+
+def mrp_peak_radiance_paper(cos_sigma, roughness, f0):
+    """001 Eq. 17 as printed, L_y ≈ π m_r² f_r(i, r)(i·n_y) (distant light of unit radiance):
+    kept only to show by quadrature that it does not match Blender's lights."""
+    c = np.maximum(f64(cos_sigma), 0.0)
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
+    return np.pi * alpha * alpha * mrp_peak_brdf(c, alpha, f0) * c
+
+
+def mrp_exp_ratio(x):
+    """(1 − e^(−x))/x for any real x, = 1 at x = 0 (expm1 keeps it exact for tiny |x|)."""
+    x = f64(x)
+    tiny = np.abs(x) < 1e-300
+    safe = np.where(tiny, 1.0, x)
+    return np.where(tiny, 1.0, -np.expm1(-safe) / safe)
+
+
+def mrp_disk_integral(cos_sigma, roughness, extent, spread=1.0, fit="energy"):
+    """E / L_y = (π/k)(1 − e^(−k t)) = π t (1 − e^(−kt))/(kt) (001 Eqs. 25–27).
+
+    ``extent`` = ρ = r_d / |p_y − p_x| (unit-distance radius), ``spread`` = 1 + d_x/d_l (1 for a
+    sun; module documentation, step 3). t = ρ² cos²σ / (1 + ρ² cos²σ) (Eq. 27's
+    1 − 1/(1 + ρ² cos² σ) without the cancellation).
+
+    ``fit="paper"``: k = 0.288 cos σ / m_r² − 0.673 (Eq. 25). Its large-disk limit π L_y / k is
+    1/(1.152 cos² σ) times the true total for a sharp reflector (≈ 1.15 at normal incidence, 4.6 at
+    60°): Eq. 24 takes the attenuation along the plane of incidence, where the reflected direction
+    turns twice as fast as the half vector, for every azimuth, but across that plane it turns only
+    2 cos σ times as fast (dω_o = 4 (h·o) dω_h). ``fit="energy"`` (default): k = 1/(4 m_r² cos σ)
+    − 0.673, the k whose π L_y / k equals ∫ L dω = F E⊥ of a sharp GGX reflector (geometric mean of
+    the two directions' rates); the offset is the paper's. Evidence: docs/accuracy.md."""
+    c = np.clip(f64(cos_sigma), 0.0, 1.0)
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
+    a2 = alpha * alpha
+    if fit == "paper":
+        k = K_SLOPE * c / a2 - K_OFFSET
+    elif fit == "energy":
+        k = 1.0 / (4.0 * a2 * np.maximum(c, COSINE_FLOOR)) - K_OFFSET
+    else:
+        raise ValueError(f"fit must be one of {K_FITS}, got {fit!r}")
+    s = f64(spread)
+    k = np.where(k > 0.0, k * s * s, k)
+    q = f64(extent) ** 2 * c * c
+    t = q / (1.0 + q)
+    return np.pi * t * mrp_exp_ratio(k * t)
+
+
+def mrp_area_ratio(peak, center, axis_u, axis_v, half_u, half_v, disk_radius,
+                   normalization="square"):
+    """A of Eq. 36 from J, the bounding rectangle (in R's frame) of disk ∩ R.
+
+    With the disk centre (x0, y0) in R's frame, the disk's half width at the row of R nearest its
+    centre, w = sqrt(r² − (clamp(y0, ±a_v) − y0)²), bounds its x extent inside R:
+    J_x = [max(x0 − w, −a_u), min(x0 + w, a_u)] (exact); J_y likewise. A = S_J / (4 r²)
+    ("square") or S_J / (π r²) ("paper", Eq. 36 as printed); 0 when disk and R do not meet."""
+    d = f64(peak) - f64(center)
+    x0 = dot(d, f64(axis_u))
+    y0 = dot(d, f64(axis_v))
+    a = f64(half_u)
+    b = f64(half_v)
+    r = f64(disk_radius)
+    wx = np.sqrt(np.maximum(r * r - (np.clip(y0, -b, b) - y0) ** 2, 0.0))
+    wy = np.sqrt(np.maximum(r * r - (np.clip(x0, -a, a) - x0) ** 2, 0.0))
+    lx = np.maximum(np.minimum(x0 + wx, a) - np.maximum(x0 - wx, -a), 0.0)
+    ly = np.maximum(np.minimum(y0 + wy, b) - np.maximum(y0 - wy, -b), 0.0)
+    if normalization == "square":
+        denominator = 4.0 * r * r
+    elif normalization == "paper":
+        denominator = np.pi * r * r
+    else:
+        raise ValueError(f"normalization must be one of {AREA_NORMALIZATIONS}")
+    return safe_ratio(lx * ly, denominator)
+
+
+def mrp_bandwidth(extent):
+    """ASG bandwidth for a unit-distance extent l (001 Eq. 32, ε = 0.05):
+    (1 + 1/l²)(2.996 − ½ ln(1 + l²)), l ≥ EXTENT_FLOOR, result ≥ BANDWIDTH_FLOOR."""
+    l = np.maximum(f64(extent), EXTENT_FLOOR)
+    l2 = l * l
+    value = (1.0 + 1.0 / l2) * (LOG_INV_EPSILON - 0.5 * np.log1p(l2))
+    return np.maximum(value, BANDWIDTH_FLOOR)
+
+
+def mrp_asg_frame(position, peak, normal):
+    """ASG frame of 001 Eqs. 18, 28: ``(m, n, z, distance, cos_n)`` with ŷx = (p_x − p_y)/d,
+    m = v = normalize(ŷx × n_r), n = ŷx × m, z = −ŷx, cos_n = n_r·ŷx. At d = 0 (receiver at the
+    peak) z = −n_r; at normal incidence (ŷx ∥ n_r) any tangent."""
+    position, peak, normal = np.broadcast_arrays(f64(position), f64(peak), f64(normal))
+    d_vec = position - peak
+    distance = norm(d_vec)
+    yx = safe_normalize(d_vec, normal, distance)
+    v = np.cross(yx, normal)
+    v_length = norm(v)
+    m = np.where((v_length > 1e-12)[..., None], v / np.maximum(v_length, 1e-300)[..., None],
+                 asg_any_tangent(yx))
+    m = m - dot(m, yx)[..., None] * yx
+    m = m / norm(m)[..., None]
+    n = np.cross(yx, m)
+    return m, n, -yx, distance, dot(normal, yx)
+
+
+def mrp_receiver_sg(view, normal, roughness):
+    """The receiver's NDF as an SG in the light domain (001 Eqs. 6, 8):
+    ``(axis r_x, sharpness λ_h / (4 max(|o·n|, COSINE_FLOOR)), amplitude 1/(π α²))``."""
+    view = f64(view)
+    normal = f64(normal)
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
+    cos_o = dot(view, normal)
+    axis = 2.0 * cos_o[..., None] * normal - view
+    sharpness = ndf_sharpness(alpha) / (4.0 * np.maximum(np.abs(cos_o), COSINE_FLOOR))
+    return axis, sharpness, 1.0 / (np.pi * alpha * alpha)
+
+
+def mrp_receiver_factor(incoming, view, normal, roughness, f0):
+    """M(−r_y, o)(−r_y·n_x) of Eq. 10: F(ω_i·h) c_i / ((c_i + s_i)(c_o + s_o)) (GGX's
+    F G2/(4 c_i c_o) times c_i, Smith separable as ``ggx.microfacet_brdf``); 0 below either
+    horizon."""
+    incoming = f64(incoming)
+    view = f64(view)
+    normal = f64(normal)
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
+    a2 = alpha * alpha
+    ci_raw = dot(incoming, normal)
+    co_raw = dot(view, normal)
+    ci = np.maximum(ci_raw, 0.0)
+    co = np.maximum(co_raw, 0.0)
+    half = incoming + view
+    half = safe_normalize(half, normal, norm(half))
+    value = (fresnel_schlick(dot(incoming, half), f0) * ci
+             / (ggx_g1_denominator(ci, a2) * ggx_g1_denominator(co, a2)))
+    return np.where((ci_raw > 0.0) & (co_raw > 0.0), value, 0.0)
+
+
+def mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amplitude, mode="asg"):
+    """∫ Ga(ω) Gi(ω) dω of Eq. 10 with the ASG light (m, n, z; λ along m, µ along n; amplitude t)
+    and the receiver SG (``mrp_receiver_sg``): Eq. 11 (``"asg"``) or Eq. 37 + SG product
+    integral (``"sg"``)."""
+    axis, sharpness, sg_amplitude = mrp_receiver_sg(view, normal, roughness)
+    if mode == "asg":
+        value = sg_asg_convolution(axis, sharpness, m, n, z, bandwidth_m, bandwidth_n)
+    elif mode == "sg":
+        value = sg_product_integral(z, 2.0 * np.maximum(bandwidth_m, bandwidth_n), axis, sharpness)
+    else:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    return f64(amplitude) * sg_amplitude * value
+
+
+def light_irradiance_at(light, point):
+    """(E⊥ at ``point`` for a surface facing the light, unit direction from ``point`` to the
+    light, distance d_l or inf): I/d² for point/spot/area (``lights.light_intensity``), S for a
+    sun; per unit light colour."""
+    point = f64(point)
+    if light.type == "SUN":
+        direction = -f64(light.direction) / np.linalg.norm(light.direction)
+        direction = np.broadcast_to(direction, point.shape)
+        return (np.full(point.shape[:-1], float(light.power)), direction,
+                np.full(point.shape[:-1], np.inf))
+    to_light = f64(light.position) - point
+    d = norm(to_light)
+    direction = safe_normalize(to_light, f64(light.direction), d)
+    intensity = light_intensity(light, -direction)
+    return safe_ratio(intensity, d * d), direction, d
+
+
+def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, mode="asg",
+              visibility=1.0, spread_correction=True, peak_form="blender",
+              area_normalization="square", fit="energy"):
+    """L_x(o) of one rectangle and one light at receivers (001 Eqs. 3–37; module documentation).
+
+    ``rect``: mapping with ``center``, ``normal``, ``axis_u``, ``axis_v``, ``half_u``, ``half_v``,
+    ``roughness``, ``f0``. ``light``: a ``scene_description.Light``-like object. ``visibility``:
+    the light's shadow at p_y (1 = lit). Per unit light colour and per colour channel of the F0s.
+    ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only)."""
+    position = f64(position)
+    n_r = f64(rect["normal"])
+    if light.type == "SUN":
+        incoming = -f64(light.direction) / np.linalg.norm(light.direction)
+        peak, valid = mrp_peak_distant(position, rect["center"], n_r, incoming)
+    else:
+        peak, valid = mrp_peak_local(position, rect["center"], n_r, light.position)
+    irradiance, incoming, light_distance = light_irradiance_at(light, peak)
+    cos_sigma = np.clip(dot(incoming, n_r), 0.0, 1.0)
+    if peak_form == "blender":
+        radiance = mrp_peak_radiance(cos_sigma, rect["roughness"], rect["f0"], irradiance)
+    else:
+        radiance = mrp_peak_radiance_paper(cos_sigma, rect["roughness"], rect["f0"])
+    m, n, z, distance, cos_n = mrp_asg_frame(position, peak, n_r)
+    valid = valid & (distance > 0.0)
+    d_safe = np.where(valid, distance, 1.0)
+    extent = np.where(valid, f64(disk_radius) / d_safe, 1.0)
+    spread = 1.0 + safe_ratio(d_safe, light_distance) if spread_correction else 1.0
+    disk = mrp_disk_integral(cos_sigma, rect["roughness"], extent, spread, fit)
+    area = mrp_area_ratio(peak, rect["center"], rect["axis_u"], rect["axis_v"], rect["half_u"],
+                          rect["half_v"], disk_radius, area_normalization)
+    total = area * disk * radiance
+    bandwidth_m = mrp_bandwidth(extent)
+    bandwidth_n = mrp_bandwidth(extent * np.abs(cos_n))
+    amplitude = np.sqrt(bandwidth_m) * np.sqrt(bandwidth_n) / np.pi * total
+    conv = mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amplitude, mode)
+    factor = mrp_receiver_factor(z, view, normal, roughness, f0)
+    return np.where(valid, f64(visibility) * factor * conv, 0.0)
+
+
+def _refined_rule(half, points, order=12, smallest=1e-5, ratio=2.0):
+    """Gauss–Legendre nodes/weights on [−half, half], panels shrinking geometrically towards each
+    of ``points`` (clamped into the interval)."""
+    edges = {-half, half}
+    for p in points:
+        p = float(np.clip(p, -half, half))
+        edges.add(p)
+        step = smallest * 2.0 * half
+        while step < 2.0 * half:
+            for e in (p - step, p + step):
+                if -half < e < half:
+                    edges.add(e)
+            step *= ratio
+    return composite_gauss_legendre(np.array(sorted(edges)), order)
+
+
+def brute_force_rectangle(position, normal, view, roughness, f0, rect, light, order=12,
+                          smallest=1e-5, receiver_brdf=True):
+    """Eq. 3 over R by quadrature (one receiver): Σ f_x(−r, o) c_x · f_r(i, r) (i·n_r) E⊥(y) ·
+    (r·n_r)/|y − x|² dA, exact GGX at both ends; the light unshadowed. ``receiver_brdf=False``:
+    C of Eq. 13 instead, the solid-angle integral at x of R's reflected radiance."""
+    position = f64(position)
+    n_r = f64(rect["normal"])
+    u = f64(rect["axis_u"])
+    v = f64(rect["axis_v"])
+    c = f64(rect["center"])
+    a = float(rect["half_u"])
+    b = float(rect["half_v"])
+    # Refine towards the reflector's peak and towards where the receiver's mirror ray meets R.
+    points = []
+    if light.type == "SUN":
+        incoming = -f64(light.direction) / np.linalg.norm(light.direction)
+        peak, ok = mrp_peak_distant(position, c, n_r, incoming)
+    else:
+        peak, ok = mrp_peak_local(position, c, n_r, light.position)
+    if ok:
+        points.append(peak)
+    mirror = 2.0 * dot(view, normal) * f64(normal) - f64(view)
+    denominator = -dot(mirror, n_r)
+    if denominator > 1e-9:
+        points.append(position + mirror * dot(position - c, n_r) / denominator)
+    xu, wu = _refined_rule(a, [dot(p - c, u) for p in points] or [0.0], order, smallest)
+    xv, wv = _refined_rule(b, [dot(p - c, v) for p in points] or [0.0], order, smallest)
+    y = c + xu[:, None, None] * u + xv[None, :, None] * v
+    weight = wu[:, None] * wv[None, :]
+    to_x = position - y
+    dist = norm(to_x)
+    r = to_x / dist[..., None]
+    irradiance, incoming, _ = light_irradiance_at(light, y)
+    cos_i = dot(incoming, n_r)
+    cos_r = dot(r, n_r)
+    f_reflector = microfacet_brdf(incoming, r, n_r, rect["roughness"], rect["f0"])
+    radiance = f_reflector * np.maximum(cos_i, 0.0) * irradiance
+    f_receiver = microfacet_brdf(-r, f64(view), f64(normal), roughness, f0)
+    cos_x = np.maximum(dot(-r, f64(normal)), 0.0)
+    if not receiver_brdf:
+        f_receiver, cos_x = 1.0, 1.0
+    integrand = radiance * f_receiver * cos_x * np.maximum(cos_r, 0.0) / (dist * dist)
+    return float(np.sum(integrand * weight))
