@@ -48,7 +48,7 @@ Steps (001 §3):
 
 Guards (finite everywhere): receiver in R's plane or at the peak (|p_y − p_x| → 0: no
 contribution), ρ floored at ``EXTENT_FLOOR`` (λ ≤ ~3e8) and the bandwidths at ``BANDWIDTH_FLOOR``
-(Eq. 32 turns negative for l > ~20, a cap wider than a hemisphere), α's at ``ALPHA_MIN``, grazing
+(Eq. 32 turns negative for l > ~20, a cap wider than a hemisphere), ρ capped at ``EXTENT_MAX``, α's at ``ALPHA_MIN``, grazing
 views (``sg.COSINE_FLOOR``), the normal-incidence frame (v = 0: any tangent, the ASG is isotropic
 there since l_n = l_m).
 
@@ -72,6 +72,9 @@ from .sg import COSINE_FLOOR, ndf_sharpness, sg_product_integral
 ALPHA_MIN = 1e-3
 #: Smallest unit-distance disk extent ρ = r_d/|p_y − p_x| (Eq. 32 gives λ ≈ 3e8 there).
 EXTENT_FLOOR = 1e-4
+#: Largest unit-distance extent (t of Eq. 27 is 1 to float precision long before; keeps ρ² finite
+#: in float32).
+EXTENT_MAX = 1e6
 #: Smallest ASG bandwidth (Eq. 32 is negative for extents above ~20: wider than a hemisphere).
 BANDWIDTH_FLOOR = 1e-3
 #: Fit constants of 001 Eq. 25.
@@ -170,7 +173,7 @@ def mrp_disk_integral(cos_sigma, roughness, extent, spread=1.0, fit="energy"):
         raise ValueError(f"fit must be one of {K_FITS}, got {fit!r}")
     s = f64(spread)
     k = np.where(k > 0.0, k * s * s, k)
-    q = f64(extent) ** 2 * c * c
+    q = np.minimum(f64(extent), EXTENT_MAX) ** 2 * c * c
     t = q / (1.0 + q)
     return np.pi * t * mrp_exp_ratio(k * t)
 
@@ -191,8 +194,9 @@ def mrp_area_ratio(peak, center, axis_u, axis_v, half_u, half_v, disk_radius,
     r = f64(disk_radius)
     wx = np.sqrt(np.maximum(r * r - (np.clip(y0, -b, b) - y0) ** 2, 0.0))
     wy = np.sqrt(np.maximum(r * r - (np.clip(x0, -a, a) - x0) ** 2, 0.0))
-    lx = np.maximum(np.minimum(x0 + wx, a) - np.maximum(x0 - wx, -a), 0.0)
-    ly = np.maximum(np.minimum(y0 + wy, b) - np.maximum(y0 - wy, -b), 0.0)
+    # min(x0 + w, a) − max(x0 − w, −a) without subtracting the two ends (the GLSL twin's float32).
+    lx = np.maximum(np.minimum(wx, a - x0) + np.minimum(wx, a + x0), 0.0)
+    ly = np.maximum(np.minimum(wy, b - y0) + np.minimum(wy, b + y0), 0.0)
     if normalization == "square":
         denominator = 4.0 * r * r
     elif normalization == "paper":
@@ -205,7 +209,7 @@ def mrp_area_ratio(peak, center, axis_u, axis_v, half_u, half_v, disk_radius,
 def mrp_bandwidth(extent):
     """ASG bandwidth for a unit-distance extent l (001 Eq. 32, ε = 0.05):
     (1 + 1/l²)(2.996 − ½ ln(1 + l²)), l ≥ EXTENT_FLOOR, result ≥ BANDWIDTH_FLOOR."""
-    l = np.maximum(f64(extent), EXTENT_FLOOR)
+    l = np.clip(f64(extent), EXTENT_FLOOR, EXTENT_MAX)
     l2 = l * l
     value = (1.0 + 1.0 / l2) * (LOG_INV_EPSILON - 0.5 * np.log1p(l2))
     return np.maximum(value, BANDWIDTH_FLOOR)
