@@ -234,3 +234,77 @@ def test_mrp_shade(kind):
         worst = int(np.argmax(error))
         assert error[worst] <= 1e-2 * max(ref.max(), 1e-30) + 1e-7, (
             label, worst, got[worst], ref[worst], position[worst], normal[worst], view[worst])
+
+
+# --- The pass ---------------------------------------------------------------------------------------
+
+
+def _scene_light(kind):
+    from vsgl_addon.scene_description import Light
+
+    light = _light(kind)
+    return Light(name=kind, type=kind, matrix_world=light.matrix_world, position=light.position,
+                 direction=light.direction, color=np.array([1.0, 0.8, 0.5]), power=light.power,
+                 energy=light.power, exposure=0.0, normalize=True, radius=0.0, spot_size=light.spot_size,
+                 spot_blend=light.spot_blend, sun_angle=0.0, shape="SQUARE" if kind == "AREA" else "",
+                 size=np.zeros(2), diffuse_factor=1.0, specular_factor=0.7)
+
+
+def _proxy(alpha, center=(0.0, 0.0, 0.0), half=(2.0, 1.0)):
+    from vsgl_addon.proxies import RectangleProxy
+
+    return RectangleProxy(center=np.array(center, float), normal=np.array([0, 0, 1.0]),
+                          axis_u=np.array([1.0, 0, 0]), axis_v=np.array([0, 1.0, 0]), half_u=half[0],
+                          half_v=half[1], material_index=1, object_index=0, alpha=alpha,
+                          f0=np.array([0.9, 0.6, 0.2]), area=4 * half[0] * half[1], triangle_count=2)
+
+
+@pytest.mark.parametrize("mode", mrp.MODES)
+def test_pass_against_reference(mode):
+    """The full-screen pass over a numpy G-buffer (receivers above, in and below a proxy's plane,
+    background pixels, perceptual roughness 0.03 … 1), two lights (a point light and a sun, colours
+    and glossy factors), two proxies (one lit by both, one by the sun only), no shadows: per pixel
+    against the reference summed over lights and proxies."""
+    from vsgl_addon.passes import mrp_asg as mrp_pass
+    from vsgl_addon.passes.vsgl_shading import upload_gbuffer
+
+    rng = np.random.default_rng(12)
+    h, w = 24, 32
+    position = rng.uniform([-2, -1, -0.3], [2, 1, 2.0], (h, w, 3))
+    position[0] = rng.uniform([-2, -1, 0], [2, 1, 0], (w, 3))
+    coverage = np.ones((h, w))
+    coverage[1, :5] = 0.0
+    camera = np.array([3.0, -2.0, 2.5])
+    normal = unit(rng.normal(size=(h, w, 3)) * 0.6 + [0, 0, -1])
+    view = unit(camera - position)
+    normal = np.where((np.sum(normal * view, -1) > 0)[..., None], normal, -normal)
+    roughness = rng.choice([0.03, 0.1, 0.3, 0.7, 1.0], (h, w))
+    f0 = rng.uniform(0.02, 1.0, (h, w, 3))
+    position, normal, f0 = as_gpu_floats(position), gpu_unit(normal), as_gpu_floats(f0)
+    gbuffer = upload_gbuffer(position, coverage, normal, roughness, np.zeros((h, w, 3)), f0,
+                             roughness_is_perceptual=True)
+    lights = [_scene_light("POINT"), _scene_light("SUN")]
+    lit = [(_proxy(0.02), np.array([True, True])), (_proxy(0.1, (0.5, 0.2, -0.2), (0.5, 0.5)), np.array([False, True]))]
+    pass_ = mrp_pass.run(gbuffer, camera, lights, {0: [], 1: []}, lit, 0.2, mode, shadows=False)
+    try:
+        image = pass_.read()
+    finally:
+        pass_.free()
+    assert np.isfinite(image).all() and image.shape == (h, w, 4)
+    flat = lambda a: a.reshape(-1, a.shape[-1]) if a.ndim == 3 else a.reshape(-1)
+    pos, nrm = flat(position), flat(normal)
+    vw = unit(camera - pos)
+    alpha = flat(as_gpu_floats(roughness)) ** 2
+    expected = np.zeros((h * w, 3))
+    for index, light in enumerate(lights):
+        for proxy, mask in lit:
+            if not mask[index]:
+                continue
+            for ch in range(3):
+                expected[:, ch] += (mrp.mrp_shade(pos, nrm, vw, alpha, flat(f0)[:, ch], proxy.as_rect(ch), light,
+                                                  0.2, mode) * light.color[ch] * light.specular_factor)
+    expected[flat(coverage) == 0] = 0.0
+    got = flat(image[..., :3])
+    assert np.count_nonzero(expected.max(axis=1) > 0) > 50
+    check(got, expected, relative=2e-3, label=f"pass {mode}")
+    assert np.all(image[..., 3] == 0.0)

@@ -313,5 +313,23 @@ RSM_VIEW = TextureLayout(
     struct="RSMViewConstants",
 )
 
+#: The rectangle proxies (001 §3.6; vsgl_addon/proxies.py) one light reaches, column i = proxy i:
+#: read by the MRP-ASG pass (passes/mrp_asg.py) and by the RSM, whose VSGLs for the receivers'
+#: glossy lobes leave out the proxies' specular flux (light-paths.md). alpha is GGX α,
+#: f0 Schlick F0 (RGB), roughness the material's Principled roughness (the RSM's test of a texel).
+PROXY_TABLE = TextureLayout(
+    name="proxy_table",
+    slots=(
+        Slot("center", (("center", 3), ("half_u", 1))),
+        Slot("normal", (("normal", 3), ("half_v", 1))),
+        Slot("axis_u", (("axis_u", 3), ("alpha", 1))),
+        Slot("axis_v", (("axis_v", 3), ("roughness", 1))),
+        Slot("f0", (("f0", 3),)),
+    ),
+    define_prefix="PROXY_ROW",
+    glsl_prefix="proxy_table",
+    struct="ProxyRecord",
+)
+
 #: Every layout by name (the names passes declare in ``GPUPass.reads`` / ``writes``).
-LAYOUTS = {layout.name: layout for layout in (VSGL_TABLE, RSM, GBUFFER, SHADING_INPUTS, RSM_VIEW)}
+LAYOUTS = {layout.name: layout for layout in (VSGL_TABLE, RSM, GBUFFER, SHADING_INPUTS, RSM_VIEW, PROXY_TABLE)}

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .layouts import PROXY_TABLE
 from .reference.lights import light_intensity
 from .reference.principled import principled_dielectric_f0
 
@@ -299,3 +300,16 @@ class ProxyCache:
             self.key = key
             self.builds += 1
         return self.proxies
+
+
+def proxy_table_array(proxies) -> np.ndarray:
+    """The (slots, max(count, 1), 4) float32 :data:`~vsgl_addon.layouts.PROXY_TABLE` of ``proxies``
+    (what the MRP-ASG pass and the RSM read); with none, one column that matches no texel (negative
+    half extents)."""
+    proxies = list(proxies)
+    if not proxies:
+        return PROXY_TABLE.pack({"half_u": np.array([-1.0]), "half_v": np.array([-1.0])}, 1)
+    values = {name: np.array([getattr(p, name) for p in proxies], np.float64)
+              for name in ("center", "half_u", "normal", "half_v", "axis_u", "alpha", "axis_v", "f0")}
+    values["roughness"] = np.sqrt(np.maximum(values["alpha"], 0.0))
+    return PROXY_TABLE.pack(values, len(proxies))

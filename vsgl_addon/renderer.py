@@ -19,10 +19,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .layouts import GBUFFER
-from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, ism, shading_inputs, vsgl_shading
+from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg, shading_inputs, vsgl_shading
 from .passes.contract import LIGHT_PASSES
 from .passes.rsm import SceneGPU
 from .pipeline import build_visibility, render_scene_vsgls
+from .proxies import ProxyCache, lit_proxies
 from .reference.vsgl_shading import diffuse_mode_for_kernel
 from .settings import VSGLSettings
 
@@ -38,6 +39,13 @@ class FrameImages:
     coverage: np.ndarray
     timings: dict[str, float] = field(default_factory=dict)  # seconds per pass, GPU finished
     counts: dict[str, int] = field(default_factory=dict)
+    # The part of indirect_specular MRP-ASG carries (light reflected by a rectangle proxy onto
+    # glossy receivers, 001); None: zeros.
+    indirect_glossy_reflectors: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.indirect_glossy_reflectors is None:
+            self.indirect_glossy_reflectors = np.zeros_like(self.indirect_specular)
 
     @property
     def direct(self) -> np.ndarray:
@@ -79,22 +87,28 @@ class SceneLights:
     scene_gpu: object  # SceneGPU
     vsgls: object  # pipeline.SceneVSGLs: every reflector, or those seen by diffuse rays
     timings: dict[str, float] = field(default_factory=dict)
-    # When some object is hidden from diffuse or glossy rays (SceneDescription.receiver_lobe_split):
-    # the VSGLs of the reflectors glossy rays see, for the receivers' specular lobes.
+    # When some object is hidden from diffuse or glossy rays (SceneDescription.receiver_lobe_split),
+    # or MRP-ASG carries the proxies' specular light to glossy receivers: the VSGLs of the
+    # reflectors glossy rays see (without the proxies' specular flux), for the receivers' specular lobes.
     glossy_vsgls: object = None
+    # MRP-ASG (001): (rectangle proxy, lit-by mask over scene.lights) of the proxies some light reaches.
+    proxies: list = field(default_factory=list)
 
     @classmethod
-    def build(cls, scene, settings: VSGLSettings) -> "SceneLights":
+    def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None) -> "SceneLights":
         clock = time.perf_counter()
         scene_gpu = SceneGPU(scene)
         timings = {UPLOAD.name: time.perf_counter() - clock}
+        proxies = scene_proxies(scene, settings, proxy_cache) if settings.glossy_reflectors else []
         sets = []
         try:
             clock = time.perf_counter()
-            # Some object hidden from diffuse or glossy rays: one VSGL set per receiver lobe.
-            lobes = ("diffuse", "glossy") if scene.receiver_lobe_split else ("all",)
+            # Some object hidden from diffuse or glossy rays, or proxies for MRP-ASG: one VSGL set per
+            # receiver lobe (light-paths.md: the proxies' specular light leaves the glossy set).
+            lobes = ("diffuse", "glossy") if scene.receiver_lobe_split or proxies else ("all",)
             for lobe in lobes:
-                sets.append(render_scene_vsgls(scene_gpu, settings, lobe))
+                sets.append(render_scene_vsgls(scene_gpu, settings, lobe,
+                                               [proxy for proxy, _ in proxies] if lobe == "glossy" else ()))
                 if sets[-1].generations:
                     _finish(sets[-1].generations[-1][2].table)
             timings[LIGHT_PASSES.name] = time.perf_counter() - clock
@@ -111,7 +125,7 @@ class SceneLights:
                 table_set.free()
             scene_gpu.free()
             raise
-        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None)
+        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies)
 
     def free(self) -> None:
         if self.vsgls is not None:
@@ -125,14 +139,42 @@ class SceneLights:
             self.scene_gpu = None
 
 
+#: The proxies of the last scene geometry (rebuilt only when it changes, not when a light or the view
+#: moves), for callers that keep no cache of their own.
+PROXY_CACHE = ProxyCache()
+
+
+def scene_proxies(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None, overrides=None) -> list:
+    """(proxy, lit-by mask) of the rectangle proxies of ``scene`` that some light reaches on their
+    front side (vsgl_addon/proxies.py), without lights the proxy's object does not receive (light
+    linking) and proxies glossy rays do not see (ray visibility). ``overrides``: object name ->
+    proxies.PROXY_MODES (default: the scene description's ``proxy_overrides`` if it has them)."""
+    cache = PROXY_CACHE if proxy_cache is None else proxy_cache
+    if overrides is None:
+        overrides = getattr(scene, "proxy_overrides", None)
+    proxies = cache.get(scene, settings.caustic_roughness, overrides)
+    visibility = scene.visibility()
+    kept = []
+    for proxy, mask in lit_proxies(proxies, scene):
+        mask = mask.copy()
+        for index, light in enumerate(scene.lights):
+            if light.receivers is not None and not light.receivers[proxy.object_index]:
+                mask[index] = False
+        if mask.any() and visibility[proxy.object_index, 1]:
+            kept.append((proxy, mask))
+    return kept
+
+
 class FrameRenderer:
-    """Renders frames; holds the shading pass's textures between frames (free() releases them)."""
+    """Renders frames; holds the shading passes' textures between frames (free() releases them)."""
 
     def __init__(self):
         self._shading = vsgl_shading.VSGLShading()
+        self._mrp = mrp_asg.MRPASG()
 
     def free(self) -> None:
         self._shading.free()
+        self._mrp.free()
 
     def render(self, scene, settings: VSGLSettings, width: int, height: int,
                view_matrix=None, projection_matrix=None) -> FrameImages:
@@ -193,17 +235,30 @@ class FrameRenderer:
                 _, indirect_specular = self._shading.read()
             else:
                 indirect_diffuse, indirect_specular = self._shading.read()
+            glossy_reflectors = None
+            if lights.proxies:
+                # MRP-ASG's cell (light-paths.md): proxy-reflected light onto glossy receivers.
+                mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, vsgls.views_by_light, lights.proxies,
+                                 settings.disk_radius, settings.reflector_mode, mrp=self._mrp)
+                _finish(self._mrp.texture)
+            lap(mrp_asg.PASS.step.name)
+            if lights.proxies:
+                glossy_reflectors = _rgb(self._mrp.read())
             direct_diffuse, direct_specular = direct.to_numpy()
             coverage = GBUFFER.unpack_slots(gbuffer.to_numpy(), ["coverage"])["coverage"]
             lap(READ_BACK.name)
             glossy_count = lights.glossy_vsgls.vsgl_count if lights.glossy_vsgls is not None else 0
             counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in vsgls.views_by_light.values()),
-                      "vsgls": vsgls.vsgl_count + glossy_count, "triangles": int(len(scene.geometry.positions))}
+                      "vsgls": vsgls.vsgl_count + glossy_count, "triangles": int(len(scene.geometry.positions)),
+                      "proxies": len(lights.proxies)}
         finally:
             if direct is not None:
                 direct.free()
             if gbuffer is not None:
                 gbuffer.free()
+        indirect_specular = _rgb(indirect_specular)
+        if glossy_reflectors is not None:
+            indirect_specular = indirect_specular + glossy_reflectors
         return FrameImages(_rgb(direct_diffuse), _rgb(direct_specular), _rgb(indirect_diffuse),
-                           _rgb(indirect_specular), np.clip(np.nan_to_num(coverage), 0.0, 1.0).astype(np.float32),
-                           timings, counts)
+                           indirect_specular, np.clip(np.nan_to_num(coverage), 0.0, 1.0).astype(np.float32),
+                           timings, counts, glossy_reflectors)

@@ -129,6 +129,16 @@ LOOKDEV_PASSES = Choices(
     Choice("direct", "DIRECT", "Direct", "Direct light only"),
 )
 
+#: How MRP-ASG shades a receiver with a proxy's reflected light (001 Eq. 11, or Eq. 37's SG).
+REFLECTOR_MODES = Choices(
+    Choice("asg", "ASG", "ASG (Eq. 11)",
+           "The paper's method (001 Eqs. 7, 11): the proxy's reflected light as an anisotropic SG, "
+           "convolved with the receiver's NDF; keeps a reflection stretched at grazing angles"),
+    Choice("sg", "SG", "SG (Eq. 37)",
+           "Faster (001 Eq. 37): the reflected light as an isotropic SG of the ASG's larger bandwidth; "
+           "loses the stretch of grazing reflections and some of their energy"),
+)
+
 KERNEL_MODES = KERNELS.names
 POSITIONAL_DISTRIBUTIONS = POSITIONS.names
 
@@ -140,6 +150,9 @@ RSM_SIZE_RANGE = (1, 2048)
 # splatted into each (one texture row of at most 16384).
 ISM_SIZE_RANGE = (1, 256)
 ISM_POINTS_RANGE = (1, 16384)
+# MRP-ASG's sampling-disk radius in metres (001 §3.4) and the caustic roughness α_c (GGX α).
+DISK_RADIUS_RANGE = (1e-4, 100.0)
+CAUSTIC_ROUGHNESS_RANGE = (0.0, 1.0)
 
 
 class SettingsError(ValueError):
@@ -171,6 +184,13 @@ class VSGLSettings:
     visibility: bool = False
     ism_size: int = 64
     ism_points: int = 4096
+    # Glossy reflectors (001, MRP-ASG): on wherever a rectangle proxy exists; the sampling disk's
+    # radius r_d in metres (docs/accuracy.md: the sweep it was chosen from), α_c (GGX α below which
+    # a planar reflector becomes a proxy) and the shading mode.
+    glossy_reflectors: bool = True
+    disk_radius: float = 0.1
+    caustic_roughness: float = 0.1
+    reflector_mode: str = "asg"
 
     def __post_init__(self):
         _check_range("VSGL count", self.vsgl_count, *VSGL_COUNT_RANGE)
@@ -191,6 +211,13 @@ class VSGLSettings:
         if self.ism_size & (self.ism_size - 1):
             raise SettingsError(f"ISM size must be a power of two, got {self.ism_size}")
         _check_range("points per ISM", self.ism_points, *ISM_POINTS_RANGE)
+        if not (math.isfinite(self.disk_radius) and math.isfinite(self.caustic_roughness)):
+            raise SettingsError("disk radius and caustic roughness must be finite numbers")
+        _check_range("disk radius", self.disk_radius, *DISK_RADIUS_RANGE)
+        _check_range("caustic roughness", self.caustic_roughness, *CAUSTIC_ROUGHNESS_RANGE)
+        if self.reflector_mode not in REFLECTOR_MODES.names:
+            raise SettingsError(f"reflector mode must be one of {', '.join(REFLECTOR_MODES.names)}, "
+                                f"got {self.reflector_mode!r}")
 
     @classmethod
     def from_properties(cls, properties) -> "VSGLSettings":
@@ -204,7 +231,11 @@ class VSGLSettings:
                    positional_distribution=POSITIONS.identified(properties.positional_distribution).name,
                    visibility=bool(getattr(properties, "visibility", False)),
                    ism_size=nearest_power_of_two(getattr(properties, "ism_size", 64), ISM_SIZE_RANGE),
-                   ism_points=int(getattr(properties, "ism_points", 4096)))
+                   ism_points=int(getattr(properties, "ism_points", 4096)),
+                   glossy_reflectors=bool(getattr(properties, "glossy_reflectors", True)),
+                   disk_radius=float(getattr(properties, "disk_radius", 0.1)),
+                   caustic_roughness=float(getattr(properties, "caustic_roughness", 0.1)),
+                   reflector_mode=REFLECTOR_MODES.identified(getattr(properties, "reflector_mode", "ASG")).name)
 
     def overridden(self, **values) -> "VSGLSettings":
         """A copy with the given values (None means keep), validated."""

@@ -31,6 +31,31 @@
 // by every ray (0), by diffuse rays only (1) or by glossy rays only (2): the VSGLs for the
 // receivers' diffuse and glossy lobes when some object is hidden from one ray type.
 
+// rsm_mode.y == 2 (the glossy receivers' VSGLs) with rectangle proxies (proxy_table, one ProxyRecord
+// per column, vsgl_addon/layouts.py PROXY_TABLE): a texel on a proxy keeps no specular flux, which
+// MRP-ASG carries to glossy receivers instead (light-paths.md); its diffuse flux stays.
+
+// True when the texel at `position` (geometric normal `geometric`, Principled `roughness`) lies on
+// a proxy: in its plane and rectangle within 1e-4 of its size, parallel to it, of its roughness.
+bool rsm_on_proxy(vec3 position, vec3 geometric, float roughness)
+{
+  int count = textureSize(proxy_table, 0).x;
+  for (int i = 0; i < count; i++) {
+    ProxyRecord p = proxy_table_load(i);
+    if (!(p.half_u >= 0.0)) {
+      continue;
+    }
+    float tolerance = 1e-4 * (1.0 + max(p.half_u, p.half_v));
+    vec3 d = position - p.center;
+    if (abs(dot(d, p.normal)) <= tolerance && abs(dot(d, p.axis_u)) <= p.half_u + tolerance &&
+        abs(dot(d, p.axis_v)) <= p.half_v + tolerance && abs(dot(geometric, p.normal)) > 0.999 &&
+        abs(roughness - p.roughness) < 1e-4) {
+      return true;
+    }
+  }
+  return false;
+}
+
 // Largest RSM side whose texel solid angles use the exact formula; larger sizes integrate cos^3
 // by 3x3 Gauss-Legendre (see texel_solid_angle).
 const int EXACT_SOLID_ANGLE_MAX_SIZE = 8;
@@ -155,6 +180,9 @@ void main()
   r.flux_diffuse = flux * terms.diffuse * view.light_factors.x;
   r.flux_white = flux_white;
   r.flux_specular = flux * terms.specular_albedo * view.light_factors.y;
+  if (rsm_mode.y == 2 && rsm_on_proxy(world_position, geometric, roughness)) {
+    r.flux_specular = vec3(0.0);
+  }
   r.texel_measure = texel_measure;
   r.specular_axis = axis;
   r.coverage = 1.0;

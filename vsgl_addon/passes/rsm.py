@@ -58,7 +58,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..layouts import RSM as RSM_LAYOUT, RSM_VIEW
+from ..layouts import PROXY_TABLE, RSM as RSM_LAYOUT, RSM_VIEW
 from ..reference.lights import light_params
 from ..reference.vsgl import RSM
 from ..views import RSMViewSpec, light_view_specs, view_sees_triangles
@@ -84,7 +84,9 @@ def _interface():
         push_constants=[("VEC4", "view_params"), ("IVEC2", "rsm_mode")],
         # view_constants: a one-column RGBA32F table, vsgl_addon.layouts.RSM_VIEW (_view_constants);
         # light_links: SceneGPU.light_links (glsl/lib/light_links.glsl).
-        samplers=[("FLOAT_2D", "view_constants"), ("FLOAT_2D", "light_links")],
+        # proxy_table: the rectangle proxies whose specular flux the glossy receivers' VSGLs leave
+        # to MRP-ASG (vsgl_addon/proxies.py proxy_table_array; glsl/rsm/rsm.frag.glsl).
+        samplers=[("FLOAT_2D", "view_constants"), ("FLOAT_2D", "light_links"), ("FLOAT_2D", "proxy_table")],
         fragment_outputs=[("VEC4", f"rsm_{name}") for name in RSM_LAYOUT.slot_names],
     )
 
@@ -198,14 +200,17 @@ DRAW_ALL, DRAW_BLOCKERS, DRAW_NON_BLOCKERS = 0, 1, 2
 
 
 def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int, textures: dict,
-            receiver_lobe: str = "all"):
+            receiver_lobe: str = "all", proxies=()):
     import gpu
+
+    from ..proxies import proxy_table_array
 
     light = scene_gpu.scene.lights[light_index]
     program = shader()
     targets = [textures[name] for name in RSM_LAYOUT.slot_names]
     framebuffer = gpu.types.GPUFrameBuffer(depth_slot=textures["depth"], color_slots=targets)
     constants = texture_from_array(_view_constants(light, spec, light_index, light_links_rows(scene_gpu.scene)))
+    proxy_table = texture_from_array(proxy_table_array(proxies))
     # Shadow linking and objects that cast no shadow: the blockers first, writing depth (the shadow
     # map direct light reads), then the rest depth-tested only, so they reflect light without
     # occluding it (what lies behind such an object is not in the map: one layer per texel).
@@ -221,6 +226,7 @@ def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int,
         program.uniform_float("view_projection", matrix(spec.view_projection))
         program.uniform_sampler("view_constants", constants)
         program.uniform_sampler("light_links", scene_gpu.light_links())
+        program.uniform_sampler("proxy_table", proxy_table)
         program.uniform_float("view_params", (1.0 if spec.perspective else 0.0, spec.half_extent[0],
                                               spec.half_extent[1], float(size)))
         for draw, writes_depth in draws:
@@ -232,14 +238,17 @@ def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int,
     return framebuffer, constants
 
 
-def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: str = "all") -> list[RSMView]:
+def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: str = "all",
+                     proxies=()) -> list[RSMView]:
     """Render the RSM views of ``scene.lights[light_index]`` at ``size`` x ``size`` texels.
 
     ``scene`` is a :class:`SceneGPU` (reuse it for every light) or a SceneDescription (uploaded for
     this call only). Views whose frustum holds no triangle are skipped, so a light that hits
     nothing returns []. Free each view with :meth:`RSMView.free` when done. ``receiver_lobe``
     (scene_description.RECEIVER_LOBES) keeps only the flux of reflectors seen by diffuse or by
-    glossy rays.
+    glossy rays; with ``receiver_lobe="glossy"``, texels on one of ``proxies``
+    (:class:`~vsgl_addon.proxies.RectangleProxy`) keep no specular flux: MRP-ASG carries that light
+    to the receivers' glossy lobes (light-paths.md).
     """
     import gpu
 
@@ -254,7 +263,7 @@ def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: st
             continue
         textures = {name: gpu.types.GPUTexture((size, size), format="RGBA32F") for name in RSM_LAYOUT.slot_names}
         textures["depth"] = gpu.types.GPUTexture((size, size), format="DEPTH_COMPONENT32F")
-        framebuffer, constants = _render(scene_gpu, light_index, spec, size, textures, receiver_lobe)
+        framebuffer, constants = _render(scene_gpu, light_index, spec, size, textures, receiver_lobe, proxies)
         views.append(RSMView(light_index, light, spec, size, textures, framebuffer, constants))
     return views
 
@@ -276,7 +285,8 @@ PASS = GPUPass(
     step=LIGHT_PASSES,
     shaders={"rsm": ShaderSpec(_interface, {"vertex": VERTEX_STAGE, "fragment": "rsm/rsm.frag.glsl"},
                                code=lambda: {"fragment": RSM_LAYOUT.glsl("outputs_store")
-                                                         + RSM_VIEW.glsl("sampler_load")})},
+                                                         + RSM_VIEW.glsl("sampler_load")
+                                                         + PROXY_TABLE.glsl("sampler_load")})},
     reads=("scene",),
     writes=(RSM_LAYOUT.name, "rsm_depth"),
     run=render_rsm_views,

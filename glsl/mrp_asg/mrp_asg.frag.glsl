@@ -1,0 +1,103 @@
+// @require lib/math.glsl
+// @require lib/mrp_asg.glsl
+// @require lib/shadow.glsl
+//
+// Glossy interreflection from rectangle proxies with MRP-ASG (001), one light per draw, full screen
+// over the camera G-buffer (position, normal + roughness attachments) and the shading inputs'
+// specular F0 (generated loaders of vsgl_addon/layouts.py GBUFFER and SHADING_INPUTS); added by
+// blending (ONE, ONE) into one RGBA32F target, alpha 0. Python side: vsgl_addon/passes/mrp_asg.py.
+//
+// proxy_table: the proxies this light reaches, one ProxyRecord per column (layouts.py PROXY_TABLE),
+// mrp_params.y of them. light_constants: the direct light pass's per-light constants
+// (passes/direct_light.py light_constants: position and view count, axis, params, colour,
+// factors, world -> local rows, then per RSM view its view-projection rows and projection).
+// mrp_params = (disk radius r_d in metres, proxy count, mode (lib/mrp_asg.glsl MRP_MODE_*),
+// roughness is perceptual 1 / GGX alpha 0). shadow_params = (RSM size, normal offset, depth bias,
+// shadows 1 / off 0), as the direct light's.
+//
+// Visibility: the light's at each specular peak from its RSM depth (the first view containing the
+// peak decides, lib/shadow.glsl; a peak outside every view is unlit). The path from the proxy to the
+// receiver is not shadowed (001 assumes no occlusion).
+
+const int MRP_MAX_VIEWS = 6;
+
+vec4 light_constant(int index)
+{
+  return texelFetch(light_constants, ivec2(index, 0), 0);
+}
+
+float mrp_view_depth(int k, ivec2 texel)
+{
+  if (k == 0) return texelFetch(rsm_depth_0, texel, 0).r;
+  if (k == 1) return texelFetch(rsm_depth_1, texel, 0).r;
+  if (k == 2) return texelFetch(rsm_depth_2, texel, 0).r;
+  if (k == 3) return texelFetch(rsm_depth_3, texel, 0).r;
+  if (k == 4) return texelFetch(rsm_depth_4, texel, 0).r;
+  return texelFetch(rsm_depth_5, texel, 0).r;
+}
+
+// The direct light's shadow test (glsl/direct_light/direct_light.frag.glsl) at a peak on a proxy.
+float mrp_light_visibility(vec3 position, vec3 normal, vec3 incoming, int view_count)
+{
+  float size = shadow_params.x;
+  float tan_theta = shadow_tan_incidence(normal, incoming);
+  for (int k = 0; k < MRP_MAX_VIEWS; k++) {
+    if (k >= view_count) {
+      break;
+    }
+    int base = 8 + 5 * k;
+    mat4 view_projection = transpose(mat4(light_constant(base), light_constant(base + 1),
+                                          light_constant(base + 2), light_constant(base + 3)));
+    vec4 projection = light_constant(base + 4);
+    ivec2 texel;
+    float receiver, bias;
+    if (!shadow_map_lookup(view_projection, projection, size, shadow_params.y, shadow_params.z,
+                           tan_theta, position, normal, texel, receiver, bias)) {
+      continue;
+    }
+    return shadow_map_test(mrp_view_depth(k, texel), projection, receiver, bias);
+  }
+  return 0.0;
+}
+
+void main()
+{
+  ivec2 pixel = ivec2(gl_FragCoord.xy);
+  glossy_reflectors = vec4(0.0);
+  GBufferTexel g;
+  gbuffer_unpack_position(texelFetch(gbuffer_position, pixel, 0), g);
+  if (!(g.coverage > 0.0)) {
+    return;
+  }
+  gbuffer_unpack_normal(texelFetch(gbuffer_normal, pixel, 0), g);
+  vec3 normal = safe_normalize(g.normal, vec3(0.0, 0.0, 1.0));
+  float roughness = mrp_params.w > 0.5 ? g.roughness * g.roughness : g.roughness;
+  vec3 view = safe_normalize(camera.w > 0.0 ? camera.xyz - g.position : camera.xyz, normal);
+  ShadingInputs inputs = shading_inputs_load(pixel);
+
+  vec4 light0 = light_constant(0);
+  int view_count = int(light0.w + 0.5);
+  vec3 light_axis = light_constant(1).xyz;
+  vec4 params = light_constant(2);
+  vec3 color = light_constant(3).rgb * light_constant(4).y;  // Blender's glossy factor of the light
+  mat3 light_to_local = transpose(mat3(light_constant(5).xyz, light_constant(6).xyz, light_constant(7).xyz));
+  bool sun = int(params.x + 0.5) == LIGHT_SUN;
+
+  vec3 sum = vec3(0.0);
+  int count = int(mrp_params.y + 0.5);
+  for (int i = 0; i < count; i++) {
+    ProxyRecord p = proxy_table_load(i);
+    vec3 radiance, peak;
+    if (!mrp_shade(g.position, normal, view, roughness, inputs.specular_f0, p.center, p.normal, p.axis_u,
+                   p.axis_v, p.half_u, p.half_v, p.alpha, p.f0, light0.xyz, light_axis, params,
+                   light_to_local, mrp_params.x, int(mrp_params.z + 0.5), radiance, peak)) {
+      continue;
+    }
+    if (shadow_params.w > 0.5 && dot(radiance, radiance) > 0.0) {
+      vec3 incoming = sun ? -light_axis : safe_normalize(light0.xyz - peak, p.normal);
+      radiance *= mrp_light_visibility(peak, p.normal, incoming, view_count);
+    }
+    sum += radiance;
+  }
+  glossy_reflectors = vec4(sum * color, 0.0);
+}
