@@ -21,7 +21,7 @@ from vsgl_addon.scene import extract_scene
 from vsgl_addon.settings import VSGLSettings
 
 REPO = Path(__file__).resolve().parents[1]
-LAYERS = ("Combined", "Direct", "Indirect", "Indirect Diffuse", "Indirect Specular")
+LAYERS = ("Combined", "Direct", "Indirect", "Indirect Diffuse", "Indirect Specular", "Indirect Glossy Reflectors")
 
 
 def _run(*arguments, timeout=300):
@@ -61,6 +61,9 @@ def test_render_command_writes_every_layer_and_they_add_up(rendered):
     np.testing.assert_allclose(layers["Indirect"], layers["Indirect Diffuse"] + layers["Indirect Specular"],
                                rtol=1e-5, atol=1e-7)
     assert layers["Indirect"].mean() > 0.0 and layers["Direct"].mean() > layers["Indirect"].mean()
+    # MRP-ASG's pass is a part of Indirect Specular.
+    reflectors = layers["Indirect Glossy Reflectors"]
+    assert reflectors.max() > 0.0 and np.all(reflectors <= layers["Indirect Specular"] + 1e-6)
     # The red floor bounces red light: the indirect light is redder than white.
     mean = layers["Indirect"].reshape(-1, 3).mean(axis=0)
     assert mean[0] > 2 * mean[1], mean
@@ -71,7 +74,9 @@ def test_render_report_has_timings_counts_parameters_and_renderer(rendered):
     _, report, result = rendered
     data = json.loads(report.read_text())
     assert {"rsm_and_vsgl_generation", "gbuffer", "direct_light", "vsgl_shading"} <= set(data["timings"])
-    assert data["counts"]["vsgls"] == 64 and data["counts"]["lights"] == 1
+    # The demo's glossy red floor is a rectangle proxy: MRP-ASG's VSGL split doubles the VSGL sets.
+    assert data["counts"]["proxies"] >= 1 and "mrp_asg" in data["timings"]
+    assert data["counts"]["vsgls"] == 2 * 64 and data["counts"]["lights"] == 1
     assert data["settings"]["vsgl_count"] == 64 and data["settings"]["kernel"] == "modified"
     assert data["settings"]["positional_distribution"] == "per-lobe"
     assert data["resolution"] == [96, 72] and "llvmpipe" in data["gpu_renderer"]

@@ -12,7 +12,7 @@ import tomllib
 from pathlib import Path
 
 from .gpu_context import GPUContextError
-from .settings import KERNELS, POSITIONS
+from .settings import KERNELS, POSITIONS, REFLECTOR_MODES
 
 MANIFEST = Path(__file__).resolve().parent.parent / "blender_manifest.toml"
 
@@ -44,7 +44,8 @@ def _command_demo(arguments) -> int:
     arguments = argparse.Namespace(scene=str(DEMO_BLEND), out=str(out), report=str(out.with_suffix(".json")),
                                    resolution=arguments.resolution, vsgl_count=None, k=None, kernel=None,
                                    rsm_size=None, seed=None, positional_distribution=None, visibility=None,
-                                   ism_size=None, ism_points=None, frame=None)
+                                   ism_size=None, ism_points=None, frame=None, glossy_reflectors=None,
+                                   disk_radius=None, caustic_roughness=None, reflector_mode=None)
     print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
     return _command_render(arguments)
 
@@ -81,7 +82,12 @@ def _settings(scene, arguments):
             rsm_size=arguments.rsm_size, seed=arguments.seed,
             positional_distribution=arguments.positional_distribution,
             visibility=None if arguments.visibility is None else arguments.visibility == "on",
-            ism_size=arguments.ism_size, ism_points=arguments.ism_points)
+            ism_size=arguments.ism_size, ism_points=arguments.ism_points,
+            glossy_reflectors=(None if getattr(arguments, "glossy_reflectors", None) is None
+                               else arguments.glossy_reflectors == "on"),
+            disk_radius=getattr(arguments, "disk_radius", None),
+            caustic_roughness=getattr(arguments, "caustic_roughness", None),
+            reflector_mode=getattr(arguments, "reflector_mode", None))
     except SettingsError as error:
         raise UsageError(str(error)) from None
 
@@ -187,6 +193,9 @@ def _command_render(arguments) -> int:
         scene.vsgl.positional_distribution = POSITIONS.named(settings.positional_distribution).identifier
         scene.vsgl.visibility, scene.vsgl.ism_size, scene.vsgl.ism_points = (
             settings.visibility, settings.ism_size, settings.ism_points)
+        scene.vsgl.glossy_reflectors, scene.vsgl.disk_radius, scene.vsgl.caustic_roughness = (
+            settings.glossy_reflectors, settings.disk_radius, settings.caustic_roughness)
+        scene.vsgl.reflector_mode = REFLECTOR_MODES.named(settings.reflector_mode).identifier
         scene.render.engine = ENGINE_ID
         if arguments.resolution:
             scene.render.resolution_x, scene.render.resolution_y = arguments.resolution
@@ -272,7 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
     render = commands.add_parser(
         "render", help="render a .blend's frame with the VSGL engine to a multilayer EXR (+ PNG preview)",
         description="Render SCENE.blend with the VSGL engine: a multilayer EXR with Combined, Direct, Indirect, "
-                    "Indirect Diffuse and Indirect Specular (linear, Blender's units) and a PNG preview beside "
+                    "Indirect Diffuse, Indirect Specular and Indirect Glossy Reflectors (linear, Blender's units) and a PNG preview beside "
                     "it. Parameters default to the scene's own (scene.vsgl); flags override them for this run.")
     render.add_argument("scene", metavar="SCENE.blend")
     render.add_argument("--out", required=True, metavar="OUT.exr")
@@ -286,6 +295,15 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--visibility", choices=("on", "off"), help="VSGL visibility from imperfect shadow maps")
     render.add_argument("--ism-size", type=_positive_int, metavar="S", help="imperfect shadow map side, a power of two")
     render.add_argument("--ism-points", type=_positive_int, metavar="P", help="scene points per shadow map")
+    render.add_argument("--glossy-reflectors", choices=("on", "off"),
+                        help="glossy interreflection from rectangle proxies with MRP-ASG (001; on by default)")
+    render.add_argument("--disk-radius", type=_float, metavar="M",
+                        help="MRP-ASG sampling-disk radius in metres (001 §3.4): small keeps sharp reflections, "
+                             "large gathers all of a rougher reflector's light but blurs it")
+    render.add_argument("--caustic-roughness", type=_float, metavar="A",
+                        help="GGX alpha below which a planar reflector becomes a rectangle proxy (alpha_c)")
+    render.add_argument("--reflector-mode", choices=REFLECTOR_MODES.names,
+                        help="asg (001 Eq. 11, default) or sg (the faster Eq. 37)")
     render.add_argument("--frame", type=int, metavar="F")
     render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")
     render.set_defaults(run=_command_render)

@@ -3,8 +3,9 @@
 
 It turns the evaluated depsgraph into the plain scene description, hands it to the frame renderer
 (renderer.py: the GPU passes) and writes what comes back into Blender's render result: Combined
-(direct + one-bounce indirect, alpha = coverage) and the passes Direct, Indirect, Indirect Diffuse
-and Indirect Specular, all linear and scene-referred in Blender's units, so the compositor,
+(direct + one-bounce indirect, alpha = coverage) and the passes Direct, Indirect, Indirect Diffuse,
+Indirect Specular and Indirect Glossy Reflectors (the part of Indirect Specular MRP-ASG renders),
+all linear and scene-referred in Blender's units, so the compositor,
 multilayer EXR and Blender's colour management treat them like Cycles' passes.
 """
 
@@ -26,6 +27,8 @@ RENDER_PASSES = {
     "Indirect": "indirect",
     "Indirect Diffuse": "indirect_diffuse",
     "Indirect Specular": "indirect_specular",
+    # The part of Indirect Specular that MRP-ASG renders (light of sharp planar reflectors, 001).
+    "Indirect Glossy Reflectors": "indirect_glossy_reflectors",
 }
 
 #: Timings and counts of the last frame rendered in this process (read by the render command's

@@ -11,8 +11,9 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, Po
 from bpy.types import PropertyGroup
 
 from . import overlay
-from .settings import (ISM_POINTS_RANGE, ISM_SIZE_RANGE, K_RANGE, KERNELS, OVERLAY_DISPLAYS, POSITIONS,
-                       RSM_SIZE_RANGE, VSGL_COUNT_RANGE)
+from .settings import (CAUSTIC_ROUGHNESS_RANGE, DISK_RADIUS_RANGE, ISM_POINTS_RANGE, ISM_SIZE_RANGE, K_RANGE,
+                       KERNELS, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES, REFLECTOR_MODES, RSM_SIZE_RANGE,
+                       VSGL_COUNT_RANGE)
 
 
 def enum_items(choices) -> tuple[tuple[str, str, str, int], ...]:
@@ -118,6 +119,55 @@ class VSGLSceneSettings(PropertyGroup):
         min=ISM_POINTS_RANGE[0],
         max=ISM_POINTS_RANGE[1],
     )
+    # --- glossy reflectors (001, MRP-ASG) ---
+    glossy_reflectors: BoolProperty(
+        name="Glossy Reflectors",
+        description=(
+            "Render the light that sharp planar glossy reflectors (polished floors, table tops, panels) "
+            "reflect onto glossy surfaces with MRP-ASG (001): each such region becomes a rectangle proxy, "
+            "and its reflected light comes straight from the lights at the specular peak instead of "
+            "from the VSGLs, which blur it. Costs one full-screen draw per light that reaches a proxy; "
+            "a scene without proxies pays nothing"
+        ),
+        default=True,
+    )
+    disk_radius: FloatProperty(
+        name="Disk Radius",
+        description=(
+            "Radius r_d of the sampling disk at each specular peak (001 section 3.4), in metres: the "
+            "part of the reflector whose light a receiver gathers. Small keeps a sharp reflection's "
+            "shape but loses the light of rougher reflectors (their highlight is wider than the disk); "
+            "large gathers all of it but spreads it over the disk, blurring sharp reflections. "
+            "It costs nothing either way"
+        ),
+        default=0.1,
+        min=DISK_RADIUS_RANGE[0],
+        max=DISK_RADIUS_RANGE[1],
+        soft_min=0.005,
+        soft_max=2.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+        precision=3,
+    )
+    caustic_roughness: FloatProperty(
+        name="Sharp Below",
+        description=(
+            "Caustic roughness alpha_c: a planar region whose GGX alpha (roughness squared) is below it "
+            "counts as a sharp glossy reflector and becomes a rectangle proxy (per object: Object "
+            "Properties > VSGL Glossy Reflector). Higher turns rougher surfaces into proxies too, where "
+            "MRP-ASG's fit is less accurate"
+        ),
+        default=0.1,
+        min=CAUSTIC_ROUGHNESS_RANGE[0],
+        max=CAUSTIC_ROUGHNESS_RANGE[1],
+        precision=3,
+    )
+    reflector_mode: EnumProperty(
+        name="Reflector Shading",
+        description="How a receiver is shaded with a proxy's reflected light",
+        items=enum_items(REFLECTOR_MODES),
+        default="ASG",
+    )
     seed: IntProperty(
         name="Seed",
         description=(
@@ -181,6 +231,15 @@ class VSGLSceneSettings(PropertyGroup):
 CLASSES = (VSGLSceneSettings,)
 
 
+def _object_proxy_property():
+    return EnumProperty(
+        name="Glossy Reflector",
+        description="Whether this object's planar regions become rectangle proxies for MRP-ASG (001)",
+        items=enum_items(PROXY_OVERRIDES),
+        default="AUTO",
+    )
+
+
 def _scene_settings_property():
     return PointerProperty(
         type=VSGLSceneSettings,
@@ -190,4 +249,5 @@ def _scene_settings_property():
 
 
 # (owner type, attribute name, factory of the property), attached by vsgl_addon.register().
-TYPE_PROPERTIES = ((bpy.types.Scene, "vsgl", _scene_settings_property),)
+TYPE_PROPERTIES = ((bpy.types.Scene, "vsgl", _scene_settings_property),
+                   (bpy.types.Object, "vsgl_proxy", _object_proxy_property))

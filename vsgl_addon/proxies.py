@@ -31,9 +31,10 @@ import numpy as np
 from .layouts import PROXY_TABLE
 from .reference.lights import light_intensity
 from .reference.principled import principled_dielectric_f0
+from .settings import PROXY_OVERRIDES
 
 #: Per-object override of the automatic choice (stored by properties.py).
-PROXY_MODES = ("auto", "always", "never")
+PROXY_MODES = PROXY_OVERRIDES.names
 #: Default α_c: GGX α below which a reflector's specular lobe is "sharp" (light-paths.md).
 CAUSTIC_ROUGHNESS = 0.1
 #: Triangles are coplanar when their unit normals differ by less than this (≈ 0.6°).

@@ -205,6 +205,9 @@ class SceneDescription:
     # Ray visibility per object (O, 3) bool: seen by diffuse rays, by glossy rays, casts shadows
     # (Blender's Object.visible_diffuse / visible_glossy / visible_shadow); None: all True.
     object_visibility: np.ndarray | None = None
+    # Per object name, where not "auto": whether its planar regions become rectangle proxies
+    # (settings.PROXY_OVERRIDES names; vsgl_addon/proxies.py). None: every object is "auto".
+    proxy_overrides: dict | None = None
 
     def visibility(self) -> np.ndarray:
         """(O, 3) bool: diffuse, glossy, shadow visibility of every object (all True by default)."""

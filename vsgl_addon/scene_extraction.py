@@ -45,6 +45,7 @@ from .scene_description import (
 )
 from .light_extraction import UNMODELLED_LIGHTS, linked, plain_light_tree, read_light
 from .views import render_size
+from .settings import PROXY_OVERRIDES
 
 # Only instances whose evaluated data is a mesh carry triangles. Curve, surface, text and
 # metaball objects appear twice in object_instances since Blender 3: as themselves (curve data)
@@ -71,6 +72,7 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
     meshes: dict[int, _MeshArrays | None] = {}
     placements: dict[tuple, list[tuple[np.ndarray, int]]] = {}
     object_names: list[str] = []
+    proxy_overrides: dict[str, str] = {}  # object name -> settings.PROXY_OVERRIDES name, where not Auto
     lights: list[Light] = []
     light_objects: list[bpy.types.Object] = []
     skipped: list[SkippedLight] = []
@@ -122,6 +124,9 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
         instance_originals.append((obj.original, top.original))
         visibility.append(tuple(bool(getattr(obj.original, name, True))
                                 for name in ("visible_diffuse", "visible_glossy", "visible_shadow")))
+        override = getattr(obj.original, "vsgl_proxy", "AUTO")
+        if override != "AUTO":
+            proxy_overrides[object_names[-1]] = PROXY_OVERRIDES.identified(override).name
 
     geometry = _place(meshes, placements)
     lights = [linked(light, original, instance_originals) for light, original in zip(lights, light_objects)]
@@ -150,6 +155,7 @@ def extract_scene(depsgraph: bpy.types.Depsgraph) -> SceneDescription:
         skipped_lights=tuple(skipped),
         warnings=tuple(warnings),
         object_visibility=None if all(all(v) for v in visibility) else np.array(visibility, bool).reshape(-1, 3),
+        proxy_overrides=proxy_overrides or None,
     )
 
 

@@ -139,6 +139,14 @@ REFLECTOR_MODES = Choices(
            "loses the stretch of grazing reflections and some of their energy"),
 )
 
+#: Per object: whether its planar regions become rectangle proxies (vsgl_addon/proxies.py PROXY_MODES).
+PROXY_OVERRIDES = Choices(
+    Choice("auto", "AUTO", "Auto",
+           "A planar region becomes a proxy when its material's GGX alpha is below Sharp Below"),
+    Choice("always", "ALWAYS", "Always", "Every planar region of the object becomes a proxy, however rough"),
+    Choice("never", "NEVER", "Never", "The object's light reaches glossy surfaces only through VSGLs"),
+)
+
 KERNEL_MODES = KERNELS.names
 POSITIONAL_DISTRIBUTIONS = POSITIONS.names
 

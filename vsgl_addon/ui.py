@@ -25,6 +25,7 @@ PASS_SECTIONS = (
     ("Reflective Shadow Maps", ("rsm_size",)),
     ("VSGL Generation", ("kernel", "vsgl_count", "k", "positional_distribution", "seed")),
     ("VSGL Visibility", ("visibility", "ism_size", "ism_points")),
+    ("Glossy Reflectors (MRP-ASG)", ("glossy_reflectors", "disk_radius", "caustic_roughness", "reflector_mode")),
 )
 OVERLAY_PROPERTIES = ("overlay_mode", "overlay_resolution_scale", "overlay_intensity")
 #: Statistics labels come from the passes' declarations (vsgl_addon.passes.STEPS), so a new pass
