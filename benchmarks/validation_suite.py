@@ -58,7 +58,8 @@ DEMO_PURPOSE = ("demo.blend: a spot-lit glossy red floor bounces onto white wall
 # Cycles samples per seed of each truth: as many as keep its noise small against its mean within
 # the time budget (measured per scene: the caustic scenes converge slowest, diffuse rooms fastest).
 TRUTH_SAMPLES = {"occluder": 2048, "sun_courtyard": 1024, "cornell_box": 1024, "closed_room": 1024,
-                 "caustic_panel": 8192, "glossy_floor_object": 4096, "many_lights": 2048, "demo": 4096}
+                 "caustic_panel": 8192, "glossy_floor_object": 4096, "many_lights": 2048, "demo": 4096,
+                 "polished_metal_floor": 4096}
 QUICK_SCENES = ("occluder", "cornell_box")
 # The truth's values above this percentile (covered pixels, RGB) are the "extreme highlights".
 ROBUST_PERCENTILE = 99.5

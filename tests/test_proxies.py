@@ -143,3 +143,14 @@ def test_cache_rebuilds_only_on_geometry_change():
     assert cache.builds == 2
     cache.get(floor_scene(0.12, rotate=0.2))  # a material change
     assert cache.builds == 3
+
+
+def test_smooth_shaded_facets_are_not_proxies():
+    floor = grid(2, 2, 2.0, 2.0)
+    scene = scene_of([(floor, 1, 0)], (material("M", 0.1),), [point_light()])
+    bent = np.array(scene.geometry.normals)
+    bent[:, 0] = [0.3, 0.0, 0.954]  # one corner normal tilted, as smooth shading of a curved surface does
+    smooth = SceneDescription(Geometry(scene.geometry.positions, bent.astype(np.float32), scene.geometry.uvs,
+                                       scene.geometry.material_index, scene.geometry.object_index),
+                              scene.materials, scene.lights, None, scene.object_names)
+    assert len(P.build_proxies(scene)) == 1 and P.build_proxies(smooth) == []

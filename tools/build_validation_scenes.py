@@ -228,6 +228,23 @@ def glossy_floor_object(scene):
     _camera(scene, (1.5, -5.5, 1.6), (0.3, 0.5, 0.6), lens=30.0)
 
 
+def polished_metal_floor(scene):
+    """A polished metal floor (Principled roughness 0.15, GGX α ≈ 0.02: a rectangle proxy for
+    MRP-ASG) lit by a spot, under a glossy gold sphere and a glossy red dielectric block that reflect
+    the lit floor (glossy-to-glossy from a sharp planar reflector), and a white wall behind."""
+    metal = principled("Polished metal floor", (0.75, 0.75, 0.78), roughness=0.15, metallic=1.0)
+    gold = principled("Glossy gold", (0.9, 0.65, 0.25), roughness=0.3, metallic=1.0)
+    red = principled("Glossy red", (0.6, 0.08, 0.06), roughness=0.2)
+    white = principled("White wall", (0.8, 0.8, 0.8), roughness=0.7)
+    _plane("Floor", 8.0, (0, 0, 0), (0, 0, 0), metal)
+    _plane("Back wall", (8.0, 4.0), (0, 3.0, 2.0), (math.radians(90), 0, 0), white)
+    _sphere("Gold sphere", 0.6, (-0.7, 0.6, 0.6), gold, segments=48, rings=24)
+    _box("Red block", (0.7, 0.7, 0.9), (0.9, -0.1, 0.0), red, rotation_z=math.radians(25))
+    _light(scene, "Spot", "SPOT", 1500.0, (0.5, -2.5, 3.5), (0.0, 0.3, 0.0),
+           spot_size=math.radians(55), spot_blend=0.3)
+    _camera(scene, (1.2, -5.5, 1.4), (0.0, 0.4, 0.5), lens=32.0)
+
+
 # 24 small point lights, a 6 × 4 grid at two heights, in six colours (deterministic, no randomness).
 _PALETTE = [(1.0, 0.55, 0.25), (0.3, 0.55, 1.0), (1.0, 0.9, 0.7), (0.5, 1.0, 0.45), (1.0, 0.35, 0.6),
             (0.8, 0.8, 1.0)]
@@ -266,6 +283,7 @@ SCENES = {
     "caustic_panel": caustic_panel,
     "glossy_floor_object": glossy_floor_object,
     "many_lights": many_lights,
+    "polished_metal_floor": polished_metal_floor,
 }
 
 

@@ -8,6 +8,8 @@ tools in the paper). Here they are found in the triangles themselves, bpy-free:
    (``caustic_roughness``, the split of light-paths.md), per object overridden by
    :data:`PROXY_MODES` ("always": every planar region of the object whatever its roughness,
    "never": none).
+   Only triangles shaded flat (corner normals along the face normal) count: a smooth sphere's
+   facets are planar but it is no planar reflector.
 2. Planar regions: candidates with the same material whose planes agree (normals within
    ``NORMAL_TOLERANCE``, offsets within ``PLANE_TOLERANCE`` of the scene's size), connected through
    shared corners (positions within the same tolerance).
@@ -180,6 +182,12 @@ def build_proxies(scene, caustic_roughness: float = CAUSTIC_ROUGHNESS, overrides
     lo, hi = positions.reshape(-1, 3).min(axis=0), positions.reshape(-1, 3).max(axis=0)
     diagonal = max(float(np.linalg.norm(hi - lo)), 1e-12)
     candidate &= double_area > (1e-9 * diagonal) ** 2
+    # Shaded flat: every corner normal along the face normal. A smooth-shaded curved surface (a
+    # sphere's facets) is planar per triangle but not a planar reflector.
+    face = cross / np.maximum(double_area, 1e-300)[:, None]
+    corner = np.asarray(geometry.normals, np.float64)
+    corner_cos = np.abs(np.einsum("tij,tj->ti", corner, face)) / np.maximum(np.linalg.norm(corner, axis=2), 1e-300)
+    candidate &= np.all(corner_cos > 1.0 - NORMAL_TOLERANCE ** 2, axis=1)
     index = np.flatnonzero(candidate)
     if len(index) == 0:
         return []
