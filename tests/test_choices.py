@@ -12,7 +12,8 @@ import pytest
 from vsgl_addon import settings
 from vsgl_addon.cli import UsageError, build_parser
 from vsgl_addon.reference import vsgl as reference_vsgl
-from vsgl_addon.settings import (KERNELS, LOOKDEV_PASSES, OVERLAY_DISPLAYS, POSITIONS, Choice, Choices,
+from vsgl_addon.settings import (KERNELS, LOOKDEV_PASSES, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES,
+                                REFLECTOR_MODES, Choice, Choices,
                                  VSGLSettings)
 
 STORED = {
@@ -20,6 +21,8 @@ STORED = {
     "positional_distribution": (POSITIONS, ["PER_LOBE", "SHARED"]),
     "overlay_mode": (OVERLAY_DISPLAYS, ["INDIRECT", "ADDED", "INDIRECT_DIFFUSE", "INDIRECT_SPECULAR", "DIRECT",
                                         "COMBINED"]),
+    "reflector_mode": (REFLECTOR_MODES, ["ASG", "SG"]),
+    "vsgl_proxy": (PROXY_OVERRIDES, ["AUTO", "ALWAYS", "NEVER"]),
 }
 
 
@@ -76,3 +79,26 @@ def test_a_table_rejects_duplicates():
         Choices(Choice("a", "A", "A", "first"), Choice("b", "A", "B", "second"))
     with pytest.raises(ValueError, match="duplicate name"):
         Choices(Choice("a", "A", "A", "first"), Choice("a", "B", "B", "second"))
+
+
+def test_glossy_reflector_flags_and_settings():
+    from vsgl_addon import proxies
+    from vsgl_addon.cli import _settings
+    from vsgl_addon.reference import mrp_asg
+
+    assert REFLECTOR_MODES.names == mrp_asg.MODES and PROXY_OVERRIDES.names == proxies.PROXY_MODES
+    arguments = build_parser().parse_args(["render", "scene.blend", "--out", "out.exr", "--glossy-reflectors", "off",
+                                           "--disk-radius", "0.25", "--caustic-roughness", "0.05",
+                                           "--reflector-mode", "sg"])
+    stored = dict(vsgl_count=64, k=1.0, kernel="MODIFIED", rsm_size=64, seed=0, positional_distribution="PER_LOBE",
+                  glossy_reflectors=True, disk_radius=0.1, caustic_roughness=0.1, reflector_mode="ASG")
+    scene = type("Scene", (), {"vsgl": type("Props", (), stored)})
+    result = _settings(scene, arguments)
+    assert (result.glossy_reflectors, result.disk_radius, result.caustic_roughness, result.reflector_mode) == (
+        False, 0.25, 0.05, "sg")
+    defaults = VSGLSettings.from_properties(type("Props", (), stored))
+    assert defaults.glossy_reflectors and defaults.reflector_mode == "asg"
+    for bad in (["--disk-radius", "0"], ["--disk-radius", "nan"], ["--caustic-roughness", "2"]):
+        arguments = build_parser().parse_args(["render", "scene.blend", "--out", "out.exr", *bad])
+        with pytest.raises(UsageError):
+            _settings(scene, arguments)

@@ -1,0 +1,187 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""MRP-ASG (001) on the validation suite against each scene's cached Cycles truth (not a test).
+
+    .venv/bin/python benchmarks/mrp_asg_suite.py [--only NAME ...] [--no-sweep]
+
+Per scene of benchmarks/validation_suite.py (its scenes, the polished metal floor and the demo),
+with the scene's saved settings (the add-on's defaults for the suite's scenes), one frame at
+240x180 after a warm-up frame, with glossy reflectors on (the default) and off (VSGLs alone):
+
+* indirect specular relative RMSE against Cycles' GlossInd·GlossCol and total indirect relative
+  RMSE (both noise-corrected, tradeoff.metrics.Errors), mean indirect ours / Cycles, the number of
+  proxies; per material (the demo's gold sphere, the new scene's objects): mean ours / Cycles;
+* cost: the MRP-ASG pass's time over the VSGL shading time of the same frame (N = 256 on the demo);
+* disk-radius sweep (r_d = 0.01 … 1 m) on the demo and the polished metal floor: specular and total
+  relative RMSE and the pass's time; a plot.
+
+Writes benchmarks/results/mrp_asg_suite.{md,json} and mrp_asg_disk_radius.png, prints the markdown.
+The truths must be cached (benchmarks/validation_suite.py --reference-only makes them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
+    sys.path.insert(0, str(folder))
+
+from tradeoff.demo import RESULTS_DIR, log  # noqa: E402
+from tradeoff.metrics import Errors  # noqa: E402
+from tradeoff.truth import load_reference  # noqa: E402
+from validation_suite import TRUTH_SAMPLES, open_scene, suite  # noqa: E402
+
+RADII = (0.01, 0.03, 0.1, 0.3, 1.0)
+SWEEP_SCENES = ("demo", "polished_metal_floor")
+WIDTH, HEIGHT = 240, 180
+
+
+def _frame(renderer, description, settings):
+    renderer.render(description, settings, WIDTH, HEIGHT)  # warm-up: shaders, llvmpipe
+    return renderer.render(description, settings, WIDTH, HEIGHT)
+
+
+def _material_index(description):
+    from tradeoff.bench import Bench
+
+    bench = Bench(description, WIDTH, HEIGHT)
+    try:
+        return bench.material_index, bench.materials
+    finally:
+        bench.free()
+
+
+def measure(name, path, sweep: bool) -> dict:
+    import bpy
+
+    from vsgl_addon.renderer import FrameRenderer
+    from vsgl_addon.scene import extract_scene
+    from vsgl_addon.settings import VSGLSettings
+
+    scene = open_scene(path)
+    settings = VSGLSettings.from_properties(scene.vsgl)
+    dtype = np.float32 if name == "demo" else np.float16
+    truth = load_reference(scene, WIDTH, HEIGHT, TRUTH_SAMPLES[name], False, name=name, source=path, dtype=dtype)
+    scene = open_scene(path)
+    description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    material_index, materials = _material_index(description)
+    renderer = FrameRenderer()
+    out = {"scene": name, "settings": str(settings)}
+    try:
+        for label, on in (("vsgl", False), ("mrp", True)):
+            frame = _frame(renderer, description, settings.overridden(glossy_reflectors=on))
+            errors = Errors(truth, frame.coverage)
+            figures = errors(frame.indirect_diffuse, frame.indirect_specular)
+            ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
+            regions = errors.by_region(ours, material_index, materials)
+            out[label] = {"rel": figures["rel"], "rel_specular": figures["rel_specular"],
+                          "mean_ratio": figures["mean_ratio"], "share_specular": figures["share_specular"],
+                          "proxies": int(frame.counts.get("proxies", 0)),
+                          "vsgl_shading_seconds": float(frame.timings["vsgl_shading"]),
+                          "mrp_seconds": float(frame.timings.get("mrp_asg", 0.0)),
+                          "frame_seconds": float(sum(frame.timings.values())),
+                          "regions": {k: {"mean_ratio": v["mean_ratio"], "error_share": v["error_share"]}
+                                      for k, v in regions.items()}}
+        out["cost_ratio"] = out["mrp"]["mrp_seconds"] / out["mrp"]["vsgl_shading_seconds"]
+        if sweep and out["mrp"]["proxies"]:
+            rows = []
+            for radius in RADII:
+                frame = _frame(renderer, description, settings.overridden(disk_radius=radius))
+                figures = Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
+                rows.append({"radius": radius, "rel": figures["rel"], "rel_specular": figures["rel_specular"],
+                             "mrp_seconds": float(frame.timings["mrp_asg"]),
+                             "vsgl_shading_seconds": float(frame.timings["vsgl_shading"])})
+            out["sweep"] = rows
+    finally:
+        renderer.free()
+    return out
+
+
+def markdown(results) -> str:
+    lines = ["| scene | proxies | indirect specular rel. RMSE, VSGL → MRP-ASG | total indirect rel. RMSE, VSGL → MRP-ASG "
+             "| mean ours/Cycles, VSGL → MRP-ASG | MRP-ASG / VSGL shading time |", "|---|---|---|---|---|---|"]
+    for r in results:
+        v, m = r["vsgl"], r["mrp"]
+        lines.append(f"| {r['scene']} | {m['proxies']} | {v['rel_specular']:.3f} → {m['rel_specular']:.3f} | "
+                     f"{v['rel']:.3f} → {m['rel']:.3f} | {v['mean_ratio']:.3f} → {m['mean_ratio']:.3f} | "
+                     f"{r['cost_ratio']:.3f} |")
+    lines += ["", "Per material, mean ours / Cycles (VSGL → MRP-ASG):", ""]
+    for r in results:
+        if r["scene"] in SWEEP_SCENES:
+            for material, v in r["vsgl"]["regions"].items():
+                m = r["mrp"]["regions"][material]
+                lines.append(f"- {r['scene']}, {material}: {v['mean_ratio']:.3f} → {m['mean_ratio']:.3f} "
+                             f"(error share {v['error_share']:.2f} → {m['error_share']:.2f})")
+    for r in results:
+        if "sweep" in r:
+            lines += ["", f"Disk-radius sweep, {r['scene']}:", "",
+                      "| r_d (m) | indirect specular rel. RMSE | total rel. RMSE | MRP-ASG time (ms) | MRP-ASG / VSGL shading |",
+                      "|---|---|---|---|---|"]
+            for s in r["sweep"]:
+                lines.append(f"| {s['radius']:g} | {s['rel_specular']:.3f} | {s['rel']:.3f} | {s['mrp_seconds'] * 1e3:.1f} | "
+                             f"{s['mrp_seconds'] / s['vsgl_shading_seconds']:.3f} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(results, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, (error_axis, time_axis) = plt.subplots(1, 2, figsize=(9, 3.5))
+    for r in results:
+        if "sweep" not in r:
+            continue
+        radii = [s["radius"] for s in r["sweep"]]
+        error_axis.plot(radii, [s["rel_specular"] for s in r["sweep"]], "o-", label=f"{r['scene']} specular")
+        error_axis.plot(radii, [s["rel"] for s in r["sweep"]], "s--", label=f"{r['scene']} total")
+        error_axis.axhline(r["vsgl"]["rel_specular"], ls=":", color="grey")
+        time_axis.plot(radii, [s["mrp_seconds"] * 1e3 for s in r["sweep"]], "o-", label=r["scene"])
+    for axis in (error_axis, time_axis):
+        axis.set_xscale("log")
+        axis.set_xlabel("disk radius r_d (m)")
+        axis.legend(fontsize=7)
+    error_axis.set_ylabel("relative RMSE vs Cycles (dotted: VSGL alone, specular)")
+    time_axis.set_ylabel("MRP-ASG pass (ms, llvmpipe)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", nargs="+")
+    parser.add_argument("--no-sweep", action="store_true")
+    args = parser.parse_args(argv)
+    from vsgl_addon import register, unregister
+    from vsgl_addon.gpu_context import ensure_gpu_context
+
+    register()
+    ensure_gpu_context()
+    results = []
+    try:
+        for name, path, _ in suite():
+            if args.only and name not in args.only:
+                continue
+            log(f"{name} ...")
+            results.append(measure(name, path, not args.no_sweep and name in SWEEP_SCENES))
+    finally:
+        unregister()
+    text = markdown(results)
+    suffix = "" if not args.only else "_" + "_".join(args.only)
+    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+    (RESULTS_DIR / f"mrp_asg_suite{suffix}.md").write_text(text, encoding="utf-8")
+    (RESULTS_DIR / f"mrp_asg_suite{suffix}.json").write_text(json.dumps(results, indent=2), encoding="utf-8")
+    if any("sweep" in r for r in results):
+        plot(results, RESULTS_DIR / f"mrp_asg_disk_radius{suffix}.png")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
