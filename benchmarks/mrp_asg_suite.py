@@ -73,8 +73,10 @@ def measure(name, path, sweep: bool) -> dict:
     renderer = FrameRenderer()
     out = {"scene": name, "settings": str(settings)}
     try:
+        images = {"Cycles": truth["indirect"]}
         for label, on in (("vsgl", False), ("mrp", True)):
             frame = _frame(renderer, description, settings.overridden(glossy_reflectors=on))
+            images["VSGLs alone" if not on else "with MRP-ASG"] = frame.indirect_diffuse + frame.indirect_specular
             errors = Errors(truth, frame.coverage)
             figures = errors(frame.indirect_diffuse, frame.indirect_specular)
             ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
@@ -88,18 +90,43 @@ def measure(name, path, sweep: bool) -> dict:
                           "regions": {k: {"mean_ratio": v["mean_ratio"], "error_share": v["error_share"]}
                                       for k, v in regions.items()}}
         out["cost_ratio"] = out["mrp"]["mrp_seconds"] / out["mrp"]["vsgl_shading_seconds"]
+        comparison(images, RESULTS_DIR / f"mrp_asg_{name}_indirect.png", name)
         if sweep and out["mrp"]["proxies"]:
             rows = []
             for radius in RADII:
                 frame = _frame(renderer, description, settings.overridden(disk_radius=radius))
-                figures = Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
+                errors = Errors(truth, frame.coverage)
+                figures = errors(frame.indirect_diffuse, frame.indirect_specular)
+                regions = errors.by_region((frame.indirect_diffuse + frame.indirect_specular).astype(np.float64),
+                                           material_index, materials)
                 rows.append({"radius": radius, "rel": figures["rel"], "rel_specular": figures["rel_specular"],
+                             "region_means": {k: v["mean_ratio"] for k, v in regions.items()},
                              "mrp_seconds": float(frame.timings["mrp_asg"]),
                              "vsgl_shading_seconds": float(frame.timings["vsgl_shading"])})
             out["sweep"] = rows
     finally:
         renderer.free()
     return out
+
+
+def comparison(images, path: Path, title: str) -> None:
+    """Indirect light side by side (x / (1 + x) tone map, sRGB-like gamma; row 0 = bottom)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    order = ["VSGLs alone", "with MRP-ASG", "Cycles"]
+    figure, axes = plt.subplots(1, 3, figsize=(10.5, 2.9))
+    for axis, label in zip(axes, order):
+        image = np.clip(np.asarray(images[label], np.float64)[..., :3], 0.0, None)
+        axis.imshow((image / (1.0 + image)) ** (1.0 / 2.2), origin="lower")
+        axis.set_title(f"{title}: {label}", fontsize=9)
+        axis.axis("off")
+    figure.tight_layout()
+    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
 
 
 def markdown(results) -> str:
@@ -120,11 +147,13 @@ def markdown(results) -> str:
     for r in results:
         if "sweep" in r:
             lines += ["", f"Disk-radius sweep, {r['scene']}:", "",
-                      "| r_d (m) | indirect specular rel. RMSE | total rel. RMSE | MRP-ASG time (ms) | MRP-ASG / VSGL shading |",
-                      "|---|---|---|---|---|"]
+                      "| r_d (m) | indirect specular rel. RMSE | total rel. RMSE | mean ours/Cycles per material | "
+                      "MRP-ASG time (ms) | MRP-ASG / VSGL shading |",
+                      "|---|---|---|---|---|---|"]
             for s in r["sweep"]:
-                lines.append(f"| {s['radius']:g} | {s['rel_specular']:.3f} | {s['rel']:.3f} | {s['mrp_seconds'] * 1e3:.1f} | "
-                             f"{s['mrp_seconds'] / s['vsgl_shading_seconds']:.3f} |")
+                means = ", ".join(f"{k} {v:.3f}" for k, v in s["region_means"].items())
+                lines.append(f"| {s['radius']:g} | {s['rel_specular']:.3f} | {s['rel']:.3f} | {means} | "
+                             f"{s['mrp_seconds'] * 1e3:.1f} | {s['mrp_seconds'] / s['vsgl_shading_seconds']:.3f} |")
     return "\n".join(lines) + "\n"
 
 
