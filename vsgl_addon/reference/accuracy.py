@@ -56,6 +56,102 @@ by up to a factor 2 at p = z and by far more off axis; and the best ν = κλ ov
 """
 
 
+#: Written after the table: the MRP-ASG evidence (benchmarks/mrp_asg_accuracy.py makes its tables;
+#: their rows have more than four cells, so parse_markdown skips them).
+FOOTER = """
+## MRP-ASG (001): glossy interreflection from rectangle proxies
+
+From `vsgl_addon/reference/mrp_asg.py` (its module documentation derives each step) against
+`brute_force_rectangle`: quadrature of 001 Eq. 3 over one rectangle with exact GGX at both ends and
+the light's exact irradiance at every point. The tables below are written by
+`.venv/bin/python benchmarks/mrp_asg_accuracy.py` (about 10 min; not recomputed by
+tests/test_accuracy_table.py); tests/test_reference_mrp_asg.py asserts their claims on smaller cases.
+
+**Radiance at the peak, in Blender's units.** 001 Eq. 17 writes L_y ≈ π m_r² f_r (i·n_y): the
+one-sample estimate of Eq. 4 with the pdf D(0) cos θ, for a distant environment of unit radiance.
+It carries no light intensity, so it cannot hold a point light's W/sr or a sun's W/m². For
+Blender's lights (formulas.md §4) Eq. 4 is exact with the light's irradiance at the peak:
+L_y = f_r(i, r)(i·n_r) E⊥, E⊥ = I(−i)/d_l² for point, spot and area lights (I in W/sr, the spot's
+cone and the area light's cosine included) and E⊥ = S for a sun. The quadrature of the total
+reflected radiance C (Eq. 13) over a large sharp reflector settles it: the disk integral from the
+Blender form is within 0.7 % of the quadrature for every light type at α = 0.02 (1.4–7 % at 0.1);
+001's form is off by factors of 600 to 800 000 (column "Eq. 17").
+
+**The disk integral's k.** Eq. 25's fit k = 0.288 cos σ / m_r² − 0.673 makes the large-disk limit
+π L_y / k equal to 1/(1.152 cos² σ) times the true total for a sharp reflector: 1.08 at cos σ = 0.89,
+1.53 at 0.75, 3.3 at 0.51 (column "Eq. 25's k"). Eq. 24 follows the attenuation along the plane of
+incidence, where the reflected direction turns twice as fast as the half vector, and 001 assumes the
+same attenuation at every azimuth; across that plane it turns only 2 cos σ times as fast
+(dω_o = 4 (h·o) dω_h), so the cap is wider than Eq. 24 says. The reference uses
+k = 1/(4 m_r² cos σ) − 0.673 (the geometric mean of the two directions' rates, the offset kept):
+its limit equals F E⊥, the true total of a sharp GGX reflector, for any σ (column "energy k": within
+0.7 % at α = 0.02). For a local light the direction to the light turns across the disk too, by d_x/d_l
+as much: a positive k is multiplied by (1 + d_x/d_l)² (1 for a sun); without it a point light's total
+was 3.6–5.4 times too large in the same quadrature.
+
+**Area ratio (Eq. 36).** J, the bounding rectangle of disk ∩ R in R's frame, is computed exactly;
+001 divides its area by the disk's, π r_d², which gives 4/π for a disk wholly inside R. The
+reference divides by the disk's own bounding square, 4 r_d²: 1 for a disk inside, exactly 1/2 for a
+half disk, 0 when they do not meet.
+
+**Error table.** Relative RMSE over 16 receivers that see the peak (GGX metal F0 0.9 at both ends, a
+4 × 4 m rectangle, one point light 2 m from its centre); around a base configuration one parameter
+varies at a time. VSGL column: the same rectangle as a 64² RSM (texel flux = irradiance × area),
+256 VSGLs of its light alone (the modified kernel), shaded by `reference.vsgl_shading`. MRP-ASG is
+better where 001 aims it — sharp reflectors (α ≤ 0.05), the receiver within a few metres, the
+light not grazing (σ ≤ 30°), and a disk that covers the highlight (r_d 0.1–0.3 m at 1 m); VSGLs
+given 256 lights for this one rectangle are better elsewhere: rough reflectors (Eq. 25's fit and a
+fixed disk lose most of a wide highlight), grazing light (σ ≥ 60°), far receivers (the disk is then
+small in the unit-distance form), a sharp receiver (α 0.05, where the ASG's spread over the disk
+blurs a sharp reflection) and rough receivers (α ≥ 0.5, where the SG of Eqs. 6, 8 fits the GGX
+NDF poorly). The ASG → SG mode (Eq. 37, the larger bandwidth) has 1.1–4× the ASG mode's error in
+all but one row: it drops the ASG's anisotropy, and with it part of its energy; with the sharp
+receiver (α 0.05) it is better (0.215 against 0.364).
+
+| varied | reflector α | receiver α | σ (°) | distance (m) | r_d (m) | MRP-ASG | ASG→SG (Eq. 37) | VSGL (N = 256) | best |
+|---|---|---|---|---|---|---|---|---|---|
+| alpha_r | 0.02 | 0.2 | 30 | 1 | 0.1 | 0.048 | 0.098 | 0.092 | MRP-ASG |
+| alpha_r | 0.05 | 0.2 | 30 | 1 | 0.1 | 0.036 | 0.151 | 0.041 | MRP-ASG |
+| alpha_r | 0.1 | 0.2 | 30 | 1 | 0.1 | 0.474 | 0.543 | 0.166 | VSGL |
+| alpha_r | 0.2 | 0.2 | 30 | 1 | 0.1 | 0.778 | 0.807 | 0.337 | VSGL |
+| alpha_r | 0.5 | 0.2 | 30 | 1 | 0.1 | 0.915 | 0.926 | 0.393 | VSGL |
+| alpha_x | 0.05 | 0.05 | 30 | 1 | 0.1 | 0.364 | 0.215 | 0.118 | VSGL |
+| alpha_x | 0.05 | 0.2 | 30 | 1 | 0.1 | 0.036 | 0.151 | 0.041 | MRP-ASG |
+| alpha_x | 0.05 | 0.5 | 30 | 1 | 0.1 | 0.121 | 0.236 | 0.059 | VSGL |
+| alpha_x | 0.05 | 0.8 | 30 | 1 | 0.1 | 0.137 | 0.251 | 0.070 | VSGL |
+| sigma | 0.05 | 0.2 | 0 | 1 | 0.1 | 0.049 | 0.051 | 0.086 | MRP-ASG |
+| sigma | 0.05 | 0.2 | 30 | 1 | 0.1 | 0.036 | 0.151 | 0.041 | MRP-ASG |
+| sigma | 0.05 | 0.2 | 60 | 1 | 0.1 | 0.246 | 0.620 | 0.089 | VSGL |
+| sigma | 0.05 | 0.2 | 80 | 1 | 0.1 | 0.594 | 0.931 | 0.580 | VSGL |
+| distance | 0.05 | 0.2 | 30 | 0.3 | 0.1 | 0.034 | 0.093 | 0.114 | MRP-ASG |
+| distance | 0.05 | 0.2 | 30 | 1 | 0.1 | 0.036 | 0.151 | 0.041 | MRP-ASG |
+| distance | 0.05 | 0.2 | 30 | 3 | 0.1 | 0.510 | 0.577 | 0.069 | VSGL |
+| radius | 0.05 | 0.2 | 30 | 1 | 0.01 | 0.979 | 0.982 | 0.041 | VSGL |
+| radius | 0.05 | 0.2 | 30 | 1 | 0.03 | 0.813 | 0.838 | 0.041 | VSGL |
+| radius | 0.05 | 0.2 | 30 | 1 | 0.1 | 0.036 | 0.151 | 0.041 | MRP-ASG |
+| radius | 0.05 | 0.2 | 30 | 1 | 0.3 | 0.027 | 0.114 | 0.041 | MRP-ASG |
+| radius | 0.05 | 0.2 | 30 | 1 | 1 | 0.464 | 0.484 | 0.041 | VSGL |
+
+Radiance at the peak (Blender's form against 001 Eq. 17) and the disk integral's k (Eq. 25 against
+the energy-matched one), as ratios of A·E (a 3 m disk) to the quadrature of C:
+
+| light | α_r | receiver at | C by quadrature | A·E, L_y Blender's (ratio) | A·E, L_y 001 Eq. 17 (ratio) | A·E, Eq. 25's k (ratio) | A·E, energy k (ratio) |
+|---|---|---|---|---|---|---|---|
+| point | 0.02 | (1.0, 0.0, 0.8) (cos σ 0.75) | 7.679 | 1.000 | 6.27e-05 | 1.532 | 1.000 |
+| point | 0.02 | (2.0, 0.0, 0.3) (cos σ 0.51) | 5.865 | 0.997 | 1.34e-04 | 3.286 | 0.997 |
+| point | 0.1 | (1.0, 0.0, 0.8) (cos σ 0.75) | 7.701 | 1.014 | 1.59e-03 | 1.569 | 1.014 |
+| spot | 0.02 | (1.0, 0.0, 0.8) (cos σ 0.75) | 7.678 | 1.001 | 6.27e-05 | 1.532 | 1.001 |
+| spot | 0.02 | (2.0, 0.0, 0.3) (cos σ 0.51) | 5.864 | 0.998 | 1.34e-04 | 3.286 | 0.998 |
+| spot | 0.1 | (1.0, 0.0, 0.8) (cos σ 0.75) | 7.676 | 1.017 | 1.59e-03 | 1.574 | 1.017 |
+| area | 0.02 | (1.0, 0.0, 0.8) (cos σ 0.75) | 30.42 | 1.001 | 1.58e-05 | 1.533 | 1.001 |
+| area | 0.02 | (2.0, 0.0, 0.3) (cos σ 0.51) | 21.19 | 0.997 | 3.72e-05 | 3.284 | 0.997 |
+| area | 0.1 | (1.0, 0.0, 0.8) (cos σ 0.75) | 30.21 | 1.024 | 4.05e-04 | 1.585 | 1.024 |
+| sun | 0.02 | (1.0, 0.0, 0.8) (cos σ 0.89) | 906.7 | 0.993 | 1.25e-06 | 1.078 | 0.993 |
+| sun | 0.02 | (2.0, 0.0, 0.3) (cos σ 0.89) | 907.5 | 0.993 | 1.25e-06 | 1.077 | 0.993 |
+| sun | 0.1 | (1.0, 0.0, 0.8) (cos σ 0.89) | 990.3 | 0.930 | 2.92e-05 | 1.011 | 0.930 |
+"""
+
+
 def _format(value, exact):
     if exact:
         return f"{value:.1e}"
@@ -71,6 +167,8 @@ def to_markdown(rows, header=True):
         lines.append(
             f"| {row.name}{kind} | {row.parameters} | {row.metric} | {_format(row.value, row.exact)} |"
         )
+    if header:
+        lines.append(FOOTER)
     return "\n".join(lines) + "\n"
 
 
