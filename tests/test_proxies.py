@@ -69,7 +69,7 @@ def test_floor_becomes_one_rectangle():
     scene = floor_scene(0.2, rotate=0.4)  # α = 0.04 < α_c
     proxies = P.build_proxies(scene)
     assert len(proxies) == 1  # the rough box (α = 0.36) is not a candidate
-    proxy = P.proxy_front_side(proxies[0], scene)
+    (proxy, _), = P.lit_proxies(proxies, scene)  # the side the light and the box are on
     assert proxy.triangle_count == 96 and proxy.area == pytest.approx(12.0, rel=1e-5)
     assert sorted((proxy.half_u, proxy.half_v)) == pytest.approx([1.5, 2.0], rel=1e-5)
     np.testing.assert_allclose(proxy.center, [0, 0, 0], atol=1e-5)
@@ -117,8 +117,16 @@ def test_lit_filter():
     scene = floor_scene(0.1)
     proxies = P.ProxyCache().get(scene)
     assert len(P.lit_proxies(proxies, scene)) == 1
+    # A light below the floor, with nothing below it to receive; then something below too.
     below = floor_scene(0.1, lights=[point_light((0, 0, -2.0))])
     assert P.lit_proxies(proxies, below) == []
+    both = scene_of([(grid(8, 6, 4.0, 3.0, origin=(-2, -1.5, 0)), 1, 0), (grid(2, 2, 0.5, 0.5, origin=(0, 0, 1.0)), 2, 1),
+                     (grid(2, 2, 0.5, 0.5, origin=(0, 0, -1.0)), 2, 1)],
+                    (material("Floor", 0.1), material("Box", 0.6)), [point_light((0, 0, 3.0)), point_light((0, 0, -2.0))])
+    sides = P.lit_proxies(P.build_proxies(both), both)
+    assert len(sides) == 2
+    assert {tuple(np.round(p.normal, 6)) for p, _ in sides} == {(0.0, 0.0, 1.0), (0.0, 0.0, -1.0)}
+    assert [m.tolist() for p, m in sorted(sides, key=lambda s: -s[0].normal[2])] == [[True, False], [False, True]]
     # A spot aimed away from the floor, a sun from below, no receiver in front.
     spot = point_light((0, 0, 3.0), kind="SPOT", direction=(0, 0, 1.0), spot_size=math.radians(30), spot_blend=0.1)
     m = np.eye(4)

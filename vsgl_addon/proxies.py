@@ -20,7 +20,8 @@ tools in the paper). Here they are found in the triangles themselves, bpy-free:
 :func:`build_proxies` depends only on the geometry, the materials, α_c and the overrides, so a
 :class:`ProxyCache` rebuilds only when one of these changes (not when a light or the view moves).
 :func:`lit_proxies` is the per-frame filter: only proxies some light reaches and that have some
-scene geometry (a receiver) in front of them are kept, so a scene without any pays nothing.
+scene geometry (a receiver) in front of them are kept, each side on its own, so a scene without any
+pays nothing.
 """
 
 from __future__ import annotations
@@ -237,45 +238,40 @@ def build_proxies(scene, caustic_roughness: float = CAUSTIC_ROUGHNESS, overrides
     return proxies[:max_proxies]
 
 
-def proxy_front_side(proxy: RectangleProxy, scene) -> RectangleProxy:
-    """The proxy with its normal turned to the side where the scene's other geometry is (a floor's
-    up side): triangles are two-sided, so the winding does not say which side is lit."""
-    positions = np.asarray(scene.geometry.positions, np.float64).reshape(-1, 3)
-    heights = (positions - proxy.center) @ proxy.normal
-    tol = PLANE_TOLERANCE * 100.0 * max(proxy.half_u, proxy.half_v, 1e-9)
-    above = np.count_nonzero(heights > tol)
-    below = np.count_nonzero(heights < -tol)
-    if below > above:
-        return RectangleProxy(**{**proxy.__dict__, "normal": -proxy.normal, "axis_v": -proxy.axis_v})
-    return proxy
+def flipped(proxy: RectangleProxy) -> RectangleProxy:
+    """The same rectangle seen from its other side (normal and v negated, u kept: still right-handed)."""
+    return RectangleProxy(**{**proxy.__dict__, "normal": -proxy.normal, "axis_v": -proxy.axis_v})
 
 
 def lit_proxies(proxies, scene, samples: int = 5) -> list[tuple[RectangleProxy, np.ndarray]]:
-    """(proxy, lit-by mask over scene.lights) of the proxies some light reaches on the front side
-    and that have scene geometry in front of them; the light test samples a samples² grid on the
-    rectangle (a spot's cone, an area light's front half-space). Occlusion is not tested here (the
-    pass shadows each peak from the light's shadow map)."""
+    """(proxy, lit-by mask over scene.lights) of the proxies some light reaches and that have scene
+    geometry in front of them, per side: triangles are two-sided, so each side of a rectangle is a
+    reflector of the lights on that side (a proxy lit from both sides comes out twice, once with
+    each normal). The light test samples a samples² grid on the rectangle (a spot's cone, an area
+    light's front half-space). Occlusion is not tested here (the pass shadows each peak from the
+    light's shadow map)."""
     positions = np.asarray(scene.geometry.positions, np.float64).reshape(-1, 3)
     grid = (np.arange(samples) + 0.5) / samples * 2.0 - 1.0
     kept = []
-    for proxy in proxies:
-        tol = PLANE_TOLERANCE * 100.0 * max(proxy.half_u, proxy.half_v, 1e-9)
-        if not np.any((positions - proxy.center) @ proxy.normal > tol):
-            continue
-        points = (proxy.center + grid[:, None, None] * proxy.half_u * proxy.axis_u
-                  + grid[None, :, None] * proxy.half_v * proxy.axis_v).reshape(-1, 3)
-        mask = np.zeros(len(scene.lights), bool)
-        for i, light in enumerate(scene.lights):
-            if light.type == "SUN":
-                mask[i] = float(-np.asarray(light.direction) @ proxy.normal) > 0.0
+    for base in proxies:
+        for proxy in (base, flipped(base)):
+            tol = PLANE_TOLERANCE * 100.0 * max(proxy.half_u, proxy.half_v, 1e-9)
+            if not np.any((positions - proxy.center) @ proxy.normal > tol):
                 continue
-            if float((np.asarray(light.position) - proxy.center) @ proxy.normal) <= 0.0:
-                continue
-            directions = points - np.asarray(light.position)
-            directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-            mask[i] = bool(np.any(light_intensity(light, directions) > 0.0))
-        if mask.any():
-            kept.append((proxy, mask))
+            points = (proxy.center + grid[:, None, None] * proxy.half_u * proxy.axis_u
+                      + grid[None, :, None] * proxy.half_v * proxy.axis_v).reshape(-1, 3)
+            mask = np.zeros(len(scene.lights), bool)
+            for i, light in enumerate(scene.lights):
+                if light.type == "SUN":
+                    mask[i] = float(-np.asarray(light.direction) @ proxy.normal) > 0.0
+                    continue
+                if float((np.asarray(light.position) - proxy.center) @ proxy.normal) <= 0.0:
+                    continue
+                directions = points - np.asarray(light.position)
+                directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+                mask[i] = bool(np.any(light_intensity(light, directions) > 0.0))
+            if mask.any():
+                kept.append((proxy, mask))
     return kept
 
 
@@ -304,8 +300,7 @@ class ProxyCache:
     def get(self, scene, caustic_roughness: float = CAUSTIC_ROUGHNESS, overrides=None) -> list[RectangleProxy]:
         key = geometry_key(scene, caustic_roughness, overrides)
         if key != self.key:
-            self.proxies = [proxy_front_side(p, scene)
-                            for p in build_proxies(scene, caustic_roughness, overrides)]
+            self.proxies = build_proxies(scene, caustic_roughness, overrides)
             self.key = key
             self.builds += 1
         return self.proxies
