@@ -67,11 +67,18 @@ def test_floor_proxy_and_rsm_partition():
     assert on_floor_spec > 0.5 * total_spec  # the metal floor holds most of the specular flux
 
 
-def test_render_with_and_without_glossy_reflectors():
+def test_render_with_and_without_glossy_reflectors(monkeypatch):
+    from vsgl_addon import renderer as renderer_module
+
     description = _scene()
     settings = VSGLSettings(vsgl_count=32, rsm_size=32)
     renderer = FrameRenderer()
     try:
+        # No receiver in MRP-ASG's range: the VSGLs keep the proxies' light, as with it off.
+        monkeypatch.setattr(renderer_module, "RECEIVER_ALPHA_RANGE", (2.0, 3.0))
+        none_served = renderer.render(description, settings, 48, 36)
+        # Every receiver served, to check the partition everywhere.
+        monkeypatch.setattr(renderer_module, "RECEIVER_ALPHA_RANGE", (0.0, 1.0))
         on = renderer.render(description, settings, 48, 36)
         off = renderer.render(description, settings.overridden(glossy_reflectors=False), 48, 36)
         # The metal floor has no diffuse lobe: hidden from glossy rays, its reflector light is exactly
@@ -95,3 +102,5 @@ def test_render_with_and_without_glossy_reflectors():
     scale = max(float(hidden.indirect_specular.max()), 1e-30)
     np.testing.assert_allclose(vsgl_specular_on, hidden.indirect_specular, rtol=1e-4, atol=1e-5 * scale)
     assert not np.allclose(off.indirect_specular, hidden.indirect_specular, rtol=1e-2)
+    assert np.all(none_served.indirect_glossy_reflectors == 0.0)
+    np.testing.assert_allclose(none_served.indirect_specular, off.indirect_specular, rtol=1e-5, atol=1e-7)

@@ -139,6 +139,13 @@ class SceneLights:
             self.scene_gpu = None
 
 
+#: GGX α of the receivers MRP-ASG shades (both ends included); rougher ones take the proxies' light
+#: from the VSGLs. Measured: the receiver's SG (001 Eqs. 6, 8) fits a rough GGX NDF poorly (α ≥ 0.5
+#: worse than VSGLs in docs/accuracy.md's error table; on the caustic panel's α 0.64 walls MRP-ASG
+#: doubled the specular error, benchmarks/results/mrp_asg_suite.md). No lower bound: the table's
+#: sharp receiver (α 0.05) is worse, but the suite's mirror-like floors (α 0.02) gain the most.
+RECEIVER_ALPHA_RANGE = (0.0, 0.35)
+
 #: The proxies of the last scene geometry (rebuilt only when it changes, not when a light or the view
 #: moves), for callers that keep no cache of their own.
 PROXY_CACHE = ProxyCache()
@@ -227,7 +234,7 @@ class FrameRenderer:
             if glossy is not None:
                 # The receivers' specular lobes see only the reflectors glossy rays see: a second
                 # shading of the same pixels, after the first one's diffuse image is read.
-                indirect_diffuse, _ = self._shading.read()
+                indirect_diffuse, whole_specular = self._shading.read()
                 vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, glossy.tables(), mode, shading=self._shading)
                 _finish(self._shading.diffuse)
             lap(vsgl_shading.PASS.step.name)
@@ -235,15 +242,23 @@ class FrameRenderer:
                 _, indirect_specular = self._shading.read()
             else:
                 indirect_diffuse, indirect_specular = self._shading.read()
-            glossy_reflectors = None
+            glossy_reflectors = served = None
+            # Without Blender's ray-visibility split the first set is every reflector's light, so a
+            # receiver outside MRP-ASG's range can take the proxies' light from it instead.
+            gated = bool(lights.proxies) and not scene.receiver_lobe_split
             if lights.proxies:
                 # MRP-ASG's cell (light-paths.md): proxy-reflected light onto glossy receivers.
                 mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, vsgls.views_by_light, lights.proxies,
-                                 settings.disk_radius, settings.reflector_mode, mrp=self._mrp)
+                                 settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
+                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
                 _finish(self._mrp.texture)
             lap(mrp_asg.PASS.step.name)
             if lights.proxies:
-                glossy_reflectors = _rgb(self._mrp.read())
+                image = self._mrp.read()
+                glossy_reflectors = _rgb(image)
+                served = image[..., 3] > 0.0
+                if gated:
+                    indirect_specular = np.where(served[..., None], indirect_specular, whole_specular)
             direct_diffuse, direct_specular = direct.to_numpy()
             coverage = GBUFFER.unpack_slots(gbuffer.to_numpy(), ["coverage"])["coverage"]
             lap(READ_BACK.name)

@@ -13,7 +13,9 @@
 // factors, world -> local rows, then per RSM view its view-projection rows and projection).
 // mrp_params = (disk radius r_d in metres, proxy count, mode (lib/mrp_asg.glsl MRP_MODE_*),
 // roughness is perceptual 1 / GGX alpha 0). shadow_params = (RSM size, normal offset, depth bias,
-// shadows 1 / off 0), as the direct light's.
+// shadows 1 / off 0), as the direct light's. receiver_range = (smallest, largest receiver GGX alpha
+// MRP-ASG shades, -, -): other receivers get no light here and alpha 0 (the renderer gives them the
+// proxies' light from the VSGLs instead); served receivers have alpha 1 (added over the lights).
 //
 // Visibility: the light's at each specular peak from its RSM depth (the first view containing the
 // peak decides, lib/shadow.glsl; a peak outside every view is unlit). The path from the proxy to the
@@ -72,6 +74,9 @@ void main()
   gbuffer_unpack_normal(texelFetch(gbuffer_normal, pixel, 0), g);
   vec3 normal = safe_normalize(g.normal, vec3(0.0, 0.0, 1.0));
   float roughness = mrp_params.w > 0.5 ? g.roughness * g.roughness : g.roughness;
+  if (!(roughness >= receiver_range.x && roughness <= receiver_range.y)) {
+    return;
+  }
   vec3 view = safe_normalize(camera.w > 0.0 ? camera.xyz - g.position : camera.xyz, normal);
   ShadingInputs inputs = shading_inputs_load(pixel);
 
@@ -99,5 +104,5 @@ void main()
     }
     sum += radiance;
   }
-  glossy_reflectors = vec4(sum * color, 0.0);
+  glossy_reflectors = vec4(sum * color, 1.0);
 }

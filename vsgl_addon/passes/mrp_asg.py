@@ -35,7 +35,8 @@ from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, text
 
 def _interface() -> ShaderInterface:
     return ShaderInterface(
-        push_constants=[("VEC4", "camera"), ("VEC4", "mrp_params"), ("VEC4", "shadow_params")],
+        push_constants=[("VEC4", "camera"), ("VEC4", "mrp_params"), ("VEC4", "shadow_params"),
+                        ("VEC4", "receiver_range")],
         samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal"),
                   ("FLOAT_2D", "shading_inputs_specular_f0"), ("FLOAT_2D", "shading_inputs_diffuse_reflectance"),
                   ("FLOAT_2D", "proxy_table"), ("FLOAT_2D", "light_constants")]
@@ -75,10 +76,11 @@ class MRPASG:
             self._size = (width, height)
 
     def run(self, gbuffer, camera, lights, views_by_light, lit, disk_radius: float, mode: str = "asg",
-            shadows: bool = True):
+            shadows: bool = True, receiver_range=(0.0, 1.0)):
         """Shade every pixel of ``gbuffer`` (a passes.vsgl_shading.ShadingGBuffer) with the proxies of
         ``lit`` ((proxy, lit-by mask over ``lights``) pairs) for every light that reaches one;
-        ``views_by_light``: light index -> its RSM views (the shadows). Returns the texture."""
+        ``views_by_light``: light index -> its RSM views (the shadows). ``receiver_range``: the GGX α
+        of the receivers shaded (others get 0 and alpha 0; served pixels alpha 1). Returns the texture."""
         import gpu
 
         from .vsgl_shading import camera_uniform
@@ -104,6 +106,8 @@ class MRPASG:
                 gpu.state.blend_set("ADDITIVE_PREMULT")
                 program.bind()
                 set_uniform(program.uniform_float, "camera", camera_uniform(camera))
+                set_uniform(program.uniform_float, "receiver_range",
+                            (float(receiver_range[0]), float(receiver_range[1]), 0.0, 0.0))
                 program.uniform_sampler("gbuffer_position", gbuffer.position)
                 program.uniform_sampler("gbuffer_normal", gbuffer.normal)
                 program.uniform_sampler("shading_inputs_specular_f0", gbuffer.specular_f0)
@@ -143,10 +147,10 @@ class MRPASG:
 
 
 def run(gbuffer, camera, lights, views_by_light, lit, disk_radius: float, mode: str = "asg",
-        shadows: bool = True, mrp: "MRPASG | None" = None) -> MRPASG:
+        shadows: bool = True, mrp: "MRPASG | None" = None, receiver_range=(0.0, 1.0)) -> MRPASG:
     """The pass's entry: a :class:`MRPASG` (new, or ``mrp`` reused) holding the image; ``free()`` it."""
     mrp = MRPASG() if mrp is None else mrp
-    mrp.run(gbuffer, camera, lights, views_by_light, lit, disk_radius, mode, shadows)
+    mrp.run(gbuffer, camera, lights, views_by_light, lit, disk_radius, mode, shadows, receiver_range)
     return mrp
 
 
