@@ -90,7 +90,8 @@ def measure(name, path, sweep: bool) -> dict:
                           "regions": {k: {"mean_ratio": v["mean_ratio"], "error_share": v["error_share"]}
                                       for k, v in regions.items()}}
         out["cost_ratio"] = out["mrp"]["mrp_seconds"] / out["mrp"]["vsgl_shading_seconds"]
-        comparison(images, RESULTS_DIR / f"mrp_asg_{name}_indirect.png", name)
+        if name in SWEEP_SCENES:
+            comparison(images, RESULTS_DIR / f"mrp_asg_{name}_indirect.png", name)
         if sweep and out["mrp"]["proxies"]:
             rows = []
             for radius in RADII:
