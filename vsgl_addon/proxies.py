@@ -216,7 +216,10 @@ def build_proxies(scene, caustic_roughness: float = CAUSTIC_ROUGHNESS, overrides
             continue
         weights = double_area[index[members]]
         n = (normal[members] * weights[:, None]).sum(axis=0)
-        n /= np.linalg.norm(n)
+        length = float(np.linalg.norm(n))
+        if not (np.isfinite(length) and length > 0.0):
+            continue  # degenerate (non-finite or cancelling) triangles: no plane
+        n /= length
         points = tri[members].reshape(-1, 3)
         origin = points.mean(axis=0)
         helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
