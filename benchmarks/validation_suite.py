@@ -51,6 +51,7 @@ from build_validation_scenes import RESOLUTION, SCENES, purpose, scene_path  # n
 from tradeoff.bench import Bench  # noqa: E402
 from tradeoff.demo import COVERED, DEMO, RESULTS_DIR, log  # noqa: E402
 from tradeoff.metrics import Errors  # noqa: E402
+from tradeoff.suite_figures import before_after, plot  # noqa: E402
 from tradeoff.truth import load_reference  # noqa: E402
 
 DEMO_PURPOSE = ("demo.blend: a spot-lit glossy red floor bounces onto white walls and a glossy gold sphere "
@@ -61,6 +62,9 @@ TRUTH_SAMPLES = {"occluder": 2048, "sun_courtyard": 1024, "cornell_box": 1024, "
                  "caustic_panel": 8192, "glossy_floor_object": 4096, "many_lights": 2048, "demo": 4096,
                  "polished_metal_floor": 4096}
 QUICK_SCENES = ("occluder", "cornell_box")
+# The README's before/after image of VSGL visibility (full runs only).
+BEFORE_AFTER = "occluder"
+BEFORE_AFTER_IMAGE = REPO / "docs" / "images" / "visibility-before-after.png"
 # The truth's values above this percentile (covered pixels, RGB) are the "extreme highlights".
 ROBUST_PERCENTILE = 99.5
 
@@ -106,6 +110,7 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
     description = extract_scene(bpy.context.evaluated_depsgraph_get())
     renderer = FrameRenderer()
     visibility = {}
+    images = {"truth": truth["indirect"]}
     try:
         # Both ways of VSGL visibility (000 §5), whatever the scene saved; the saved way is the row.
         for shadowed in (not settings.visibility, settings.visibility):
@@ -115,6 +120,7 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
             both = check(frame.indirect_diffuse, frame.indirect_specular)
             ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
             both.update(robust_errors(truth, check.mask, ours))
+            images["on" if shadowed else "off"] = ours
             visibility["on" if shadowed else "off"] = {
                 "mean_ratio": both["mean_ratio"], "rel": both["rel"], "rel_robust": both["rel_robust"],
                 "frame_seconds": float(sum(frame.timings.values())), "ism_seconds": float(frame.timings.get("ism", 0.0)),
@@ -133,18 +139,23 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
         bench.free()
     figures.update({
         "scene": name, "blend": str(path.relative_to(REPO)), "purpose": about,
-        "settings": str(settings), "frame_seconds": float(sum(frame.timings.values())), "timings": frame.timings,
+        "settings": str(settings), "settings_values": settings, "frame_seconds": float(sum(frame.timings.values())), "timings": frame.timings,
         "counts": frame.counts, "covered_pixels": int(errors.mask.sum()), "visibility": visibility,
         "mean_truth": errors.mean, "mean_ours": float(ours[errors.mask].mean()),
         "truth_samples_per_seed": int(truth["samples_per_seed"]),
         "truth_seconds": float(np.sum(truth["seconds_per_seed"])),
         "truth_noise_relative": float(truth["noise_relative"]),
         "truth_file": str(truth["path"].relative_to(REPO)),
-        "truth_file_bytes": truth["path"].stat().st_size})
+        "truth_file_bytes": truth["path"].stat().st_size, "images": images})
     log(f"{name}: mean ratio {figures['mean_ratio']:.3f}, rel RMSE {figures['rel']:.3f} "
         f"(plain {figures['rel_measured']:.3f}, robust {figures['rel_robust']:.3f}), "
         f"frame {figures['frame_seconds'] * 1e3:.0f} ms, truth noise {figures['truth_noise_relative']:.3f}")
     return figures
+
+
+def _short(settings) -> str:
+    return (f"N = {settings.vsgl_count}, RSM {settings.rsm_size}², ISM {settings.ism_size}², "
+            f"{settings.ism_points} points per ISM")
 
 
 def markdown(rows: list[dict], renderer: str, quick: bool, run_seconds: float) -> str:
@@ -228,8 +239,18 @@ def main(argv=None) -> int:
         row["resolution"] = [width, height]
         rows.append(row)
     suffix = "_quick" if args.quick else ""
-    text = markdown(rows, renderer, args.quick, time.perf_counter() - started)
     RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+    images = {row["scene"]: row.pop("images") for row in rows}
+    chosen_settings = {row["scene"]: row.pop("settings_values") for row in rows}
+    if BEFORE_AFTER in images and not args.quick:
+        shown = images[BEFORE_AFTER]
+        before_after(shown["truth"], shown["off"], shown["on"], BEFORE_AFTER_IMAGE,
+                     f"{BEFORE_AFTER}: indirect light only, {width}x{height}, {_short(chosen_settings[BEFORE_AFTER])}")
+    plot(rows, RESULTS_DIR / f"validation_suite{suffix}.png")
+    text = markdown(rows, renderer, args.quick, time.perf_counter() - started)
+    text += (f"\nPlot (mean ratio and relative RMSE, visibility off and on): "
+             f"`benchmarks/results/validation_suite{suffix}.png`."
+             + ("" if args.quick else f" Before/after image: `{BEFORE_AFTER_IMAGE.relative_to(REPO)}`.") + "\n")
     (RESULTS_DIR / f"validation_suite{suffix}.md").write_text(text)
     (RESULTS_DIR / f"validation_suite{suffix}.json").write_text(json.dumps(
         {"renderer": renderer, "quick": args.quick, "resolution": [width, height], "scenes": rows,

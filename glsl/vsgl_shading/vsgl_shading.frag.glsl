@@ -17,7 +17,11 @@
 // vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, maps per VSGL (1 when
 // both lobes share a position, else 2: map 2i the diffuse lobe's, 2i + 1 the specular lobe's)).
 // A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
-// sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS.
+// sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS. The map
+// leaves out the lobe's own reflector; what that reflector hides (a flat one: all behind its plane)
+// takes the diffuse lobe's vsgl_reflector_side (lib/vsgl_shading.glsl). The specular lobe keeps
+// its map alone: its position and the diffuse axis may belong to different reflectors (a floor and
+// the metal sphere on it share a cluster).
 
 #if VSGL_VISIBILITY
 float vsgl_visibility(int map_index, vec3 mean, float variance, VSGLReceiver rc)
@@ -64,7 +68,8 @@ void main()
 #if VSGL_VISIBILITY
     int maps = ism_params.z;
     float diffuse_visibility = vsgl_visibility(i * maps, vsgl.diffuse_mean, vsgl.diffuse_variance, rc);
-    diffuse_amplitude *= diffuse_visibility;
+    diffuse_amplitude *= diffuse_visibility * vsgl_reflector_side(vsgl.diffuse_mean, vsgl.diffuse_axis,
+                                                                  vsgl.diffuse_sharpness, rc.position);
     specular_amplitude *= maps == 1 ? diffuse_visibility :
                                       vsgl_visibility(i * maps + 1, vsgl.specular_mean, vsgl.specular_variance, rc);
 #endif

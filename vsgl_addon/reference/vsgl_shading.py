@@ -296,6 +296,33 @@ def per_texel_vsgls(rsm) -> dict:
     return vsgl_parameters(texel_moments(rsm).reshape(-1, MOMENT_CHANNELS))
 
 
+#: |ξ̄| of a flat reflector's diffuse lobe: every texel's lobe is the λ = 2 SG (000 app. B.1), whose
+#: mean direction has length λ/(1 + λ).
+FLAT_DIFFUSE_AXIS_LENGTH = DIFFUSE_SHARPNESS / (1.0 + DIFFUSE_SHARPNESS)
+
+
+def vsgl_reflector_side(mean, axis, sharpness, position):
+    """The share of a VSGL diffuse lobe that its own reflector does not hide from ``position``
+    (..., 3): clamp(1 + sin ε / sin θc, 0, 1), ε the elevation of the receiver above the lobe's mean
+    plane (through µv, normal ξv) and θc the half-angle of the cap of normals whose diffuse lobes
+    sum to the lobe's mean direction length |ξ̄| = λv/(1 + λv): |ξ̄|/|ξ̄|_flat = (1 + cos θc)/2.
+
+    Why: a flat reflector lights nothing behind its plane, but a VSGL would (000 Eq. 12): its
+    positions are an isotropic Gaussian, which straddles the plane by σv, and at distances under
+    σv the positional lobe is so wide that the product's axis follows the emission lobe — the sunlit
+    back of a thin wall then lights the wall's own shaded front. The imperfect shadow map cannot
+    stop that light (its origin sits on the reflector, whose own points it leaves out). A curved
+    reflector's normals tilt by up to θc, so receivers down to θc below the plane keep a share (the
+    brute-force share of a spherical cap's texels facing them: tests/test_vsgl_visibility.py)."""
+    planarity = np.clip(f64(sharpness) / (1.0 + f64(sharpness)) / FLAT_DIFFUSE_AXIS_LENGTH, 0.0, 1.0)
+    cos_c = 2.0 * planarity - 1.0
+    sin_c = np.sqrt(np.maximum(1.0 - cos_c * cos_c, 0.0))
+    offset = f64(position) - f64(mean)
+    distance = norm(offset)
+    sin_elevation = np.where(distance > 0.0, dot(f64(axis), offset) / np.where(distance > 0.0, distance, 1.0), 1.0)
+    return np.clip(1.0 + sin_elevation / np.maximum(sin_c, 1e-4), 0.0, 1.0)
+
+
 def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
     """(P, N, 2) visibility of each VSGL lobe from P shading points (glsl/vsgl_shading's
     vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) in the lobe position's map of
@@ -321,4 +348,9 @@ def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
                 here = radius == r
                 result[here, i, lobe] = ism.ism_pcf(depths[maps_per_vsgl * i + lobe], mean, position[here], r,
                                                     normals=normal[here])
+    # The diffuse lobe's own reflector (vsgl_reflector_side); with one map per VSGL the specular
+    # lobe took the diffuse lobe's map lookup above, without it.
+    result[:, :, 0] *= vsgl_reflector_side(f64(vsgls["diffuse_mean"]).reshape(1, -1, 3),
+                                           f64(vsgls["diffuse_axis"]).reshape(1, -1, 3),
+                                           f64(vsgls["diffuse_sharpness"]).reshape(1, -1), position[:, None])
     return result
