@@ -198,6 +198,8 @@ def parse_args(argv=None):
     parser.add_argument("--only", nargs="+", help="only these scenes")
     parser.add_argument("--regenerate-reference", action="store_true", help="render the Cycles truths again")
     parser.add_argument("--reference-only", action="store_true", help="make the missing truths, then stop")
+    parser.add_argument("--results-dir", type=Path, default=RESULTS_DIR,
+                        help="where the results go (default benchmarks/results; concurrent runs each their own)")
     return parser.parse_args(argv)
 
 
@@ -228,9 +230,10 @@ def main(argv=None) -> int:
         rows.append(row)
     suffix = "_quick" if args.quick else ""
     text = markdown(rows, renderer, args.quick, time.perf_counter() - started)
-    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
-    (RESULTS_DIR / f"validation_suite{suffix}.md").write_text(text)
-    (RESULTS_DIR / f"validation_suite{suffix}.json").write_text(json.dumps(
+    results = args.results_dir
+    results.mkdir(parents=True, exist_ok=True)
+    (results / f"validation_suite{suffix}.md").write_text(text)
+    (results / f"validation_suite{suffix}.json").write_text(json.dumps(
         {"renderer": renderer, "quick": args.quick, "resolution": [width, height], "scenes": rows,
          "robust_percentile": ROBUST_PERCENTILE, "covered_threshold": COVERED}, indent=1, default=str))
     print(text)

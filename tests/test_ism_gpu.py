@@ -45,7 +45,7 @@ def _atlas(points, origins, set_index, size, **kwargs):
 
 
 def _reference(points, origins, set_index, size, min_distance=0.0):
-    return np.stack([ism.pull_push(ism.splat(points.positions[s], o, size, min_distance))
+    return np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, size, min_distance)))
                      for o, s in zip(np.asarray(origins, np.float64), set_index)])
 
 
@@ -94,7 +94,7 @@ def test_extremes_one_texel_maps_one_point_and_a_map_no_point_reaches(size, per_
 
 
 def test_the_pass_declares_its_contract():
-    assert set(ism_pass.PASS.shaders) == {"splat", "pull", "push"}
+    assert set(ism_pass.PASS.shaders) == {"splat", "close", "pull", "push"}
     ism_pass.PASS.compile_shaders()
     ism_pass.PASS.free_shaders()
     with pytest.raises(ValueError):
@@ -137,8 +137,8 @@ def test_sized_splats_match_the_reference():
         got = atlas.read()
     finally:
         ism_pass.PASS.free(atlas)
-    expected = np.stack([ism.pull_push(ism.splat(points.positions[s], o, 32, normals=points.normals[s],
-                                                 point_area=area)) for o, s in zip(origins, [0, 1])])
+    expected = np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, 32, normals=points.normals[s],
+                                                                point_area=area))) for o, s in zip(origins, [0, 1])])
     assert np.isclose(got, expected, rtol=1e-5).mean() > 0.99
     radius = ism.splat_radius(points.positions[0] - origins[0], 1.0, area, 32)
     assert radius.max() >= 2  # near points cover several texels, far ones one

@@ -20,6 +20,7 @@ from .layouts import VSGL_TABLE
 from .passes.rsm import SceneGPU, render_rsm_views
 from .passes.vsgl_generation import VSGLGeneration
 from .reference.vsgl import LUMINANCE_WEIGHTS
+from .reference.ism import shadow_origin
 from .scene_points import triangle_areas
 from .settings import VSGLSettings
 
@@ -174,7 +175,8 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
     for _, _, generation in vsgls.generations:
         table = generation.read_table()
         lobes = ("diffuse",) if generation.positional_distribution == "shared" else ("diffuse", "specular")
-        origins = np.stack([table[f"{lobe}_mean"] for lobe in lobes], axis=1).reshape(-1, 3)
+        origins = np.stack([shadow_origin(table[f"{lobe}_mean"], table[f"{lobe}_variance"], table[f"{lobe}_axis"])
+                            for lobe in lobes], axis=1).reshape(-1, 3)
         sigma = np.sqrt(np.maximum(np.stack([table[f"{lobe}_variance"] for lobe in lobes], axis=1), 0.0)).reshape(-1)
         maps = np.arange(first_map, first_map + len(origins))
         size = ism_pass.fitting_size(len(origins), settings.ism_size)

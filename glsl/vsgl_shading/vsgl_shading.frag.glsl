@@ -16,18 +16,20 @@
 // lookup in the lobe position's imperfect shadow map (000 sec. 5; lib/ism.glsl, atlas of
 // vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, maps per VSGL (1 when
 // both lobes share a position, else 2: map 2i the diffuse lobe's, 2i + 1 the specular lobe's)).
-// A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
+// Each map is centred on its lobe's shadow origin (lib/ism.glsl ism_shadow_origin; the shared
+// positions' one map on the diffuse lobe's). A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
 // sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS.
 
 #if VSGL_VISIBILITY
-float vsgl_visibility(int map_index, vec3 mean, float variance, VSGLReceiver rc)
+float vsgl_visibility(int map_index, vec3 mean, float variance, vec3 axis, VSGLReceiver rc)
 {
   int size = ism_params.x;
   ivec2 tile = ivec2(map_index % ism_params.y, map_index / ism_params.y) * size;
-  float distance = length(rc.position - mean);
+  vec3 origin = ism_shadow_origin(mean, variance, axis);
+  float distance = length(rc.position - origin);
   float texel_angle = 3.5449077018110318 / float(size);  // sqrt(4 pi) / size
   float radius = sqrt(max(variance, 0.0)) / max(distance, 1e-30) / texel_angle;
-  return ism_pcf(ism_atlas, tile, size, mean, rc.position, rc.normal,
+  return ism_pcf(ism_atlas, tile, size, origin, rc.position, rc.normal,
                  int(clamp(radius + 0.5, 0.0, float(VSGL_ISM_MAX_RADIUS))));
 }
 #endif
@@ -63,10 +65,12 @@ void main()
     vec3 specular_amplitude = vsgl.specular_amplitude;
 #if VSGL_VISIBILITY
     int maps = ism_params.z;
-    float diffuse_visibility = vsgl_visibility(i * maps, vsgl.diffuse_mean, vsgl.diffuse_variance, rc);
+    float diffuse_visibility = vsgl_visibility(i * maps, vsgl.diffuse_mean, vsgl.diffuse_variance,
+                                               vsgl.diffuse_axis, rc);
     diffuse_amplitude *= diffuse_visibility;
     specular_amplitude *= maps == 1 ? diffuse_visibility :
-                                      vsgl_visibility(i * maps + 1, vsgl.specular_mean, vsgl.specular_variance, rc);
+                                      vsgl_visibility(i * maps + 1, vsgl.specular_mean, vsgl.specular_variance,
+                                                      vsgl.specular_axis, rc);
 #endif
     vsgl_accumulate(rc, diffuse_position, diffuse_amplitude, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
                     specular_position, specular_amplitude, vsgl.specular_axis, vsgl.specular_sharpness,

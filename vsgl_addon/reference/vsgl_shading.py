@@ -298,7 +298,8 @@ def per_texel_vsgls(rsm) -> dict:
 
 def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
     """(P, N, 2) visibility of each VSGL lobe from P shading points (glsl/vsgl_shading's
-    vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) in the lobe position's map of
+    vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) from the lobe's shadow origin
+    (reference.ism.shadow_origin) in its map of
     ``depths`` (maps, S, S), map maps_per_vsgl·i (+ 1 for the specular lobe when the lobes sit
     apart), with a radius of σ_v / distance radians in texels, at most ``max_radius``."""
     from . import ism
@@ -313,8 +314,10 @@ def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
             if lobe == 1 and maps_per_vsgl == 1:
                 result[:, i, 1] = result[:, i, 0]
                 continue
-            mean = f64(vsgls[f"{name}_mean"]).reshape(-1, 3)[i]
-            sigma = np.sqrt(max(float(f64(vsgls[f"{name}_variance"]).reshape(-1)[i]), 0.0))
+            variance = float(f64(vsgls[f"{name}_variance"]).reshape(-1)[i])
+            mean = ism.shadow_origin(f64(vsgls[f"{name}_mean"]).reshape(-1, 3)[i], variance,
+                                     f64(vsgls[f"{name}_axis"]).reshape(-1, 3)[i])
+            sigma = np.sqrt(max(variance, 0.0))
             distance = np.linalg.norm(position - mean, axis=-1)
             radius = np.clip(np.floor(sigma / np.maximum(distance, 1e-30) / texel_angle + 0.5), 0, max_radius)
             for r in np.unique(radius).astype(int):
