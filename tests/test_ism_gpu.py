@@ -151,3 +151,31 @@ def test_maps_that_would_not_fit_one_atlas_get_a_smaller_side(monkeypatch):
     assert ism_pass.fitting_size(10 ** 6, 64) == 1
     with pytest.raises(ValueError):
         ism_pass.atlas_layout(8, 128)
+
+
+def test_glsl_bilinear_and_nearest_lookups_match_the_reference():
+    """ism_pcf_bilinear (every fold of the octahedral map: blocks across the square's edges wrap)
+    and ism_visible_nearest (ism_pcf at radius 0) against the float64 twin."""
+    scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
+    points = sp.scene_point_sets(scene, 20000, 1, seed=4)
+    origin = np.array([0.0, 0.0, 1.5])
+    size = 16
+    depth = ism.pull_push(ism.close_gaps(ism.splat(points.positions[0], origin, size)))
+    rng = np.random.default_rng(11)
+    receivers = as_gpu_floats(rng.uniform([-4, -4, -1], [4, 4, 3], size=(3000, 3)))
+    normals = as_gpu_floats(_unit(rng.normal(size=(3000, 3))))
+    atlas = np.zeros((size, 2 * size, 4))
+    atlas[:, size:, 0] = np.where(np.isfinite(depth), depth, 0.0)
+    atlas[:, size:, 1] = np.isfinite(depth)
+    inputs = {"origin": np.tile(origin, (3000, 1)), "receiver": receivers, "normal": normals}
+    got = evaluate_glsl(f"ism_pcf_bilinear(ism_atlas, ivec2({size}, 0), {size}, origin, receiver, normal)", inputs, 1,
+                        libraries=["lib/ism.glsl"], images={"ism_atlas": atlas})
+    expected = ism.ism_pcf_bilinear(depth, origin, receivers, normals=normals)
+    # A receiver within float32 rounding of its bias may count one texel (its weight) more or less.
+    assert np.mean(np.abs(got - expected) < 1e-5) > 0.99
+    assert np.abs(got - expected).max() <= 1.0 + 1e-6
+    assert np.mean((expected > 0.01) & (expected < 0.99)) > 0.005  # the filter is soft somewhere
+    got = evaluate_glsl(f"ism_visible_nearest(ism_atlas, ivec2({size}, 0), {size}, origin, receiver, normal)", inputs, 1,
+                        libraries=["lib/ism.glsl"], images={"ism_atlas": atlas})
+    expected = ism.ism_pcf(depth, origin, receivers, 0, normals=normals)
+    assert np.mean(got == expected) > 0.99

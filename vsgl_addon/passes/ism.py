@@ -128,13 +128,22 @@ def _finish_stage(texture, clock: float, seconds: dict, name: str) -> float:
     return now
 
 
+def upload_points(points) -> tuple:
+    """The (positions, normals) RGBA32F textures of a :class:`~vsgl_addon.scene_points.ScenePoints`
+    (one row per set), for :func:`build_ism_atlas`'s ``point_textures``."""
+    ones = np.ones((*points.positions.shape[:2], 1), np.float32)
+    return (texture_from_array(np.concatenate([points.positions, ones], axis=-1)),
+            texture_from_array(np.concatenate([points.normals, ones], axis=-1)))
+
+
 def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
-                    timed: bool = False) -> ISMAtlas:
+                    timed: bool = False, point_textures=None) -> ISMAtlas:
     """The ISMs of ``origins`` (M, 3), map m splatting set ``set_index[m]`` of ``points`` (a
     :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two), leaving out the
     points nearer than ``min_distance`` (a scalar, or one per map). ``point_area`` > 0 (the surface
     each point stands for) sizes every splat to the solid angle it covers (reference splat_radius);
-    0 splats single texels. ``timed``: the GPU is waited for after each stage, and the atlas's
+    0 splats single texels. ``point_textures``: :func:`upload_points` of ``points``, when several
+    atlases splat the same sets (uploaded here otherwise). ``timed``: the GPU is waited for after each stage, and the atlas's
     ``seconds`` holds the splat's and the pull-push's time (costs a few read-backs; benchmarks)."""
     import time
 
@@ -152,9 +161,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         raise ValueError(f"at most {MAX_POINTS_PER_SET} points per set, got {points.points_per_set}")
     columns, rows = atlas_layout(count, size)
     width, height = columns * size, rows * size
-    ones = np.ones((*points.positions.shape[:2], 1), np.float32)
-    point_texture = texture_from_array(np.concatenate([points.positions, ones], axis=-1))
-    normal_texture = texture_from_array(np.concatenate([points.normals, ones], axis=-1))
+    point_texture, normal_texture = point_textures if point_textures is not None else upload_points(points)
     table = np.zeros((2, max(count, 1), 4), np.float32)
     table[0, :count, :3] = origins
     table[0, :count, 3] = np.asarray(set_index).reshape(-1)[:count]

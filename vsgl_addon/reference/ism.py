@@ -274,3 +274,28 @@ def ism_pcf(depth, origin, receivers, radius: int, normals=None, bias=None) -> n
             column, row = octahedral_wrap(texel[..., 0] + dx, texel[..., 1] + dy, size)
             total += distance <= depth[row, column] + bias
     return total / (2 * radius + 1) ** 2
+
+
+def ism_pcf_bilinear(depth, origin, receivers, normals=None, bias=None) -> np.ndarray:
+    """The visibility test on the four texels around each receiver's continuous position in the
+    map (texel centres at (i + ½)/size of the octahedral square), weighted bilinearly and wrapping
+    across the folds: a filter of about two texels from four fetches. The default bias spans its
+    footprint (two texels)."""
+    size = depth.shape[0]
+    depth = f64(depth)
+    offsets = f64(receivers) - f64(origin)
+    distance = np.linalg.norm(offsets, axis=-1)
+    if bias is None:
+        slope = 0.0 if normals is None else tan_incidence(normals, offsets, distance)
+        bias = ism_bias(distance, size, slope, slope=2.0)
+    cell = (octahedral_encode(offsets) * 0.5 + 0.5) * size - 0.5
+    base = np.floor(cell)
+    f = np.clip(cell - base, 0.0, 1.0)
+    corner = base.astype(np.int64)
+    total = np.zeros(distance.shape)
+    for dy in (0, 1):
+        for dx in (0, 1):
+            column, row = octahedral_wrap(corner[..., 0] + dx, corner[..., 1] + dy, size)
+            weight = (f[..., 0] if dx else 1.0 - f[..., 0]) * (f[..., 1] if dy else 1.0 - f[..., 1])
+            total += weight * (distance <= depth[row, column] + f64(bias))
+    return total
