@@ -11,9 +11,9 @@ three visibilities:
 * none (visibility off);
 * the GPU's imperfect shadow maps, read back and looked up by the float64 twin
   (reference/vsgl_shading.vsgl_visibility: the shader's lookup, tested bit-close to it);
-* exact: the segment from the receiver to the lobe's shadow origin ray-cast against every triangle
+* exact: the segment from the receiver to the map's shadow origin ray-cast against every triangle
   of the scene (brute force), hits nearer the origin than the own-reflector radius left out as the
-  maps leave those points out.
+  maps leave those points out; and the bare segment to the VSGL's mean (no push, nothing left out).
 
 Their means over the pixels, against Cycles' on the same pixels, separate the maps' error (ISM
 against exact) from the VSGL model's (exact against Cycles: positions as Gaussians' means, the
@@ -67,13 +67,20 @@ def segment_visible(receivers, origin, triangles, exclude_radius, receiver_offse
     return visible.astype(np.float64)
 
 
-def exact_visibility(table, maps_per_vsgl, position, triangles, exclude_sigmas, push=None):
-    """(P, N, 2) exact visibility of each lobe's shadow origin (its mean, or ``push(table, lobe)``)."""
+def exact_visibility(table, maps_per_vsgl, position, triangles, exclude_sigmas, pushed=True):
+    """(P, N, 2) exact visibility of each lobe's shadow origin (reference.ism.shadow_origin of the
+    position the maps use: the VSGL's shared one with one map per VSGL, else the lobe's), or of
+    that position itself (``pushed=False``)."""
+    from vsgl_addon.reference.ism import shadow_origin
+
     count = len(table["diffuse_variance"])
     result = np.ones((len(position), count, 2))
     for lobe, name in enumerate(("diffuse", "specular")):
-        means = table[f"{name}_mean"] if push is None else push(table, name)
-        sigma = np.sqrt(np.maximum(table[f"{name}_variance"], 0.0))
+        at = "" if maps_per_vsgl == 1 else f"{name}_"
+        means = table[f"{at}mean"]
+        if pushed:
+            means = shadow_origin(means, table[f"{at}variance"], table[f"{name}_axis"])
+        sigma = np.sqrt(np.maximum(table[f"{at}variance"], 0.0))
         for i in range(count):
             if lobe == 1 and maps_per_vsgl == 1:
                 result[:, i, 1] = result[:, i, 0]
@@ -122,13 +129,13 @@ def diagnose(name, path, stride, settings_overrides):
             over = under = 0.0
             for (_, _, generation), atlas in zip(vsgls.generations, vsgls.isms):
                 table = {k: np.asarray(v, np.float64) for k, v in generation.read_table().items()}
-                maps = 1 if generation.positional_distribution == "shared" else 2
+                maps = atlas.count // len(table["variance"])
                 _, _, terms = shade(table, position, normal, view, rd[pick], f0[pick], roughness,
                                     per_term=True)
                 weight = (terms.sum(axis=3) @ LUMINANCE)  # (P, N, 2)
                 v_ism = vsgl_visibility(atlas.read(), maps, table, position, normal, ISM_MAX_RADIUS)
                 v_exact = exact_visibility(table, maps, position, triangles, 1.0)
-                v_exact0 = exact_visibility(table, maps, position, triangles, 0.0)
+                v_exact0 = exact_visibility(table, maps, position, triangles, 0.0, pushed=False)
                 sums["off"] += weight.sum()
                 sums["ism"] += (weight * v_ism).sum()
                 sums["exact"] += (weight * v_exact).sum()
@@ -141,8 +148,8 @@ def diagnose(name, path, stride, settings_overrides):
         bench.free()
     cycles = float((truth["indirect"][pick] @ LUMINANCE).sum())
     line = (f"{name} {settings_overrides}: pixels {pick.sum()}, ours/Cycles off {sums['off'] / cycles:.3f}, "
-            f"ISM {sums['ism'] / cycles:.3f}, exact (1 sigma excluded) {sums['exact'] / cycles:.3f}, "
-            f"exact (segment to the mean) {sums['exact_mean0'] / cycles:.3f}; ISM over-shadows "
+            f"ISM {sums['ism'] / cycles:.3f}, exact (shadow origin, 1 sigma excluded) {sums['exact'] / cycles:.3f}, "
+            f"exact (bare segment to the mean) {sums['exact_mean0'] / cycles:.3f}; ISM over-shadows "
             f"{over / sums['off']:.3f} and leaks {under / sums['off']:.3f} of the unshadowed light")
     log(line)
     return sums, cycles
