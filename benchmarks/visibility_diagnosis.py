@@ -160,6 +160,7 @@ def main(argv=None):
     parser.add_argument("--only", nargs="+", default=["occluder", "cornell_box", "closed_room"])
     parser.add_argument("--stride", type=int, default=6)
     parser.add_argument("--vsgl-count", type=int, default=None)
+    parser.add_argument("--ism-points", type=int, default=None)
     args = parser.parse_args(argv)
     from vsgl_addon import register
 
@@ -167,7 +168,8 @@ def main(argv=None):
     from vsgl_addon.gpu_context import ensure_gpu_context
 
     ensure_gpu_context()
-    overrides = {} if args.vsgl_count is None else {"vsgl_count": args.vsgl_count}
+    overrides = {name: value for name, value in (("vsgl_count", args.vsgl_count), ("ism_points", args.ism_points))
+                 if value is not None}
     for name, path, _ in suite():
         if name in args.only:
             start = time.perf_counter()
