@@ -2,6 +2,7 @@
 """Our accuracy per scene of the validation suite, against each scene's cached Cycles truth (not a test).
 
     .venv/bin/python benchmarks/validation_suite.py [--quick] [--regenerate-reference] [--only NAME ...]
+        [--skip-visibility-benchmarks] [--results-dir DIR]
 
 The suite: the scenes of tools/build_validation_scenes.py (``benchmarks/scenes/<name>.blend``, each
 stressing one kind of light path) and demo.blend. Per scene, our renderer (FrameRenderer, the
@@ -23,6 +24,11 @@ the speed/accuracy benchmark's float32 one) over the pixels covered in both:
   share of Cycles' indirect light;
 * our frame time (the sum of the second frame's passes: informative, this machine is shared) and
   the truth's own noise (RMS of its seeds' difference / 2, relative to its mean).
+
+A full run (not --quick or --only) also measures VSGL visibility's cost at N = 64 / 256 / 1024
+(benchmarks/visibility_cost.py), its flicker under a turning light, a static scene's consecutive
+frames and the peak memory at 1024², N = 4096 (benchmarks/visibility_stability.py), and appends
+them (``--skip-visibility-benchmarks`` leaves them out).
 
 Writes ``benchmarks/results/validation_suite.{md,json}`` (``_quick`` with --quick: two scenes, for
 the smoke test) and prints the markdown. With every truth cached a full run takes about 30 s
@@ -158,6 +164,11 @@ def _short(settings) -> str:
             f"{settings.ism_points} points per ISM")
 
 
+def _shown_path(path: Path) -> str:
+    path = path.resolve()
+    return str(path.relative_to(REPO)) if path.is_relative_to(REPO) else str(path)
+
+
 def markdown(rows: list[dict], renderer: str, quick: bool, run_seconds: float) -> str:
     width, height = rows[0]["resolution"] if rows else RESOLUTION
     lines = [f"# Validation suite: our indirect light against Cycles, per scene{' (--quick)' if quick else ''}", "",
@@ -210,6 +221,10 @@ def parse_args(argv=None):
     parser.add_argument("--only", nargs="+", help="only these scenes")
     parser.add_argument("--regenerate-reference", action="store_true", help="render the Cycles truths again")
     parser.add_argument("--reference-only", action="store_true", help="make the missing truths, then stop")
+    parser.add_argument("--skip-visibility-benchmarks", action="store_true",
+                        help="leave out the visibility cost, stability and memory measures (always left out with --quick)")
+    parser.add_argument("--results-dir", type=Path, default=RESULTS_DIR,
+                        help="where the results go (default benchmarks/results; concurrent runs each their own)")
     return parser.parse_args(argv)
 
 
@@ -239,21 +254,36 @@ def main(argv=None) -> int:
         row["resolution"] = [width, height]
         rows.append(row)
     suffix = "_quick" if args.quick else ""
-    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+    extra = {}
+    if not (args.quick or args.only or args.skip_visibility_benchmarks):
+        # VSGL visibility's cost at N = 64 / 256 / 1024 (480x360, RSM 128²), its stability under a
+        # turning light and on a static scene, and its peak memory at 1024², N = 4096.
+        import visibility_cost
+        import visibility_stability
+
+        extra["visibility_cost"] = visibility_cost.measure(DEMO, (64, 256, 1024))
+        extra["visibility_stability"] = visibility_stability.measure()
+    results = args.results_dir
+    results.mkdir(parents=True, exist_ok=True)
     images = {row["scene"]: row.pop("images") for row in rows}
     chosen_settings = {row["scene"]: row.pop("settings_values") for row in rows}
+    # The README's image is rewritten only by a run into the committed results.
+    image = BEFORE_AFTER_IMAGE if results.resolve() == RESULTS_DIR.resolve() else results / BEFORE_AFTER_IMAGE.name
     if BEFORE_AFTER in images and not args.quick:
         shown = images[BEFORE_AFTER]
-        before_after(shown["truth"], shown["off"], shown["on"], BEFORE_AFTER_IMAGE,
+        before_after(shown["truth"], shown["off"], shown["on"], image,
                      f"{BEFORE_AFTER}: indirect light only, {width}x{height}, {_short(chosen_settings[BEFORE_AFTER])}")
-    plot(rows, RESULTS_DIR / f"validation_suite{suffix}.png")
+    plot(rows, results / f"validation_suite{suffix}.png")
     text = markdown(rows, renderer, args.quick, time.perf_counter() - started)
+    if extra:
+        text += "\n" + visibility_cost.markdown(extra["visibility_cost"], DEMO.name, renderer)
+        text += "\n" + visibility_stability.markdown(extra["visibility_stability"])
     text += (f"\nPlot (mean ratio and relative RMSE, visibility off and on): "
-             f"`benchmarks/results/validation_suite{suffix}.png`."
-             + ("" if args.quick else f" Before/after image: `{BEFORE_AFTER_IMAGE.relative_to(REPO)}`.") + "\n")
-    (RESULTS_DIR / f"validation_suite{suffix}.md").write_text(text)
-    (RESULTS_DIR / f"validation_suite{suffix}.json").write_text(json.dumps(
-        {"renderer": renderer, "quick": args.quick, "resolution": [width, height], "scenes": rows,
+             f"`{_shown_path(results / f'validation_suite{suffix}.png')}`."
+             + ("" if args.quick or BEFORE_AFTER not in images else f" Before/after image: `{_shown_path(image)}`.") + "\n")
+    (results / f"validation_suite{suffix}.md").write_text(text)
+    (results / f"validation_suite{suffix}.json").write_text(json.dumps(
+        {"renderer": renderer, "quick": args.quick, "resolution": [width, height], "scenes": rows, **extra,
          "robust_percentile": ROBUST_PERCENTILE, "covered_threshold": COVERED}, indent=1, default=str))
     print(text)
     return 0

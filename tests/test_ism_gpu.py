@@ -45,7 +45,7 @@ def _atlas(points, origins, set_index, size, **kwargs):
 
 
 def _reference(points, origins, set_index, size, min_distance=0.0):
-    return np.stack([ism.pull_push(ism.splat(points.positions[s], o, size, min_distance))
+    return np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, size, min_distance)))
                      for o, s in zip(np.asarray(origins, np.float64), set_index)])
 
 
@@ -94,7 +94,7 @@ def test_extremes_one_texel_maps_one_point_and_a_map_no_point_reaches(size, per_
 
 
 def test_the_pass_declares_its_contract():
-    assert set(ism_pass.PASS.shaders) == {"splat", "pull", "push"}
+    assert set(ism_pass.PASS.shaders) == {"splat", "close", "pull", "push"}
     ism_pass.PASS.compile_shaders()
     ism_pass.PASS.free_shaders()
     with pytest.raises(ValueError):
@@ -137,8 +137,8 @@ def test_sized_splats_match_the_reference():
         got = atlas.read()
     finally:
         ism_pass.PASS.free(atlas)
-    expected = np.stack([ism.pull_push(ism.splat(points.positions[s], o, 32, normals=points.normals[s],
-                                                 point_area=area)) for o, s in zip(origins, [0, 1])])
+    expected = np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, 32, normals=points.normals[s],
+                                                                point_area=area))) for o, s in zip(origins, [0, 1])])
     assert np.isclose(got, expected, rtol=1e-5).mean() > 0.99
     radius = ism.splat_radius(points.positions[0] - origins[0], 1.0, area, 32)
     assert radius.max() >= 2  # near points cover several texels, far ones one
@@ -151,3 +151,31 @@ def test_maps_that_would_not_fit_one_atlas_get_a_smaller_side(monkeypatch):
     assert ism_pass.fitting_size(10 ** 6, 64) == 1
     with pytest.raises(ValueError):
         ism_pass.atlas_layout(8, 128)
+
+
+def test_glsl_bilinear_and_nearest_lookups_match_the_reference():
+    """ism_pcf_bilinear (every fold of the octahedral map: blocks across the square's edges wrap)
+    and ism_visible_nearest (ism_pcf at radius 0) against the float64 twin."""
+    scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
+    points = sp.scene_point_sets(scene, 20000, 1, seed=4)
+    origin = np.array([0.0, 0.0, 1.5])
+    size = 16
+    depth = ism.pull_push(ism.close_gaps(ism.splat(points.positions[0], origin, size)))
+    rng = np.random.default_rng(11)
+    receivers = as_gpu_floats(rng.uniform([-4, -4, -1], [4, 4, 3], size=(3000, 3)))
+    normals = as_gpu_floats(_unit(rng.normal(size=(3000, 3))))
+    atlas = np.zeros((size, 2 * size, 4))
+    atlas[:, size:, 0] = np.where(np.isfinite(depth), depth, 0.0)
+    atlas[:, size:, 1] = np.isfinite(depth)
+    inputs = {"origin": np.tile(origin, (3000, 1)), "receiver": receivers, "normal": normals}
+    got = evaluate_glsl(f"ism_pcf_bilinear(ism_atlas, ivec2({size}, 0), {size}, origin, receiver, normal)", inputs, 1,
+                        libraries=["lib/ism.glsl"], images={"ism_atlas": atlas})
+    expected = ism.ism_pcf_bilinear(depth, origin, receivers, normals=normals)
+    # A receiver within float32 rounding of its bias may count one texel (its weight) more or less.
+    assert np.mean(np.abs(got - expected) < 1e-5) > 0.99
+    assert np.abs(got - expected).max() <= 1.0 + 1e-6
+    assert np.mean((expected > 0.01) & (expected < 0.99)) > 0.005  # the filter is soft somewhere
+    got = evaluate_glsl(f"ism_visible_nearest(ism_atlas, ivec2({size}, 0), {size}, origin, receiver, normal)", inputs, 1,
+                        libraries=["lib/ism.glsl"], images={"ism_atlas": atlas})
+    expected = ism.ism_pcf(depth, origin, receivers, 0, normals=normals)
+    assert np.mean(got == expected) > 0.99

@@ -192,3 +192,24 @@ def test_a_wall_shadows_what_lies_behind_it_and_a_floor_does_not_shadow_itself()
     edge = np.array([[2.5, 2.0 * 2.5, 0.5]])
     value = ism.ism_pcf(depth, origin, edge, radius=3)
     assert 0.0 < value[0] < 1.0
+
+
+def test_close_gaps_closes_holes_in_a_near_occluder_and_keeps_its_outline():
+    """A near square (depth 1) over a far background (depth 5) with holes 1 and 2·reach − 1 texels
+    wide and an empty texel: the holes take the square's depth, every background texel outside
+    it keeps its own, and a smooth surface (depth 2 + z of the texel's direction, continuous
+    across the octahedral folds) is left as it was."""
+    size, reach = 32, ism.GAP_REACH
+    depth = np.full((size, size), 5.0)
+    depth[8:24, 8:24] = 1.0
+    depth[12, 12] = 5.0  # a one-texel hole
+    depth[18, 10:10 + 2 * reach - 1] = 5.0  # the widest hole that closes
+    depth[20, 20] = ism.EMPTY
+    closed = ism.close_gaps(depth)
+    np.testing.assert_array_equal(closed[8:24, 8:24], 1.0)
+    outside = np.ones((size, size), bool)
+    outside[8:24, 8:24] = False
+    np.testing.assert_array_equal(closed[outside], 5.0)
+    smooth = 2.0 + ism.texel_directions(size)[..., 2]
+    np.testing.assert_array_equal(ism.close_gaps(smooth), smooth)
+    assert np.all(ism.close_gaps(np.full((1, 1), ism.EMPTY)) == ism.EMPTY)

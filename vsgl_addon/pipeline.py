@@ -20,6 +20,7 @@ from .layouts import VSGL_TABLE
 from .passes.rsm import SceneGPU, render_rsm_views
 from .passes.vsgl_generation import VSGLGeneration
 from .reference.vsgl import LUMINANCE_WEIGHTS
+from .reference.ism import shadow_origin
 from .scene_points import triangle_areas
 from .settings import VSGLSettings
 
@@ -166,23 +167,41 @@ POINT_SETS = 64
 OWN_REFLECTOR_SIGMAS = 1.0
 
 
-def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSettings, first_map: int = 0) -> int:
+#: Imperfect shadow maps per VSGL: 1, at its shared positional Gaussian (000 app. B.2, the
+#: Φ(Rd + Rs)-weighted mean and spread of its cluster) for both lobes, or 2, one per lobe position.
+#: The lobes come from one cluster, so their positions lie within its spread; one map halves the
+#: maps and the lookups (benchmarks/visibility_cost.py) for the accuracy in the validation suite's
+#: results.
+MAPS_PER_VSGL = 1
+
+
+def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSettings, first_map: int = 0,
+                     timed: bool = False) -> int:
     """The imperfect shadow maps of every VSGL of ``vsgls`` (000 §5), one per lobe position (two
     per VSGL with per-lobe positions), into ``vsgls.isms``; returns the next map's number, so
-    another table set draws other point sets."""
+    another table set draws other point sets. ``timed``: each atlas's ``seconds`` holds its
+    stages' times (passes/ism.py build_ism_atlas; benchmarks)."""
     from .passes import ism as ism_pass
 
     points = scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
     point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
+    textures = ism_pass.upload_points(points) if vsgls.generations else None  # once for every table
     for _, _, generation in vsgls.generations:
         table = generation.read_table()
-        lobes = ("diffuse",) if generation.positional_distribution == "shared" else ("diffuse", "specular")
-        origins = np.stack([table[f"{lobe}_mean"] for lobe in lobes], axis=1).reshape(-1, 3)
-        sigma = np.sqrt(np.maximum(np.stack([table[f"{lobe}_variance"] for lobe in lobes], axis=1), 0.0)).reshape(-1)
+        if MAPS_PER_VSGL == 1:
+            origins = shadow_origin(table["mean"], table["variance"], table["diffuse_axis"]).reshape(-1, 3)
+            sigma = np.sqrt(np.maximum(table["variance"], 0.0)).reshape(-1)
+        else:
+            lobes = ("diffuse", "specular")
+            origins = np.stack([shadow_origin(table[f"{lobe}_mean"], table[f"{lobe}_variance"], table[f"{lobe}_axis"])
+                                for lobe in lobes], axis=1).reshape(-1, 3)
+            sigma = np.sqrt(np.maximum(np.stack([table[f"{lobe}_variance"] for lobe in lobes], axis=1),
+                                       0.0)).reshape(-1)
         maps = np.arange(first_map, first_map + len(origins))
         size = ism_pass.fitting_size(len(origins), settings.ism_size)
         vsgls.isms.append(ism_pass.PASS.run(points, origins, maps % POINT_SETS, size,
-                                            min_distance=OWN_REFLECTOR_SIGMAS * sigma, point_area=point_area))
+                                            min_distance=OWN_REFLECTOR_SIGMAS * sigma, point_area=point_area,
+                                            timed=timed, point_textures=textures))
         first_map += len(origins)
     return first_map
 

@@ -89,12 +89,13 @@ class VSGLSceneSettings(PropertyGroup):
         name="VSGL Visibility",
         description=(
             "Shadow the bounce light: each VSGL gets an imperfect shadow map (000 section 5), so "
-            "indirect light stops leaking through walls and objects cast indirect shadows. Costs a "
-            "point splat per VSGL and a filtered lookup per pixel and VSGL (on a CPU renderer "
-            "about 3x the shading time, plus 0.2-0.3 s of shadow maps at N = 256); off, every VSGL "
-            "lights every surface it faces"
+            "indirect light stops leaking through walls and objects cast indirect shadows (half "
+            "the error where an occluder stands between bounce and receiver). Costs a point splat "
+            "per VSGL and a filtered lookup per pixel and VSGL: on a CPU renderer about 2.5x the "
+            "shading time, plus 0.1-0.3 s of shadow maps at N = 256; off, every VSGL lights "
+            "every surface it faces"
         ),
-        default=False,
+        default=True,
     )
     ism_size: IntProperty(
         name="Shadow Map Resolution",

@@ -119,7 +119,7 @@ def parse_args(argv=None):
     parser.add_argument("--reference-samples", type=int, default=4096, help="Cycles samples per seed of the truth")
     parser.add_argument("--reference-only", action="store_true", help="make the cached truth if needed, then stop")
     parser.add_argument("--repeats", type=int, default=None, help="shading runs per figure (median)")
-    parser.add_argument("--memory-child", nargs=3, type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--memory-child", nargs="+", type=int, help=argparse.SUPPRESS)
     return parser.parse_args(argv)
 
 

@@ -26,7 +26,7 @@ def _status_kb(field: str) -> int:
     return -1
 
 
-def memory_child(size: int, n: int, rsm_size: int) -> int:
+def memory_child(size: int, n: int, rsm_size: int, visibility: int = 0) -> int:
     """Run in a fresh process: one FrameRenderer frame; print a JSON line with the peak RSS."""
     open_demo()
     from vsgl_addon.gpu_context import ensure_gpu_context
@@ -41,7 +41,8 @@ def memory_child(size: int, n: int, rsm_size: int) -> int:
     rss_before = _status_kb("VmRSS")
     renderer = FrameRenderer()
     start = time.perf_counter()
-    images = renderer.render(description, VSGLSettings(vsgl_count=n, rsm_size=rsm_size), size, size)
+    images = renderer.render(description, VSGLSettings(vsgl_count=n, rsm_size=rsm_size, visibility=bool(visibility)),
+                             size, size)
     seconds = time.perf_counter() - start
     raw_d, raw_s = renderer._shading.read()  # the raw outputs, before the renderer's nan_to_num
     finite = bool(np.all(np.isfinite(raw_d)) and np.all(np.isfinite(raw_s)))
@@ -56,13 +57,16 @@ def memory_child(size: int, n: int, rsm_size: int) -> int:
     return 0
 
 
-def measure_memory(size: int, n: int, rsm_size: int) -> dict:
-    log(f"peak memory: subprocess rendering {size}² with N = {n}, RSM {rsm_size}²")
-    result = subprocess.run([sys.executable, str(ENTRY), "--memory-child", str(size), str(n), str(rsm_size)],
+def measure_memory(size: int, n: int, rsm_size: int, visibility: bool = False) -> dict:
+    """Peak memory of one frame in a fresh process; ``visibility``: with VSGL visibility (imperfect
+    shadow maps) on."""
+    log(f"peak memory: subprocess rendering {size}² with N = {n}, RSM {rsm_size}², visibility {visibility}")
+    result = subprocess.run([sys.executable, str(ENTRY), "--memory-child", str(size), str(n), str(rsm_size),
+                             str(int(visibility))],
                             capture_output=True, text=True, timeout=3600)
     for line in result.stdout.splitlines():
         if line.startswith("MEMORY "):
             out = json.loads(line[7:])
-            out.update(size=size, n=n, rsm=rsm_size)
+            out.update(size=size, n=n, rsm=rsm_size, visibility=bool(visibility))
             return out
     raise RuntimeError(f"memory subprocess failed (exit {result.returncode}):\n{result.stderr[-3000:]}")

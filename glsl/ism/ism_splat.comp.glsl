@@ -32,7 +32,7 @@ void main()
   float l1_ratio = (abs(offset.x) + abs(offset.y) + abs(offset.z)) / distance;
   float texel = 4.0 / float(size * size) * l1_ratio * l1_ratio * l1_ratio;
   float texels = ism_point_area * abs(dot(normal, offset)) / distance / max(distance * distance, 1e-30) / texel;
-  int radius = int(clamp(ceil(0.5 * sqrt(texels) - 0.25), 0.0, float(ISM_SPLAT_MAX_RADIUS)));
+  int radius = int(clamp(ceil(0.5 * (ISM_SPLAT_SHARE * sqrt(texels) - 1.0)), 0.0, float(ISM_SPLAT_MAX_RADIUS)));
   for (int dy = -radius; dy <= radius; dy++) {
     for (int dx = -radius; dx <= radius; dx++) {
       imageAtomicMin(ism_atlas, tile + octahedral_wrap(centre + ivec2(dx, dy), size), bits);

@@ -29,6 +29,15 @@ ivec2 ism_texel(vec3 d, int size)
   return clamp(ivec2(cell), ivec2(0), ivec2(size - 1));
 }
 
+// A lobe's shadow origin: its mean moved this many sigma_v along its unit axis (reference
+// shadow_origin: the mean of a curved cluster lies behind its own surface).
+const float ISM_SHADOW_ORIGIN_SIGMAS = 0.5;
+
+vec3 ism_shadow_origin(vec3 mean, float variance, vec3 axis)
+{
+  return mean + ISM_SHADOW_ORIGIN_SIGMAS * sqrt(max(variance, 0.0)) * axis;
+}
+
 // Largest tan of the receiver's incidence the slope-scaled bias follows (reference ISM_MAX_SLOPE).
 const float ISM_MAX_SLOPE = 8.0;
 
@@ -78,4 +87,51 @@ float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver,
     }
   }
   return lit / float((2 * radius + 1) * (2 * radius + 1));
+}
+
+// Bilinear percentage-closer visibility (reference ism_pcf_bilinear): the test of ism_pcf on the
+// four texels around the receiver's continuous position in the map, weighted bilinearly, so the
+// result varies smoothly across texels; a filter of about two texels from four fetches (a box of
+// 3 x 3 takes nine). The bias spans the footprint of two texels.
+float ism_pcf_bilinear(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal)
+{
+  vec3 offset = receiver - origin;
+  float distance = length(offset);
+  float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
+  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
+  float bias = ism_bias(distance, size, tan_theta, 2.0, 1e-3);
+  vec2 cell = (octahedral_encode(offset) * 0.5 + 0.5) * float(size) - 0.5;
+  vec2 base = floor(cell);
+  vec2 f = clamp(cell - base, 0.0, 1.0);
+  ivec2 corner = ivec2(base);
+  ivec2 c00 = corner;
+  ivec2 c11 = corner + 1;
+  ivec2 c10 = ivec2(c11.x, c00.y);
+  ivec2 c01 = ivec2(c00.x, c11.y);
+  // Only a block across the square's edge needs the fold's mirror (a branch: most blocks are inside).
+  if (corner.x < 0 || corner.y < 0 || corner.x >= size - 1 || corner.y >= size - 1) {
+    c00 = octahedral_wrap(c00, size);
+    c10 = octahedral_wrap(c10, size);
+    c01 = octahedral_wrap(c01, size);
+    c11 = octahedral_wrap(c11, size);
+  }
+  vec4 s00 = texelFetch(atlas, tile + c00, 0);
+  vec4 s10 = texelFetch(atlas, tile + c10, 0);
+  vec4 s01 = texelFetch(atlas, tile + c01, 0);
+  vec4 s11 = texelFetch(atlas, tile + c11, 0);
+  vec4 lit = vec4(s00.g < 0.5 || distance <= s00.r + bias, s10.g < 0.5 || distance <= s10.r + bias,
+                  s01.g < 0.5 || distance <= s01.r + bias, s11.g < 0.5 || distance <= s11.r + bias);
+  return mix(mix(lit.x, lit.y, f.x), mix(lit.z, lit.w, f.x), f.y);
+}
+
+// ism_pcf at radius 0 (one texel, always inside the square: no wrap).
+float ism_visible_nearest(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal)
+{
+  vec3 offset = receiver - origin;
+  float distance = length(offset);
+  float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
+  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
+  float bias = ism_bias(distance, size, tan_theta, 1.0, 1e-3);
+  vec4 stored = texelFetch(atlas, tile + ism_texel(offset, size), 0);
+  return (stored.g < 0.5 || distance <= stored.r + bias) ? 1.0 : 0.0;
 }

@@ -14,25 +14,30 @@
 //
 // VSGL_VISIBILITY 1: each lobe's light is weighted by its visibility from the pixel, a filtered
 // lookup in the lobe position's imperfect shadow map (000 sec. 5; lib/ism.glsl, atlas of
-// vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, maps per VSGL (1 when
-// both lobes share a position, else 2: map 2i the diffuse lobe's, 2i + 1 the specular lobe's)).
-// A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
-// sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS. The map
-// leaves out the lobe's own reflector; what that reflector hides (a flat one: all behind its plane)
-// takes the diffuse lobe's vsgl_reflector_side (lib/vsgl_shading.glsl). The specular lobe keeps
-// its map alone: its position and the diffuse axis may belong to different reflectors (a floor and
-// the metal sphere on it share a cluster).
+// vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, maps per VSGL (1: map i
+// at the VSGL's shared positional Gaussian (mean, variance; 000 app. B.2) for both lobes, or 2:
+// map 2i the diffuse lobe's, 2i + 1 the specular lobe's)).
+// Each map is centred on its shadow origin (lib/ism.glsl ism_shadow_origin). A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
+// sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS.
+// Each map leaves out the lobe's own reflector; what that reflector hides (a flat one: all behind
+// its plane) takes the diffuse lobe's vsgl_reflector_side (lib/vsgl_shading.glsl). The specular
+// lobe keeps its map alone: its position and the diffuse axis may belong to different reflectors
+// (a floor and the metal sphere on it share a cluster).
 
 #if VSGL_VISIBILITY
-float vsgl_visibility(int map_index, vec3 mean, float variance, VSGLReceiver rc)
+float vsgl_visibility(int map_index, vec3 mean, float variance, vec3 axis, VSGLReceiver rc)
 {
   int size = ism_params.x;
   ivec2 tile = ivec2(map_index % ism_params.y, map_index / ism_params.y) * size;
-  float distance = length(rc.position - mean);
+  vec3 origin = ism_shadow_origin(mean, variance, axis);
+  float distance = length(rc.position - origin);
   float texel_angle = 3.5449077018110318 / float(size);  // sqrt(4 pi) / size
   float radius = sqrt(max(variance, 0.0)) / max(distance, 1e-30) / texel_angle;
-  return ism_pcf(ism_atlas, tile, size, mean, rc.position, rc.normal,
-                 int(clamp(radius + 0.5, 0.0, float(VSGL_ISM_MAX_RADIUS))));
+  // Under half a texel one texel; else the bilinear filter of about two texels (four fetches).
+  if (int(clamp(radius + 0.5, 0.0, float(VSGL_ISM_MAX_RADIUS))) == 0) {
+    return ism_visible_nearest(ism_atlas, tile, size, origin, rc.position, rc.normal);
+  }
+  return ism_pcf_bilinear(ism_atlas, tile, size, origin, rc.position, rc.normal);
 }
 #endif
 
@@ -66,12 +71,20 @@ void main()
     vec3 diffuse_amplitude = vsgl.diffuse_amplitude;
     vec3 specular_amplitude = vsgl.specular_amplitude;
 #if VSGL_VISIBILITY
-    int maps = ism_params.z;
-    float diffuse_visibility = vsgl_visibility(i * maps, vsgl.diffuse_mean, vsgl.diffuse_variance, rc);
-    diffuse_amplitude *= diffuse_visibility * vsgl_reflector_side(vsgl.diffuse_mean, vsgl.diffuse_axis,
-                                                                  vsgl.diffuse_sharpness, rc.position);
-    specular_amplitude *= maps == 1 ? diffuse_visibility :
-                                      vsgl_visibility(i * maps + 1, vsgl.specular_mean, vsgl.specular_variance, rc);
+    float reflector_side = vsgl_reflector_side(vsgl.diffuse_mean, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
+                                               rc.position);
+    // Branches on the uniform map count, not selects: a select would run both sides' lookups.
+    if (ism_params.z == 1) {
+      float visibility = vsgl_visibility(i, vsgl.mean, vsgl.variance, vsgl.diffuse_axis, rc);
+      diffuse_amplitude *= visibility * reflector_side;
+      specular_amplitude *= visibility;
+    }
+    else {
+      diffuse_amplitude *= reflector_side *
+                           vsgl_visibility(2 * i, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc);
+      specular_amplitude *= vsgl_visibility(2 * i + 1, vsgl.specular_mean, vsgl.specular_variance,
+                                            vsgl.specular_axis, rc);
+    }
 #endif
     vsgl_accumulate(rc, diffuse_position, diffuse_amplitude, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
                     specular_position, specular_amplitude, vsgl.specular_axis, vsgl.specular_sharpness,

@@ -3,16 +3,18 @@
 position; 000 §5, Ritschel et al. 2008), all in one atlas. The twin of
 :mod:`vsgl_addon.reference.ism` (projection, splat, pull-push; why octahedral is said there).
 
-Three compute stages (``glsl/ism/``):
+Four compute stages (``glsl/ism/``):
 
 1. ``ism_splat.comp.glsl``: one invocation per (point, map). Map m splats point set
    ``set_index[m]`` of :func:`vsgl_addon.scene_points.scene_point_sets` (an RGBA32F texture, one
    row per set) with ``imageAtomicMin`` on the distance's float bits into its tile of an R32UI atlas
    (shared/reference/blender-gpu.md: about 7× faster than drawing points on llvmpipe).
-2. ``ism_pull.comp.glsl``: the pyramid of the atlas, one dispatch per level (RG32F: mean depth of
+2. ``ism_close.comp.glsl``: gaps between nearer texels on both sides closed (holes in near
+   occluders, through which the points behind them show; silhouettes stay), into a second atlas.
+3. ``ism_pull.comp.glsl``: the pyramid of the atlas, one dispatch per level (RG32F: mean depth of
    the valid children, valid); tiles are aligned power-of-two squares, so each level is every
    tile's own pyramid.
-3. ``ism_push.comp.glsl``: holes take their parent's depth, coarsest level first, down to level 0.
+4. ``ism_push.comp.glsl``: holes take their parent's depth, coarsest level first, down to level 0.
 
 The result, :class:`ISMAtlas`, holds the filled RG32F level 0 (r = depth, g = 1 where any point
 of the map's set landed; a map no point reached has g = 0). Needs a GPU context, main thread.
@@ -25,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..reference.ism import EMPTY, SPLAT_MAX_RADIUS
+from ..reference.ism import EMPTY, GAP_MARGIN, GAP_REACH, SPLAT_MAX_RADIUS, SPLAT_SHARE
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import read_texture, texture_from_array
@@ -47,6 +49,12 @@ def _splat_interface() -> ShaderInterface:
         images=[("R32UI", "UINT_2D", "ism_atlas")],
         local_group_size=_GROUP,
     )
+
+
+def _close_interface() -> ShaderInterface:
+    return ShaderInterface(push_constants=[("INT", "ism_size")],
+                           images=[("R32UI", "UINT_2D", "ism_splatted"), ("R32UI", "UINT_2D", "ism_closed")],
+                           local_group_size=_LEVEL_GROUP)
 
 
 def _pull_interface() -> ShaderInterface:
@@ -110,13 +118,39 @@ def _groups(count: int, size: int) -> int:
     return max(1, -(-count // size))
 
 
-def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0) -> ISMAtlas:
+def _finish_stage(texture, clock: float, seconds: dict, name: str) -> float:
+    """Wait for the GPU (``texture`` read back) and add the time since ``clock`` to ``seconds[name]``."""
+    import time
+
+    texture.read()
+    now = time.perf_counter()
+    seconds[name] = seconds.get(name, 0.0) + now - clock
+    return now
+
+
+def upload_points(points) -> tuple:
+    """The (positions, normals) RGBA32F textures of a :class:`~vsgl_addon.scene_points.ScenePoints`
+    (one row per set), for :func:`build_ism_atlas`'s ``point_textures``."""
+    ones = np.ones((*points.positions.shape[:2], 1), np.float32)
+    return (texture_from_array(np.concatenate([points.positions, ones], axis=-1)),
+            texture_from_array(np.concatenate([points.normals, ones], axis=-1)))
+
+
+def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
+                    timed: bool = False, point_textures=None) -> ISMAtlas:
     """The ISMs of ``origins`` (M, 3), map m splatting set ``set_index[m]`` of ``points`` (a
     :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two), leaving out the
     points nearer than ``min_distance`` (a scalar, or one per map). ``point_area`` > 0 (the surface
     each point stands for) sizes every splat to the solid angle it covers (reference splat_radius);
-    0 splats single texels."""
+    0 splats single texels. ``point_textures``: :func:`upload_points` of ``points``, when several
+    atlases splat the same sets (uploaded here otherwise). ``timed``: the GPU is waited for after each stage, and the atlas's
+    ``seconds`` holds the splat's and the pull-push's time (costs a few read-backs; benchmarks)."""
+    import time
+
     import gpu
+
+    seconds = {}
+    clock = time.perf_counter()
 
     size = int(size)
     if not ISM_SIZE_RANGE[0] <= size <= ISM_SIZE_RANGE[1] or size & (size - 1):
@@ -127,9 +161,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         raise ValueError(f"at most {MAX_POINTS_PER_SET} points per set, got {points.points_per_set}")
     columns, rows = atlas_layout(count, size)
     width, height = columns * size, rows * size
-    ones = np.ones((*points.positions.shape[:2], 1), np.float32)
-    point_texture = texture_from_array(np.concatenate([points.positions, ones], axis=-1))
-    normal_texture = texture_from_array(np.concatenate([points.normals, ones], axis=-1))
+    point_texture, normal_texture = point_textures if point_textures is not None else upload_points(points)
     table = np.zeros((2, max(count, 1), 4), np.float32)
     table[0, :count, :3] = origins
     table[0, :count, 3] = np.asarray(set_index).reshape(-1)[:count]
@@ -147,6 +179,19 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         splat.uniform_sampler("ism_origins", origin_texture)
         splat.image("ism_atlas", atlas)
         gpu.compute.dispatch(splat, _groups(points.points_per_set, _GROUP[0]), count, 1)
+    if timed:
+        clock = _finish_stage(atlas, clock, seconds, "splat")
+    # Gaps in near occluders closed (reference close_gaps), into a second atlas that pull-push reads.
+    closed = gpu.types.GPUTexture((width, height), format="R32UI")
+    close = PASS.shader("close")
+    close.bind()
+    close.uniform_int("ism_size", size)
+    close.image("ism_splatted", atlas)
+    close.image("ism_closed", closed)
+    gpu.compute.dispatch(close, _groups(width, _LEVEL_GROUP[0]), _groups(height, _LEVEL_GROUP[1]), 1)
+    atlas = closed
+    if timed:
+        clock = _finish_stage(atlas, clock, seconds, "close")
     # Pull: level l of every tile from level l - 1 (level 0 is the splatted atlas itself).
     levels = int(math.log2(size))
     pulled = []
@@ -184,7 +229,9 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         push.image("ism_filled", target)
         gpu.compute.dispatch(push, _groups(width, _LEVEL_GROUP[0]), _groups(height, _LEVEL_GROUP[1]), 1)
         filled = target
-    return ISMAtlas(filled, size, count, columns, rows)
+    if timed:
+        _finish_stage(filled, clock, seconds, "pull_push")
+    return ISMAtlas(filled, size, count, columns, rows, seconds)
 
 
 def _unknown(width: int, height: int):
@@ -197,7 +244,10 @@ PASS = GPUPass(
     label="Imperfect Shadow Maps",
     step=Step("ism", "Imperfect Shadow Maps"),
     shaders={"splat": ShaderSpec(_splat_interface, {"compute": "ism/ism_splat.comp.glsl"},
-                                 defines=lambda: {"ISM_SPLAT_MAX_RADIUS": SPLAT_MAX_RADIUS}),
+                                 defines=lambda: {"ISM_SPLAT_MAX_RADIUS": SPLAT_MAX_RADIUS,
+                                                  "ISM_SPLAT_SHARE": repr(float(SPLAT_SHARE))}),
+             "close": ShaderSpec(_close_interface, {"compute": "ism/ism_close.comp.glsl"},
+                                 defines=lambda: {"ISM_GAP_REACH": GAP_REACH, "ISM_GAP_MARGIN": repr(float(GAP_MARGIN))}),
              "pull": ShaderSpec(_pull_interface, {"compute": "ism/ism_pull.comp.glsl"}),
              "push": ShaderSpec(_push_interface, {"compute": "ism/ism_push.comp.glsl"})},
     reads=("scene", "vsgl_table"),  # the scene's surface points, the VSGLs' lobe positions

@@ -125,11 +125,11 @@ class SceneGPU:
     def scene_points(self, points_per_set: int, set_count: int, seed: int):
         """The scene's surface point sets for imperfect shadow maps (scene_points.scene_point_sets),
         drawn once per upload and settings: a static scene's maps do not change."""
-        from ..scene_points import scene_point_sets
+        from ..scene_points import cached_scene_point_sets
 
         key = (int(points_per_set), int(set_count), int(seed))
         if key not in self._points:
-            self._points[key] = scene_point_sets(self.scene.geometry, *key)
+            self._points[key] = cached_scene_point_sets(self.scene.geometry, *key)
         return self._points[key]
 
     def has_non_blockers(self, light_index: int) -> bool:

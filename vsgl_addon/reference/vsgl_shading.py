@@ -325,9 +325,12 @@ def vsgl_reflector_side(mean, axis, sharpness, position):
 
 def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
     """(P, N, 2) visibility of each VSGL lobe from P shading points (glsl/vsgl_shading's
-    vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) in the lobe position's map of
-    ``depths`` (maps, S, S), map maps_per_vsgl·i (+ 1 for the specular lobe when the lobes sit
-    apart), with a radius of σ_v / distance radians in texels, at most ``max_radius``."""
+    vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) from the lobe's shadow origin
+    (reference.ism.shadow_origin) in its map of
+    ``depths`` (maps, S, S), map maps_per_vsgl·i (+ 1 for the specular lobe with two maps per
+    VSGL; with one, both lobes take the map of the VSGL's shared position ``mean``): one texel where σ_v / distance is under half a texel (or ``max_radius`` is 0), else the
+    bilinear filter of about two texels (reference.ism.ism_pcf_bilinear); the diffuse lobe's times
+    :func:`vsgl_reflector_side`."""
     from . import ism
 
     position, normal = f64(position).reshape(-1, 3), f64(normal).reshape(-1, 3)
@@ -340,14 +343,20 @@ def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
             if lobe == 1 and maps_per_vsgl == 1:
                 result[:, i, 1] = result[:, i, 0]
                 continue
-            mean = f64(vsgls[f"{name}_mean"]).reshape(-1, 3)[i]
-            sigma = np.sqrt(max(float(f64(vsgls[f"{name}_variance"]).reshape(-1)[i]), 0.0))
+            # One map per VSGL: at its shared positional Gaussian (000 app. B.2), pushed along the
+            # diffuse axis (a table without it: the diffuse lobe's position).
+            at = "" if maps_per_vsgl == 1 and "mean" in vsgls else f"{name}_"
+            variance = float(f64(vsgls[f"{at}variance"]).reshape(-1)[i])
+            mean = ism.shadow_origin(f64(vsgls[f"{at}mean"]).reshape(-1, 3)[i], variance,
+                                     f64(vsgls[f"{name}_axis"]).reshape(-1, 3)[i])
+            sigma = np.sqrt(max(variance, 0.0))
             distance = np.linalg.norm(position - mean, axis=-1)
             radius = np.clip(np.floor(sigma / np.maximum(distance, 1e-30) / texel_angle + 0.5), 0, max_radius)
             for r in np.unique(radius).astype(int):
                 here = radius == r
-                result[here, i, lobe] = ism.ism_pcf(depths[maps_per_vsgl * i + lobe], mean, position[here], r,
-                                                    normals=normal[here])
+                depth = depths[maps_per_vsgl * i + lobe]
+                result[here, i, lobe] = (ism.ism_pcf(depth, mean, position[here], 0, normals=normal[here]) if r == 0
+                                         else ism.ism_pcf_bilinear(depth, mean, position[here], normals=normal[here]))
     # The diffuse lobe's own reflector (vsgl_reflector_side); with one map per VSGL the specular
     # lobe took the diffuse lobe's map lookup above, without it.
     result[:, :, 0] *= vsgl_reflector_side(f64(vsgls["diffuse_mean"]).reshape(1, -1, 3),
