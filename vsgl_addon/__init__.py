@@ -44,7 +44,7 @@ def _registry() -> Registry:
         properties=(*properties.TYPE_PROPERTIES,),
         handlers=(*overlay.HANDLERS,),
         timers=(*overlay.TIMERS,),
-        hooks=(*overlay.HOOKS,),
+        hooks=(*overlay.HOOKS, *engine.HOOKS),
     )
 
 

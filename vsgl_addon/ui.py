@@ -219,6 +219,18 @@ class RENDER_PT_vsgl_overlay(_RenderPanel, bpy.types.Panel):
         draw_overlay_settings(self.layout, context.scene.vsgl)
 
 
+class RENDER_PT_vsgl_viewport(_RenderPanel, bpy.types.Panel):
+    bl_label = "Rendered Viewport"
+    bl_parent_id = "RENDER_PT_vsgl"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.scene.vsgl
+        for name in ("viewport_pass", "viewport_resolution_scale", "viewport_samples"):
+            layout.prop(settings, name)
+
+
 class RENDER_PT_vsgl_lookdev(_RenderPanel, bpy.types.Panel):
     bl_label = "Look-Dev"
     bl_parent_id = "RENDER_PT_vsgl"
@@ -240,5 +252,5 @@ class RENDER_PT_vsgl_statistics(_RenderPanel, bpy.types.Panel):
 CLASSES = (
     VIEW3D_PT_vsgl, VIEW3D_PT_vsgl_overlay, VIEW3D_PT_vsgl_passes, VIEW3D_PT_vsgl_lookdev,
     VIEW3D_PT_vsgl_statistics,
-    RENDER_PT_vsgl, RENDER_PT_vsgl_overlay, RENDER_PT_vsgl_lookdev, RENDER_PT_vsgl_statistics,
+    RENDER_PT_vsgl, RENDER_PT_vsgl_overlay, RENDER_PT_vsgl_viewport, RENDER_PT_vsgl_lookdev, RENDER_PT_vsgl_statistics,
 )
