@@ -81,7 +81,8 @@ def converged(count=1):
     for pipeline in live:
         if pipeline.error:
             raise RuntimeError(pipeline.error)
-    return len(live) >= count and sum(p.converged(SAMPLES) for p in live) >= count
+    samples = bpy.context.scene.vsgl.viewport_samples
+    return len(live) >= count and sum(p.converged(samples) for p in live) >= count
 
 
 def set_shading(kind, which=None):
@@ -104,6 +105,8 @@ def setup():
     scene.render.engine = "VSGL"
     scene.vsgl.viewport_samples = SAMPLES
     scene.vsgl.viewport_resolution_scale = 0.25
+    for obj in scene.objects:  # no selection outline over the comparison with F12
+        obj.select_set(False)
     _window, area, _region, space = viewport()
     space.region_3d.view_perspective = "CAMERA"
     space.shading.type = "RENDERED"
@@ -116,7 +119,7 @@ def record(label):
         result["steps"][label] = [[dict(entry) for entry in p.history] for p in live]
         _window, _area, region, space = viewport()
         result["region"] = [region.x, region.y, region.width, region.height]
-        result[label + "_status"] = [p.status_text(SAMPLES) for p in live]
+        result[label + "_status"] = [p.status_text(bpy.context.scene.vsgl.viewport_samples) for p in live]
     action.__name__ = f"record_{label}"
     return action
 
@@ -175,6 +178,7 @@ def count_made():
 
 
 def split():
+    bpy.context.scene.vsgl.viewport_samples = 2  # two viewports of ~600 x 700 pixels each on llvmpipe
     window, area, region, _space = viewport()
     with bpy.context.temp_override(window=window, area=area, region=region):
         bpy.ops.screen.area_split(direction="VERTICAL", factor=0.5)
@@ -219,7 +223,7 @@ STEPS = [
     (enable, ("converged", 2), "08_addon_enabled_again"),
     (resources_at_end, None, None),
 ]
-TIMEOUT = 300.0
+TIMEOUT = 600.0
 POLL = 0.05
 state = {"step": 0, "phase": "start", "since": time.perf_counter(), "draws": 0}
 

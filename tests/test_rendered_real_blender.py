@@ -56,11 +56,11 @@ def session():
                            str(next(build.glob("*.zip"))), blender_env=env)
         assert proc.returncode == 0, describe(proc)
         proc = subprocess.run(
-            [str(REAL_BLENDER), "gui", "--size", f"{SCREEN[0]}x{SCREEN[1]}", "--wait", "900",
+            [str(REAL_BLENDER), "gui", "--size", f"{SCREEN[0]}x{SCREEN[1]}", "--wait", "1500",
              "--shot", str(shots / "final.png"), "demo.blend", "--python",
              str(REPO / "tests" / "gui_rendered_script.py")],
             cwd=REPO, env=blender_environment(env | {"BLENDER_VSGL_SHOTS": str(shots)}),
-            capture_output=True, text=True, timeout=1200)
+            capture_output=True, text=True, timeout=1800)
         result_file = shots / "result.json"
         result = json.loads(result_file.read_text()) if result_file.is_file() else None
         (shots / "session.log").write_text(describe(proc))
@@ -157,7 +157,7 @@ def test_two_viewports_and_enable_disable_enable(session):
     result, pixels = session
     assert len(result["steps"]["two_viewports"]) == 2
     for history in result["steps"]["two_viewports"]:
-        assert history[-1]["samples"] == 4
+        assert history[-1]["samples"] == 2
     assert result["resources_at_end"] and all(count > 0 for count in result["resources_at_end"])
     two, disabled, enabled = (pixels[n] for n in ("06_two_rendered_viewports", "07_addon_disabled",
                                                   "08_addon_enabled_again"))

@@ -141,7 +141,8 @@ class ViewPipeline:
             self.error = f"{type(error).__name__}: {error}"
             self._free_lights()
             entry["error"] = self.error
-        entry["seconds"] = self.clock() - started
+        entry["ended"] = self.clock()
+        entry["seconds"] = entry["ended"] - started
         entry["samples"] = self.samples
         self.statistics = entry
         self.history.append(entry)
