@@ -203,3 +203,22 @@ def test_region_resize_reallocates_and_free_releases_everything(pipeline):
     assert pipeline.target.size == (120, 80)
     pipeline.free()
     assert pipeline.gpu_resource_count() == 0 and not pipeline.draw("combined")
+
+
+def test_a_slow_coarse_image_gets_fewer_pixels_next_time(pipeline, monkeypatch):
+    """At 1e-4 s per pixel a 100 x 50 coarse image (scale 0.5) takes 0.5 s: the next ones shrink
+    until they fit the budget, and the factor recovers once they are cheap again."""
+    monkeypatch.setattr(__import__(__name__), "SECONDS_PER_PIXEL", 1e-4)
+    pipeline.step(describe, SETTINGS, 0.5, 1)
+    seconds = []
+    for shift in range(1, 8):
+        pipeline.request_view(np.eye(4) * (1 + shift), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+        pipeline.step(describe, SETTINGS, 0.5, 1)
+        seconds.append(pipeline.statistics["view_seconds"])
+    assert seconds[0] < 0.5 and seconds[-1] <= STEP_BUDGET, seconds
+    assert pipeline.statistics["coarse_scale"] < 0.5
+    monkeypatch.setattr(__import__(__name__), "SECONDS_PER_PIXEL", 1e-7)
+    for shift in range(8, 16):
+        pipeline.request_view(np.eye(4) * (1 + shift), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+        pipeline.step(describe, SETTINGS, 0.5, 1)
+    assert pipeline.coarse_factor == 1.0

@@ -70,6 +70,9 @@ class ViewPipeline:
         self._rows_done = 0
         self._band_seed = None
         self._seconds_per_pixel: float | None = None
+        # The coarse image's resolution as a fraction of the asked scale: lowered when a coarse image
+        # took longer than the step budget, raised again when it took well under (never above 1).
+        self.coarse_factor = 1.0
         self.has_image = False
         self.steps = 0
         self.statistics: dict = {}
@@ -178,7 +181,7 @@ class ViewPipeline:
     def _render_coarse(self, scale: float) -> dict:
         request = self.request
         full = request.region_size
-        width, height = view_size(full, scale)
+        width, height = view_size(full, scale * self.coarse_factor)
         started = self.clock()
         target = self._ensure_target("target", full)
         view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, height,
@@ -202,6 +205,12 @@ class ViewPipeline:
         seconds = self.clock() - started
         if self._seconds_per_pixel is None:
             self._seconds_per_pixel = seconds / (width * height)
+        # Cost grows with the pixels, i.e. with the factor squared; the full-resolution guide's
+        # share does not shrink, so the factor moves by at most 2x per coarse image.
+        if seconds > self.step_budget:
+            self.coarse_factor = max(self.coarse_factor * max((self.step_budget / seconds) ** 0.5, 0.5), 0.05)
+        elif seconds < 0.5 * self.step_budget and self.coarse_factor < 1.0:
+            self.coarse_factor = min(self.coarse_factor * min((0.7 * self.step_budget / seconds) ** 0.5, 2.0), 1.0)
         self._accumulated_for = (self.lights_version, request, scale)
         self._seeds_used = set()
         self._rows_done = 0
@@ -211,7 +220,8 @@ class ViewPipeline:
         if self.samples:
             self._seeds_used.add(self.lights_seed)
         self.has_image = True
-        return {"level": COARSE, "size": (width, height), "view_seconds": seconds, "counts": counts}
+        return {"level": COARSE, "size": (width, height), "view_seconds": seconds, "counts": counts,
+                "coarse_scale": scale * self.coarse_factor if (width, height) != tuple(full) else 1.0}
 
     def _refine(self, describe_scene, settings: VSGLSettings, started: float, max_samples: int) -> dict:
         entry: dict = {"level": SAMPLE}
