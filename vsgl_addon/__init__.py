@@ -43,7 +43,7 @@ def _registry() -> Registry:
         classes=(*properties.CLASSES, *engine.CLASSES, *operators.CLASSES, *ui.CLASSES),
         properties=(*properties.TYPE_PROPERTIES,),
         handlers=(*overlay.HANDLERS,),
-        timers=(*overlay.TIMERS,),
+        timers=(*overlay.TIMERS, *engine.TIMERS),
         hooks=(*overlay.HOOKS, *engine.HOOKS),
     )
 

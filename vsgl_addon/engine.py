@@ -117,8 +117,9 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         self.unbind_display_space_shader()
         gpu.state.blend_set("NONE")
         self.update_stats("", pipeline.status_text(samples))
-        if settings is not None and pipeline.pending(settings, scale, samples) is not None:
-            self.tag_redraw()
+        # A region tagged while it draws is untagged when the draw ends: the timer below asks for
+        # the next step's redraw.
+        pipeline.wants_redraw = settings is not None and pipeline.pending(settings, scale, samples) is not None
 
     def update_render_passes(self, scene=None, renderlayer=None):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
@@ -166,6 +167,22 @@ def _rows(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(image, dtype=np.float32).reshape(-1, image.shape[-1])
 
 
+#: Timer interval (seconds) while a Rendered viewport refines, and while none does.
+REDRAW_INTERVAL = 0.01
+IDLE_INTERVAL = 0.2
+
+
+def redraw_timer() -> float:
+    """bpy.app.timers callback: redraw the Rendered 3D viewports while one of them has work left."""
+    if not any(getattr(pipeline, "wants_redraw", False) for pipeline in list(live_pipelines)):
+        return IDLE_INTERVAL
+    for window in getattr(bpy.context.window_manager, "windows", ()):
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D" and area.spaces.active.shading.type == "RENDERED":
+                area.tag_redraw()
+    return REDRAW_INTERVAL
+
+
 def free_view_pipelines() -> None:
     """Release the GPU resources of every Rendered viewport (unregister)."""
     for pipeline in list(live_pipelines):
@@ -181,3 +198,4 @@ def _uninstall() -> None:
 
 CLASSES = (VSGLRenderEngine,)
 HOOKS = ((lambda: None, _uninstall),)
+TIMERS = ((redraw_timer, {"first_interval": IDLE_INTERVAL, "persistent": True}),)

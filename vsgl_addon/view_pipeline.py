@@ -74,6 +74,7 @@ class ViewPipeline:
         # took longer than the step budget, raised again when it took well under (never above 1).
         self.coarse_factor = 1.0
         self.has_image = False
+        self.wants_redraw = False  # set by the glue: a step is pending (engine.py's redraw timer)
         self.steps = 0
         self.statistics: dict = {}
         self.history: deque = deque(maxlen=256)
@@ -304,6 +305,7 @@ class ViewPipeline:
         self._accumulated_for = None
         self.samples = 0
         self.has_image = False
+        self.wants_redraw = False
         self._rows_done = 0
         self._seconds_per_pixel = None
 
