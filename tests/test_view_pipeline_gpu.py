@@ -58,9 +58,14 @@ def _run(pipeline, describe, scale, samples, limit=400):
     raise AssertionError("not converged")
 
 
-def test_one_full_resolution_sample_is_the_renderers_image_and_every_pass_is_shown(demo):
+@pytest.mark.parametrize("projection_kind", ["camera", "orthographic"])
+def test_one_full_resolution_sample_is_the_renderers_image_and_every_pass_is_shown(demo, projection_kind):
+    from vsgl_addon.views import orthographic_projection
+
     view, projection = demo.camera.view_matrix(), demo.camera.projection_matrix()
-    pipeline = ViewPipeline(step_budget=1e9)  # one band per sample
+    if projection_kind == "orthographic":
+        projection = orthographic_projection(4.0, 3.0, 0.1, 50.0)
+    pipeline = ViewPipeline(step_budget=0.02)  # several bands per sample
     renderer = FrameRenderer()
     try:
         pipeline.request_view(view, projection, REGION)
