@@ -44,7 +44,7 @@ def _registry() -> Registry:
         properties=(*properties.TYPE_PROPERTIES,),
         handlers=(*overlay.HANDLERS,),
         timers=(*overlay.TIMERS, *engine.TIMERS),
-        hooks=(*overlay.HOOKS, *engine.HOOKS),
+        hooks=(*overlay.HOOKS, *engine.HOOKS, *ui.HOOKS),
     )
 
 
