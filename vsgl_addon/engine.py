@@ -89,6 +89,7 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         import gpu
 
         from .settings import VIEWPORT_PASSES
+        from .view_pipeline import COARSE, LIGHTS
 
         pipeline = self._view_pipeline()
         scene = depsgraph.scene
@@ -106,20 +107,23 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
             pipeline.error = str(error)
             settings = None
         if settings is not None:
-            saved_viewport = tuple(gpu.state.viewport_get())
-            try:
-                pipeline.step(lambda: extract_scene(depsgraph), settings, scale, samples)
-            finally:
-                gpu.state.viewport_set(*saved_viewport)
+            # The arguments of the steps the timer does while nothing changes.
+            pipeline.step_args = (settings, scale, samples)
+            if pipeline.pending(settings, scale, samples) in (LIGHTS, COARSE):
+                # After a change, the light passes and the coarse image in this frame.
+                saved_viewport = tuple(gpu.state.viewport_get())
+                try:
+                    pipeline.step(lambda: extract_scene(depsgraph), settings, scale, samples)
+                finally:
+                    gpu.state.viewport_set(*saved_viewport)
+        else:
+            pipeline.step_args = None
         gpu.state.blend_set("ALPHA_PREMULT")
         self.bind_display_space_shader(scene)
         pipeline.draw(view_pass)
         self.unbind_display_space_shader()
         gpu.state.blend_set("NONE")
         self.update_stats("", pipeline.status_text(samples))
-        # A region tagged while it draws is untagged when the draw ends: the timer below asks for
-        # the next step's redraw.
-        pipeline.wants_redraw = settings is not None and pipeline.pending(settings, scale, samples) is not None
 
     def update_render_passes(self, scene=None, renderlayer=None):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
@@ -167,20 +171,35 @@ def _rows(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(image, dtype=np.float32).reshape(-1, image.shape[-1])
 
 
-#: Timer interval (seconds) while a Rendered viewport refines, and while none does.
-REDRAW_INTERVAL = 0.01
+#: Timer intervals (seconds) while a Rendered viewport refines, and while none does.
+BUSY_INTERVAL = 0.01
 IDLE_INTERVAL = 0.2
 
 
-def redraw_timer() -> float:
-    """bpy.app.timers callback: redraw the Rendered 3D viewports while one of them has work left."""
-    if not any(getattr(pipeline, "wants_redraw", False) for pipeline in list(live_pipelines)):
-        return IDLE_INTERVAL
+def _tag_rendered_viewports() -> None:
     for window in getattr(bpy.context.window_manager, "windows", ()):
         for area in window.screen.areas:
             if area.type == "VIEW_3D" and area.spaces.active.shading.type == "RENDERED":
                 area.tag_redraw()
-    return REDRAW_INTERVAL
+
+
+def refine_timer() -> float:
+    """bpy.app.timers callback: one refinement step of one Rendered viewport (the next in turn),
+    and a redraw when a sample completed. Refining here rather than in view_draw spares a redraw
+    of the whole viewport per band."""
+    from .overlay import describe_context_scene
+    from .view_pipeline import COARSE
+
+    busy = [p for p in list(live_pipelines)
+            if getattr(p, "step_args", None) is not None and p.pending(*p.step_args) is not None]
+    if not busy:
+        return IDLE_INTERVAL
+    pipeline = min(busy, key=lambda p: p.steps)  # round robin over the viewports
+    samples = pipeline.samples
+    pipeline.step(describe_context_scene, *pipeline.step_args)
+    if pipeline.samples != samples or pipeline.error or pipeline.statistics.get("level") == COARSE:
+        _tag_rendered_viewports()
+    return BUSY_INTERVAL
 
 
 def free_view_pipelines() -> None:
@@ -198,4 +217,4 @@ def _uninstall() -> None:
 
 CLASSES = (VSGLRenderEngine,)
 HOOKS = ((lambda: None, _uninstall),)
-TIMERS = ((redraw_timer, {"first_interval": IDLE_INTERVAL, "persistent": True}),)
+TIMERS = ((refine_timer, {"first_interval": IDLE_INTERVAL, "persistent": True}),)

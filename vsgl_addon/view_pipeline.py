@@ -74,7 +74,7 @@ class ViewPipeline:
         # took longer than the step budget, raised again when it took well under (never above 1).
         self.coarse_factor = 1.0
         self.has_image = False
-        self.wants_redraw = False  # set by the glue: a step is pending (engine.py's redraw timer)
+        self.step_args = None  # set by the glue: (settings, scale, samples) of the timer's steps
         self.steps = 0
         self.statistics: dict = {}
         self.history: deque = deque(maxlen=256)
@@ -305,7 +305,7 @@ class ViewPipeline:
         self._accumulated_for = None
         self.samples = 0
         self.has_image = False
-        self.wants_redraw = False
+        self.step_args = None
         self._rows_done = 0
         self._seconds_per_pixel = None
 
