@@ -112,11 +112,15 @@ class ViewTarget:
         return len(self.textures) + (self.framebuffer is not None)
 
 
-def _draw_into(target: ViewTarget, rows, blend: str, bind) -> None:
-    """Draw the full-screen triangle with the shader `bind()` binds into rows [first, end) of
-    `target`, with `blend`; the GPU state is restored after."""
+def _draw_into(target: ViewTarget, rows, blend: str, shader: str, set_inputs) -> None:
+    """Draw the full-screen triangle with VIEW's `shader` (inputs set by `set_inputs(program)`) into
+    rows [first, end) of `target`, with `blend`; the GPU state is restored after. The shader and
+    batch are made before the framebuffer is bound: compiling while it is bound leaves another one
+    bound in Blender 5.2 (the bind's exit then fails)."""
     import gpu
 
+    program = VIEW.shader(shader)
+    batch = _batch()
     first, end = rows if rows is not None else (0, target.size[1])
     saved = (gpu.state.blend_get(), gpu.state.depth_test_get(), gpu.state.depth_mask_get(),
              tuple(gpu.state.viewport_get()))
@@ -126,8 +130,9 @@ def _draw_into(target: ViewTarget, rows, blend: str, bind) -> None:
             gpu.state.depth_test_set("NONE")
             gpu.state.depth_mask_set(False)
             gpu.state.blend_set(blend)
-            program = bind()
-            _batch().draw(program)
+            program.bind()
+            set_inputs(program)
+            batch.draw(program)
     finally:
         gpu.state.blend_set(saved[0])
         gpu.state.depth_test_set(saved[1])
@@ -139,9 +144,7 @@ def resolve(view, guide_position, guide_normal, camera, projection_11: float, ta
             rows=None, weight: float = 1.0, add: bool = False) -> None:
     """`view` (renderer.ViewTextures) upsampled to the guide's pixels into rows [first, end) of
     `target` (the guide covers those rows), times `weight`; added to what is there if `add`."""
-    def bind():
-        program = VIEW.shader("resolve")
-        program.bind()
+    def set_inputs(program):
         program.uniform_float("camera", tuple(float(v) for v in camera))
         program.uniform_float("projection_11", float(projection_11))
         program.uniform_float("sigma_position", SIGMA_POSITION)
@@ -152,22 +155,18 @@ def resolve(view, guide_position, guide_normal, camera, projection_11: float, ta
             program.uniform_sampler(f"low_{name}", view.textures[name])
         program.uniform_sampler("guide_position", guide_position)
         program.uniform_sampler("guide_normal", guide_normal)
-        return program
 
-    _draw_into(target, rows, "ADDITIVE" if add else "NONE", bind)
+    _draw_into(target, rows, "ADDITIVE" if add else "NONE", "resolve", set_inputs)
 
 
 def accumulate(source: ViewTarget, target: ViewTarget, weight: float = 1.0, add: bool = True) -> None:
     """`source` × weight added to (or, add=False, copied into) `target` (same size)."""
-    def bind():
-        program = VIEW.shader("accumulate")
-        program.bind()
+    def set_inputs(program):
         program.uniform_float("weight", float(weight))
         for name in IMAGES:
             program.uniform_sampler(f"source_{name}", source.textures[name])
-        return program
 
-    _draw_into(target, None, "ADDITIVE" if add else "NONE", bind)
+    _draw_into(target, None, "ADDITIVE" if add else "NONE", "accumulate", set_inputs)
 
 
 def display(target: ViewTarget, weight: float, view_pass: str) -> None:
@@ -176,6 +175,7 @@ def display(target: ViewTarget, weight: float, view_pass: str) -> None:
 
     mode = VIEWPORT_PASSES.number(view_pass) if view_pass in VIEWPORT_PASSES.names else 0
     program = VIEW.shader("display")
+    batch = _batch()
     saved = gpu.state.blend_get()
     try:
         gpu.state.blend_set("NONE")
@@ -184,7 +184,7 @@ def display(target: ViewTarget, weight: float, view_pass: str) -> None:
         program.uniform_float("weight", float(weight))
         for name in IMAGES:
             program.uniform_sampler(f"accum_{name}", target.textures[name])
-        _batch().draw(program)
+        batch.draw(program)
     finally:
         gpu.state.blend_set(saved)
 

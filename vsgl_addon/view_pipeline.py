@@ -24,6 +24,7 @@ their average; tests replace it with a fake one, and the clock with a fake clock
 from __future__ import annotations
 
 import time
+import traceback
 from collections import deque
 
 import numpy as np
@@ -145,6 +146,7 @@ class ViewPipeline:
             self.error = f"{type(error).__name__}: {error}"
             self._free_lights()
             entry["error"] = self.error
+            entry["traceback"] = traceback.format_exc()
         entry["ended"] = self.clock()
         entry["seconds"] = entry["ended"] - started
         entry["samples"] = self.samples
