@@ -84,12 +84,11 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         self.tag_redraw()
 
     def view_draw(self, context, depsgraph):
-        """One step of the viewport's progressive image (at most about a frame's budget), then the
-        image, linear in Blender's units: Blender's colour management follows, as for F12."""
+        """The viewport's progressive image so far (refine_timer adds to it), linear in Blender's
+        units: Blender's colour management follows, as for F12."""
         import gpu
 
         from .settings import VIEWPORT_PASSES
-        from .view_pipeline import COARSE, LIGHTS
 
         pipeline = self._view_pipeline()
         scene = depsgraph.scene
@@ -106,18 +105,9 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         except ValueError as error:
             pipeline.error = str(error)
             settings = None
-        if settings is not None:
-            # The arguments of the steps the timer does while nothing changes.
-            pipeline.step_args = (settings, scale, samples)
-            if pipeline.pending(settings, scale, samples) in (LIGHTS, COARSE):
-                # After a change, the light passes and the coarse image in this frame.
-                saved_viewport = tuple(gpu.state.viewport_get())
-                try:
-                    pipeline.step(lambda: extract_scene(depsgraph), settings, scale, samples)
-                finally:
-                    gpu.state.viewport_set(*saved_viewport)
-        else:
-            pipeline.step_args = None
+        # The timer does the steps, in the window's GPU context: framebuffers belong to the context
+        # that made them, and view_draw runs in the viewport's own.
+        pipeline.step_args = None if settings is None else (settings, scale, samples)
         gpu.state.blend_set("ALPHA_PREMULT")
         self.bind_display_space_shader(scene)
         pipeline.draw(view_pass)
@@ -171,9 +161,10 @@ def _rows(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(image, dtype=np.float32).reshape(-1, image.shape[-1])
 
 
-#: Timer intervals (seconds) while a Rendered viewport refines, and while none does.
+#: Timer intervals (seconds) while a Rendered viewport refines, and while none does (short: a
+#: change's first image waits for the timer).
 BUSY_INTERVAL = 0.01
-IDLE_INTERVAL = 0.2
+IDLE_INTERVAL = 0.02
 
 
 def _tag_rendered_viewports() -> None:
@@ -184,9 +175,9 @@ def _tag_rendered_viewports() -> None:
 
 
 def refine_timer() -> float:
-    """bpy.app.timers callback: one refinement step of one Rendered viewport (the next in turn),
-    and a redraw when a sample completed. Refining here rather than in view_draw spares a redraw
-    of the whole viewport per band."""
+    """bpy.app.timers callback: one step of one Rendered viewport (the next in turn: light passes
+    and coarse image after a change, else a band of a sample), and a redraw when its image changed.
+    Working here rather than in view_draw spares a redraw of the whole viewport per band."""
     from .overlay import describe_context_scene
     from .view_pipeline import COARSE
 
