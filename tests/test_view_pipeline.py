@@ -15,6 +15,7 @@ REGION = (200, 100)
 SETTINGS = VSGLSettings(vsgl_count=16, rsm_size=32, seed=5)
 SECONDS_PER_PIXEL = 1e-5  # a full 200 x 100 sample costs 0.2 s: about four 60 ms bands
 LIGHT_SECONDS = 0.02
+FIXED_SECONDS = 0.0  # of every view render (passes set up per light, the wait for the GPU)
 
 
 class Clock:
@@ -68,7 +69,7 @@ class FakeBackend:
 
     def render_view(self, renderer, lights, settings, width, height, view, projection):
         assert not lights.freed and settings.seed == lights.seed
-        self.clock.now += SECONDS_PER_PIXEL * width * height
+        self.clock.now += FIXED_SECONDS + SECONDS_PER_PIXEL * width * height
         self.renders.append((width, height))
         return View(value=float(lights.seed), size=(width, height), counts={"vsgls": 16},
                     guide=Thing(size=(width, height)))
@@ -222,3 +223,15 @@ def test_a_slow_coarse_image_gets_fewer_pixels_next_time(pipeline, monkeypatch):
         pipeline.request_view(np.eye(4) * (1 + shift), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
         pipeline.step(describe, SETTINGS, 0.5, 1)
     assert pipeline.coarse_factor == 1.0
+
+
+def test_a_fixed_cost_per_band_does_not_shrink_the_bands_to_a_row(pipeline, monkeypatch):
+    """30 ms per render whatever its size (half the budget), 1e-6 s per pixel: bands stay tens of
+    rows (a 200-pixel row costs 0.2 ms), and steps stay near the budget."""
+    monkeypatch.setattr(__import__(__name__), "FIXED_SECONDS", 0.03)
+    monkeypatch.setattr(__import__(__name__), "SECONDS_PER_PIXEL", 1e-6)
+    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (200, 1000))
+    done = run(pipeline, samples=2)
+    bands = [e["rows"][1] - e["rows"][0] for e in pipeline.history if e.get("rows") and e["rows"][1] > e["rows"][0]]
+    assert np.median(bands[2:]) >= 50, bands
+    assert max(seconds for _, seconds in done[3:]) <= STEP_BUDGET * 1.3, done

@@ -71,6 +71,11 @@ class ViewPipeline:
         self._rows_done = 0
         self._band_seed = None
         self._seconds_per_pixel: float | None = None
+        # A band's cost is a fixed part (passes set up per light, the resolve, the wait for the GPU)
+        # plus a part per pixel, fitted to the last bands' (pixels, seconds): with the per-pixel part
+        # alone, a slow machine's fixed cost shrinks the bands to a row each.
+        self._band_times: deque = deque(maxlen=8)
+        self._band_fixed_seconds: float | None = None
         # The coarse image's resolution as a fraction of the asked scale: lowered when a coarse image
         # took longer than the step budget, raised again when it took well under (never above 1).
         self.coarse_factor = 1.0
@@ -78,7 +83,7 @@ class ViewPipeline:
         self.step_args = None  # set by the glue: (settings, scale, samples) of the timer's steps
         self.steps = 0
         self.statistics: dict = {}
-        self.history: deque = deque(maxlen=256)
+        self.history: deque = deque(maxlen=4096)
         self.warnings: tuple[str, ...] = ()
         self.error: str | None = None
 
@@ -239,7 +244,9 @@ class ViewPipeline:
         width, height = request.region_size
         sample = self._ensure_target("sample_target", (width, height))
         remaining = max(self.step_budget - (self.clock() - started), self.step_budget / 4)
-        rows = height if not self._seconds_per_pixel else int(remaining / (self._seconds_per_pixel * width))
+        fixed = self._band_fixed_seconds or 0.0
+        rows = height if not self._seconds_per_pixel else int((remaining - fixed) / (self._seconds_per_pixel * width))
+        rows = max(rows, height // 64)
         first = self._rows_done
         end = min(height, first + max(1, rows))
         clock = self.clock()
@@ -251,7 +258,7 @@ class ViewPipeline:
         finally:
             view.free()
         self.backend.finish(sample)
-        self._seconds_per_pixel = (self.clock() - clock) / (width * (end - first))
+        self._fit_band_cost(width * (end - first), self.clock() - clock)
         self._rows_done = end
         entry["rows"] = (first, end, height)
         if end >= height:
@@ -261,6 +268,19 @@ class ViewPipeline:
             self._seeds_used.add(self.lights_seed)
             self._rows_done = 0
         return entry
+
+    def _fit_band_cost(self, pixels: int, seconds: float) -> None:
+        """seconds ≈ fixed + per_pixel × pixels over the last bands (least squares; the fixed part
+        within [0, 0.8 budget], zero while the bands' sizes barely differ)."""
+        self._band_times.append((float(pixels), float(seconds)))
+        x = np.array([p for p, _ in self._band_times])
+        y = np.array([t for _, t in self._band_times])
+        fixed = 0.0
+        if len(x) >= 2 and x.std() > 0.2 * x.mean():
+            slope = float(((x - x.mean()) * (y - y.mean())).sum() / ((x - x.mean()) ** 2).sum())
+            fixed = float(np.clip(y.mean() - slope * x.mean(), 0.0, 0.8 * self.step_budget))
+        self._band_fixed_seconds = fixed
+        self._seconds_per_pixel = max(float(np.mean((y - fixed) / x)), 1e-12)
 
     # --- drawing (view_draw) ------------------------------------------------------------------
     def draw(self, view_pass: str) -> bool:
@@ -310,6 +330,8 @@ class ViewPipeline:
         self.step_args = None
         self._rows_done = 0
         self._seconds_per_pixel = None
+        self._band_fixed_seconds = None
+        self._band_times.clear()
 
     def gpu_resource_count(self) -> int:
         """GPU objects held (0 after free()): light passes, renderer, accumulation targets."""
