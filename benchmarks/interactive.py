@@ -92,6 +92,15 @@ def summarise(name: str, result: dict) -> dict:
     }
 
 
+def compact(result: dict) -> dict:
+    """The raw result without each step's log entry: per repeat, the steps' work and seconds only."""
+    out = dict(result)
+    out["rendered"] = [{**{k: v for k, v in r.items() if k != "entries"},
+                        "steps": [[e["work"], round(e["seconds"], 4)] for e in r["entries"]]}
+                       for r in result["rendered"]]
+    return out
+
+
 def table(rows, samples) -> str:
     lines = [f"Rendered viewport (VSGL engine) against the overlay over Solid (today's path), Blender 5.2 window, "
              f"llvmpipe, through the camera, resolution scale 0.25, {samples} samples; a light moved. "
@@ -149,7 +158,7 @@ def main(argv=None) -> int:
     results = REPO / "benchmarks" / "results"
     text = table(rows, arguments.samples)
     (results / f"interactive{suffix}.md").write_text("# Interactive speed\n\n" + text)
-    (results / f"interactive{suffix}.json").write_text(json.dumps({"rows": rows, "raw": raw}, indent=1, default=float))
+    (results / f"interactive{suffix}.json").write_text(json.dumps({"rows": rows, "raw": {name: compact(r) for name, r in raw.items()}}, default=float))
     print(text)
     return 0
 
