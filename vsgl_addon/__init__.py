@@ -43,8 +43,8 @@ def _registry() -> Registry:
         classes=(*properties.CLASSES, *engine.CLASSES, *operators.CLASSES, *ui.CLASSES),
         properties=(*properties.TYPE_PROPERTIES,),
         handlers=(*overlay.HANDLERS,),
-        timers=(*overlay.TIMERS,),
-        hooks=(*overlay.HOOKS,),
+        timers=(*overlay.TIMERS, *engine.TIMERS),
+        hooks=(*overlay.HOOKS, *engine.HOOKS, *ui.HOOKS),
     )
 
 

@@ -12,6 +12,7 @@ multilayer EXR and Blender's colour management treat them like Cycles' passes.
 from __future__ import annotations
 
 import time
+import weakref
 
 import bpy
 import numpy as np
@@ -36,12 +37,86 @@ RENDER_PASSES = {
 last_frame_statistics: dict = {}
 
 
+#: The view pipelines of the Rendered viewports open now (one engine instance per viewport), so
+#: unregister and tests can reach them.
+live_pipelines: "weakref.WeakSet" = weakref.WeakSet()
+
+
+def _matrix(m) -> np.ndarray:
+    return np.array([list(row) for row in m], np.float64)
+
+
 class VSGLRenderEngine(bpy.types.RenderEngine):
+    """F12 (render) and the 3D viewport's Rendered shading (view_update / view_draw)."""
+
     bl_idname = ENGINE_ID
     bl_label = "VSGL"
     bl_use_gpu_context = True
     bl_use_postprocess = True
     bl_use_preview = False
+    # Material Preview keeps EEVEE (look-dev with HDRIs); Rendered shows our light.
+    bl_use_eevee_viewport = True
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._pipeline = None
+
+    def __del__(self):
+        # Leaving Rendered shading (or closing the viewport) destroys the instance.
+        pipeline = getattr(self, "_pipeline", None)
+        if pipeline is not None:
+            pipeline.free()
+            self._pipeline = None
+
+    def _view_pipeline(self):
+        if self._pipeline is None:
+            from .view_pipeline import ViewPipeline
+
+            self._pipeline = ViewPipeline()
+            live_pipelines.add(self._pipeline)
+        return self._pipeline
+
+    def view_update(self, context, depsgraph):
+        """Scene changes of a Rendered viewport: the light passes rerun on the next step when
+        something that changes the light changed (overlay._light_changed's rule)."""
+        from .overlay import _light_changed
+
+        pipeline = self._view_pipeline()
+        if pipeline.lights is None or _light_changed(depsgraph):
+            pipeline.mark_scene_dirty()
+        self.tag_redraw()
+
+    def view_draw(self, context, depsgraph):
+        """The viewport's progressive image so far (refine_timer adds to it), linear in Blender's
+        units: Blender's colour management follows, as for F12."""
+        import gpu
+
+        from .settings import VIEWPORT_PASSES
+
+        pipeline = self._view_pipeline()
+        scene = depsgraph.scene
+        region, rv3d = context.region, context.region_data
+        properties = scene.vsgl
+        pipeline.request_view(_matrix(rv3d.view_matrix), _matrix(rv3d.window_matrix),
+                              (region.width, region.height))
+        scale = float(getattr(properties, "viewport_resolution_scale", 0.25))
+        samples = int(getattr(properties, "viewport_samples", 16))
+        identifier = getattr(properties, "viewport_pass", "COMBINED")
+        view_pass = next((c.name for c in VIEWPORT_PASSES if c.identifier == identifier), "combined")
+        try:
+            settings = VSGLSettings.from_properties(properties)
+        except ValueError as error:
+            pipeline.error = str(error)
+            settings = None
+        # The timer does the steps, in the window's GPU context: framebuffers belong to the context
+        # that made them, and view_draw runs in the viewport's own.
+        pipeline.step_args = None if settings is None else (settings, scale, samples)
+        gpu.state.blend_set("ALPHA_PREMULT")
+        self.bind_display_space_shader(scene)
+        pipeline.draw(view_pass)
+        self.unbind_display_space_shader()
+        gpu.state.blend_set("NONE")
+        self.update_stats("", pipeline.status_text(samples))
 
     def update_render_passes(self, scene=None, renderlayer=None):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
@@ -89,4 +164,51 @@ def _rows(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(image, dtype=np.float32).reshape(-1, image.shape[-1])
 
 
+#: Timer intervals (seconds) while a Rendered viewport refines, and while none does (short: a
+#: change's first image waits for the timer).
+BUSY_INTERVAL = 0.01
+IDLE_INTERVAL = 0.02
+
+
+def _tag_rendered_viewports() -> None:
+    for window in getattr(bpy.context.window_manager, "windows", ()):
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D" and area.spaces.active.shading.type == "RENDERED":
+                area.tag_redraw()
+
+
+def refine_timer() -> float:
+    """bpy.app.timers callback: one step of one Rendered viewport (the next in turn: light passes
+    and coarse image after a change, else a band of a sample), and a redraw when its image changed.
+    Working here rather than in view_draw spares a redraw of the whole viewport per band."""
+    from .overlay import describe_context_scene
+    from .view_pipeline import COARSE
+
+    busy = [p for p in list(live_pipelines)
+            if getattr(p, "step_args", None) is not None and p.pending(*p.step_args) is not None]
+    if not busy:
+        return IDLE_INTERVAL
+    pipeline = min(busy, key=lambda p: p.steps)  # round robin over the viewports
+    samples = pipeline.samples
+    pipeline.step(describe_context_scene, *pipeline.step_args)
+    if pipeline.samples != samples or pipeline.error or pipeline.statistics.get("level") == COARSE:
+        _tag_rendered_viewports()
+    return BUSY_INTERVAL
+
+
+def free_view_pipelines() -> None:
+    """Release the GPU resources of every Rendered viewport (unregister)."""
+    for pipeline in list(live_pipelines):
+        pipeline.free()
+
+
+def _uninstall() -> None:
+    from .view_gpu import free_shaders
+
+    free_view_pipelines()
+    free_shaders()
+
+
 CLASSES = (VSGLRenderEngine,)
+HOOKS = ((lambda: None, _uninstall),)
+TIMERS = ((refine_timer, {"first_interval": IDLE_INTERVAL, "persistent": True}),)

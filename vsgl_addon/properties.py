@@ -13,7 +13,7 @@ from bpy.types import PropertyGroup
 from . import overlay
 from .settings import (CAUSTIC_ROUGHNESS_RANGE, DISK_RADIUS_RANGE, ISM_POINTS_RANGE, ISM_SIZE_RANGE, K_RANGE,
                        KERNELS, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES, REFLECTOR_MODES, RSM_SIZE_RANGE,
-                       VSGL_COUNT_RANGE)
+                       VIEWPORT_PASSES, VSGL_COUNT_RANGE)
 
 
 def enum_items(choices) -> tuple[tuple[str, str, str, int], ...]:
@@ -226,6 +226,37 @@ class VSGLSceneSettings(PropertyGroup):
         max=1000.0,
         soft_max=16.0,
         precision=2,
+    )
+
+    # --- the Rendered viewport (engine.py view_draw) ---
+    viewport_resolution_scale: FloatProperty(
+        name="Preview Resolution",
+        description=(
+            "Resolution of the first, coarse image after a change in Rendered shading, as a fraction "
+            "of the viewport's pixels per side; it is upsampled to the viewport guided by its depth and "
+            "normals, so edges stay sharp. Later samples are at full resolution"
+        ),
+        default=0.25,
+        min=0.05,
+        max=1.0,
+        subtype="FACTOR",
+        precision=2,
+    )
+    viewport_samples: IntProperty(
+        name="Viewport Samples",
+        description=(
+            "Full-resolution samples averaged in Rendered shading while nothing changes, each with a "
+            "new rotation of the VSGL lattice; the image converges to the techniques' expected value"
+        ),
+        default=16,
+        min=1,
+        max=4096,
+    )
+    viewport_pass: EnumProperty(
+        name="Viewport Pass",
+        description="Which light Rendered shading shows (the render passes F12 writes)",
+        items=enum_items(VIEWPORT_PASSES),
+        default="COMBINED",
     )
 
 

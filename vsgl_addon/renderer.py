@@ -21,6 +21,7 @@ import numpy as np
 from .layouts import GBUFFER
 from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg, shading_inputs, vsgl_shading
 from .passes.contract import LIGHT_PASSES
+from .passes.gpu_util import finish
 from .passes.rsm import SceneGPU
 from .pipeline import build_visibility, render_scene_vsgls
 from .proxies import ProxyCache, lit_proxies
@@ -61,13 +62,8 @@ class FrameImages:
 
 
 def _finish(texture) -> None:
-    """Wait for the GPU to finish writing `texture` (reading one texel back), so the pass's time
-    is its own: GL calls return before the work is done."""
-    import gpu
-
-    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[texture])
-    with framebuffer.bind():
-        framebuffer.read_color(0, 0, 1, 1, 4, 0, "FLOAT")
+    """Wait for the GPU to finish writing `texture`, so the pass's time is its own."""
+    finish(texture)
 
 
 def _rgb(image: np.ndarray) -> np.ndarray:
@@ -172,16 +168,91 @@ def scene_proxies(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None 
     return kept
 
 
+@dataclass
+class ViewTextures:
+    """One view's images left on the GPU (RGBA32F, row 0 at the bottom, all of one size): the
+    keys of TEXTURES. ``position`` and ``normal`` are the view's G-buffer attachments (position.a =
+    coverage), the guide of joint bilateral upsampling. The indirect textures belong to the
+    FrameRenderer and are overwritten by its next view: use them before. `free()` drops the rest."""
+
+    width: int
+    height: int
+    textures: dict
+    counts: dict = field(default_factory=dict)
+    gbuffer: object = None  # the view's GBuffer (the guide of a full-resolution render)
+    _owned: list = field(default_factory=list)
+
+    TEXTURES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "position", "normal")
+
+    def free(self) -> None:
+        for item in self._owned:
+            item.free()
+        self._owned.clear()
+        self.textures.clear()
+        self.gbuffer = None
+
+
 class FrameRenderer:
     """Renders frames; holds the shading passes' textures between frames (free() releases them)."""
 
     def __init__(self):
         self._shading = vsgl_shading.VSGLShading()
+        self._glossy_shading = None  # the second shading of receiver-lobe split scenes (GPU path)
         self._mrp = mrp_asg.MRPASG()
 
     def free(self) -> None:
         self._shading.free()
         self._mrp.free()
+        if self._glossy_shading is not None:
+            self._glossy_shading.free()
+            self._glossy_shading = None
+
+    def render_view_textures(self, lights: SceneLights, settings: VSGLSettings, width: int, height: int,
+                             view_matrix, projection_matrix) -> ViewTextures:
+        """The passes of render_view, with nothing read back: the images stay textures (the
+        viewport draws them). No wait for the GPU either: the caller finishes what it times."""
+        scene = lights.scene
+        gbuffer = direct = None
+        try:
+            gbuffer = gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
+            direct = direct_light.PASS.run(gbuffer, scene.lights, lights.vsgls.views_by_light,
+                                           scene_gpu=lights.scene_gpu)
+            inputs = shading_inputs.PASS.run(gbuffer)
+            mode = diffuse_mode_for_kernel(settings.kernel)
+            vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, lights.vsgls.tables(), mode, shading=self._shading)
+            specular = self._shading.specular
+            if lights.glossy_vsgls is not None:
+                # The receivers' specular lobes see only the reflectors glossy rays see: their own
+                # shading, into textures of their own (no read-back between the two).
+                if self._glossy_shading is None:
+                    self._glossy_shading = vsgl_shading.VSGLShading()
+                vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, lights.glossy_vsgls.tables(), mode,
+                                      shading=self._glossy_shading)
+                specular = self._glossy_shading.specular
+            if lights.proxies:
+                # MRP-ASG's cell, composed as render_view composes it, on the GPU.
+                gated = not scene.receiver_lobe_split
+                mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, lights.vsgls.views_by_light,
+                                 lights.proxies, settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
+                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
+                specular = self._mrp.composite_specular(self._shading.specular, specular, gated)
+        except BaseException:
+            for item in (direct, gbuffer):
+                if item is not None:
+                    item.free()
+            raise
+        textures = {"direct_diffuse": direct.textures["diffuse"], "direct_specular": direct.textures["glossy"],
+                    "indirect_diffuse": self._shading.diffuse, "indirect_specular": specular,
+                    "position": gbuffer.textures["position"], "normal": gbuffer.textures["normal"]}
+        glossy_count = lights.glossy_vsgls.vsgl_count if lights.glossy_vsgls is not None else 0
+        counts = {"lights": len(scene.lights), "vsgls": lights.vsgls.vsgl_count + glossy_count,
+                  "triangles": int(len(scene.geometry.positions)), "proxies": len(lights.proxies)}
+        return ViewTextures(width, height, textures, counts, gbuffer, [direct, gbuffer])
+
+    def guide(self, lights: SceneLights, width: int, height: int, view_matrix, projection_matrix):
+        """The view's G-buffer alone (a GBuffer: position, normal, ...), the full-resolution guide of
+        joint bilateral upsampling; the caller frees it."""
+        return gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
 
     def render(self, scene, settings: VSGLSettings, width: int, height: int,
                view_matrix=None, projection_matrix=None) -> FrameImages:

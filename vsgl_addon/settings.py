@@ -147,6 +147,18 @@ PROXY_OVERRIDES = Choices(
     Choice("never", "NEVER", "Never", "The object's light reaches glossy surfaces only through VSGLs"),
 )
 
+#: Which light the Rendered viewport shows (the VSGL engine's view_draw); the position is the
+#: display shader's `mode` (glsl/view/display.frag.glsl). The same passes as F12's render result.
+VIEWPORT_PASSES = Choices(
+    Choice("combined", "COMBINED", "Combined", "Direct plus one-bounce indirect light, as F12 renders it"),
+    Choice("direct", "DIRECT", "Direct", "Direct light only (the Direct render pass)"),
+    Choice("indirect", "INDIRECT", "Indirect", "One-bounce indirect light only (the Indirect render pass)"),
+    Choice("indirect_diffuse", "INDIRECT_DIFFUSE", "Indirect Diffuse",
+           "Diffuse part of the indirect light (the Indirect Diffuse render pass)"),
+    Choice("indirect_specular", "INDIRECT_SPECULAR", "Indirect Specular",
+           "Glossy part of the indirect light (the Indirect Specular render pass)"),
+)
+
 KERNEL_MODES = KERNELS.names
 POSITIONAL_DISTRIBUTIONS = POSITIONS.names
 

@@ -220,6 +220,18 @@ class RENDER_PT_vsgl_overlay(_RenderPanel, bpy.types.Panel):
         draw_overlay_settings(self.layout, context.scene.vsgl)
 
 
+class RENDER_PT_vsgl_viewport(_RenderPanel, bpy.types.Panel):
+    bl_label = "Rendered Viewport"
+    bl_parent_id = "RENDER_PT_vsgl"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.scene.vsgl
+        for name in ("viewport_pass", "viewport_resolution_scale", "viewport_samples"):
+            layout.prop(settings, name)
+
+
 class RENDER_PT_vsgl_lookdev(_RenderPanel, bpy.types.Panel):
     bl_label = "Look-Dev"
     bl_parent_id = "RENDER_PT_vsgl"
@@ -237,9 +249,32 @@ class RENDER_PT_vsgl_statistics(_RenderPanel, bpy.types.Panel):
         draw_statistics(self.layout)
 
 
+def draw_viewport_pass(self, context):
+    """Appended to the 3D viewport's Shading popover: the pass Rendered shading shows, where
+    Cycles and EEVEE put theirs."""
+    shading = getattr(context.space_data, "shading", None)
+    settings = getattr(context.scene, "vsgl", None)
+    if shading is None or settings is None or context.engine != engine.ENGINE_ID or shading.type != "RENDERED":
+        return
+    self.layout.prop(settings, "viewport_pass", text="Render Pass")
+
+
+def _install_viewport_pass() -> None:
+    bpy.types.VIEW3D_PT_shading.append(draw_viewport_pass)
+
+
+def _uninstall_viewport_pass() -> None:
+    try:
+        bpy.types.VIEW3D_PT_shading.remove(draw_viewport_pass)
+    except (ValueError, RuntimeError):
+        pass
+
+
+HOOKS = ((_install_viewport_pass, _uninstall_viewport_pass),)
+
 # Parents before children (register order); unregister goes in reverse.
 CLASSES = (
     VIEW3D_PT_vsgl, VIEW3D_PT_vsgl_overlay, VIEW3D_PT_vsgl_passes, VIEW3D_PT_vsgl_lookdev,
     VIEW3D_PT_vsgl_statistics,
-    RENDER_PT_vsgl, RENDER_PT_vsgl_overlay, RENDER_PT_vsgl_lookdev, RENDER_PT_vsgl_statistics,
+    RENDER_PT_vsgl, RENDER_PT_vsgl_overlay, RENDER_PT_vsgl_viewport, RENDER_PT_vsgl_lookdev, RENDER_PT_vsgl_statistics,
 )

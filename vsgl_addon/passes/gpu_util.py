@@ -21,15 +21,43 @@ def texture_from_array(array: np.ndarray):
     bottom, as ``GPUTexture.read`` returns it)."""
     import gpu
 
+    RoundTrips.uploads += 1
     data = np.ascontiguousarray(array, dtype=np.float32)
+    RoundTrips.upload_bytes += data.nbytes
     height, width = data.shape[:2]
     return gpu.types.GPUTexture((width, height), format="RGBA32F",
                                 data=gpu.types.Buffer("FLOAT", data.shape, data))
 
 
+class RoundTrips:
+    """CPU round trips of GPU images in this process: ``read_backs`` (whole textures read into numpy,
+    by :func:`read_texture`) and ``uploads`` (numpy arrays made into textures, by
+    :func:`texture_from_array`). The viewport's GPU-resident path is checked against these."""
+
+    read_backs = 0
+    uploads = 0
+    read_back_bytes = 0
+    upload_bytes = 0
+    #: One-texel reads that only wait for the GPU to finish (:func:`finish`), so a step's time is its own.
+    syncs = 0
+
+
+def finish(texture) -> None:
+    """Wait for the GPU to finish writing `texture` by reading one texel back (GL calls return
+    before the work is done)."""
+    import gpu
+
+    RoundTrips.syncs += 1
+    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[texture])
+    with framebuffer.bind():
+        framebuffer.read_color(0, 0, 1, 1, 4, 0, "FLOAT")
+
+
 def read_texture(texture, width: int, height: int, channels: int = 4) -> np.ndarray:
     """A float texture as a float32 (height, width, channels) array (flattened first: Blender's
     multi-dimensional Buffers report wrong strides to numpy). ``channels`` = 1 for a depth texture."""
+    RoundTrips.read_backs += 1
+    RoundTrips.read_back_bytes += 4 * width * height * channels
     buffer = texture.read()
     buffer.dimensions = width * height * channels
     return np.array(buffer, dtype=np.float32).reshape(height, width, channels)

@@ -53,6 +53,21 @@ def _shader_spec() -> ShaderSpec:
                                     + PROXY_TABLE.glsl("sampler_load")})
 
 
+def _composite_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("INT", "gated")],
+        samplers=[("FLOAT_2D", "whole_specular"), ("FLOAT_2D", "glossy_specular"), ("FLOAT_2D", "glossy_reflectors")],
+        vertex_inputs=[("VEC2", "position")],
+        varyings=[("VEC2", "uv")],
+        fragment_outputs=[("VEC4", "indirect_specular")],
+    )
+
+
+def _composite_spec() -> ShaderSpec:
+    return ShaderSpec(_composite_interface, {"vertex": "fullscreen_triangle.vert.glsl",
+                                             "fragment": "mrp_asg/specular_composite.frag.glsl"})
+
+
 class MRPASG:
     """The pass, keeping its output texture (and framebuffer) between frames."""
 
@@ -60,11 +75,46 @@ class MRPASG:
         self.texture = None
         self._framebuffer = None
         self._size = None
+        self.specular = None
+        self._specular_framebuffer = None
 
     def free(self) -> None:
         self._framebuffer = None
         self.texture = None
         self._size = None
+        self._specular_framebuffer = None
+        self.specular = None
+
+    def composite_specular(self, whole_specular, glossy_specular, gated: bool):
+        """The frame's indirect specular texture (glsl/mrp_asg/specular_composite.frag.glsl) from the
+        VSGL shading of every reflector, that of the RSM without the proxies' specular flux and this
+        pass's last image, without a read-back; the texture is overwritten by the next call."""
+        import gpu
+
+        width, height = self._size
+        program = PASS.shader("specular_composite")
+        batch = PASS.resource("composite_triangle", lambda: fullscreen_triangle_batch(program))
+        if self.specular is None or (self.specular.width, self.specular.height) != (width, height):
+            self._specular_framebuffer = None
+            self.specular = gpu.types.GPUTexture((width, height), format="RGBA32F")
+            self._specular_framebuffer = gpu.types.GPUFrameBuffer(color_slots=[self.specular])
+        saved = (gpu.state.blend_get(), gpu.state.depth_test_get(), tuple(gpu.state.viewport_get()))
+        try:
+            with self._specular_framebuffer.bind():
+                gpu.state.viewport_set(0, 0, width, height)
+                gpu.state.depth_test_set("NONE")
+                gpu.state.blend_set("NONE")
+                program.bind()
+                program.uniform_int("gated", 1 if gated else 0)
+                program.uniform_sampler("whole_specular", whole_specular)
+                program.uniform_sampler("glossy_specular", glossy_specular)
+                program.uniform_sampler("glossy_reflectors", self.texture)
+                batch.draw(program)
+        finally:
+            gpu.state.blend_set(saved[0])
+            gpu.state.depth_test_set(saved[1])
+            gpu.state.viewport_set(*saved[2])
+        return self.specular
 
     def _target(self, width: int, height: int) -> None:
         import gpu
@@ -89,7 +139,7 @@ class MRPASG:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if not (np.isfinite(disk_radius) and disk_radius >= 0.0):
             raise ValueError(f"disk radius must be a finite number >= 0, got {disk_radius}")
-        program = PASS.shader()
+        program = PASS.shader("mrp_asg")
         batch = PASS.resource("fullscreen_triangle", lambda: fullscreen_triangle_batch(program))
         dummy = PASS.resource("dummy_depth", lambda: gpu.types.GPUTexture((1, 1), format="DEPTH_COMPONENT32F"))
         width, height = int(gbuffer.width), int(gbuffer.height)
@@ -158,7 +208,7 @@ PASS = GPUPass(
     name="mrp_asg",
     label="Glossy Reflectors (MRP-ASG)",
     step=Step("mrp_asg", "Glossy Reflectors (MRP-ASG)", {"proxies": "Rectangle Proxies"}),
-    shaders={"mrp_asg": _shader_spec()},
+    shaders={"mrp_asg": _shader_spec(), "specular_composite": _composite_spec()},
     # The proxy table is made from the scene (vsgl_addon/proxies.py), not by an earlier pass.
     reads=(GBUFFER.name, SHADING_INPUTS.name, "scene", "rsm_depth"),
     writes=("indirect_glossy_reflectors",),

@@ -1,0 +1,243 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Run inside the Blender 5.2 application with its window, by benchmarks/interactive.py (one scene).
+
+    real-blender gui SCENE.blend --python benchmarks/interactive_gui.py
+    (BLENDER_VSGL_BENCH_OUT=<result.json>, BLENDER_VSGL_BENCH_SAMPLES, BLENDER_VSGL_BENCH_REPEATS)
+
+Through the scene's camera, in the 3D viewport of the default layout:
+
+1. Rendered shading (VSGL engine): after a warm-up, the first light is moved REPEATS times; for each
+   move, the viewport's step log (view_pipeline.ViewPipeline.history) gives the time from the change
+   to the first coarse image, the time of each refinement step and of the whole convergence. On the
+   first move every step's average image is also read back (outside the steps' timing), to find the
+   work time after which it is within 10 % / 5 % relative RMSE of the converged image.
+2. The overlay (today's path) over Solid shading, "Combined", at the same resolution scale, as the
+   baseline in the same session: the same moves, the time from the change to its first coarse image
+   and to its refined image (polled every 10 ms), its update steps, its final image's error against
+   the converged Rendered one, and the CPU round trips (bytes read back and uploaded) per update of
+   both paths.
+"""
+
+import importlib
+import json
+import os
+import time
+import traceback
+
+import bpy
+import numpy as np
+
+MODULE = "bl_ext.user_default.vsgl"
+OUT = os.environ["BLENDER_VSGL_BENCH_OUT"]
+SAMPLES = int(os.environ.get("BLENDER_VSGL_BENCH_SAMPLES", "8"))
+REPEATS = int(os.environ.get("BLENDER_VSGL_BENCH_REPEATS", "3"))
+SCALE = 0.25
+POLL = 0.01
+TIMEOUT = 900.0
+result = {"rendered": [], "overlay": [], "errors": []}
+
+
+def addon(name):
+    return importlib.import_module(f"{MODULE}.vsgl_addon.{name}")
+
+
+def viewport():
+    for area in bpy.context.window.screen.areas if bpy.context.window else bpy.context.window_manager.windows[0].screen.areas:
+        if area.type == "VIEW_3D":
+            return area, next(r for r in area.regions if r.type == "WINDOW"), area.spaces.active
+    raise RuntimeError("no 3D viewport")
+
+
+def the_pipeline():
+    live = list(addon("engine").live_pipelines)
+    return live[0] if live else None
+
+
+def round_trips():
+    counter = addon("passes.gpu_util").RoundTrips
+    return {"read_backs": counter.read_backs, "read_back_bytes": counter.read_back_bytes,
+            "uploads": counter.uploads, "upload_bytes": counter.upload_bytes, "syncs": counter.syncs}
+
+
+def light_object():
+    return next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
+
+
+def average_image(pipeline):
+    """The pipeline's displayed combined image (direct + indirect, sum / samples): a read-back for
+    the benchmark's error curve only."""
+    read = addon("passes.gpu_util").read_texture
+    target = pipeline.target
+    width, height = target.size
+    total = sum(read(target.textures[name], width, height)[..., :3]
+                for name in ("direct", "indirect_diffuse", "indirect_specular"))
+    return total / max(pipeline.samples, 1)
+
+
+def rmse(image, reference):
+    return float(np.sqrt(np.mean((image - reference) ** 2)) / max(np.sqrt(np.mean(reference ** 2)), 1e-30))
+
+
+def snapshotting(pipeline, store):
+    """Wrap pipeline.step so each step's image is kept (read after the step's own timing)."""
+    step = pipeline.step
+
+    def wrapped(*args, **kwargs):
+        work = step(*args, **kwargs)
+        if work is not None and pipeline.has_image:
+            store.append((pipeline.statistics["index"], pipeline.samples, average_image(pipeline)))
+        return work
+
+    pipeline.step = wrapped
+    return lambda: pipeline.__dict__.pop("step", None)
+
+
+def rendered_converged():
+    pipeline = the_pipeline()
+    if pipeline is not None and pipeline.error:
+        raise RuntimeError(pipeline.error)
+    return pipeline is not None and pipeline.converged(SAMPLES)
+
+
+def overlay_refined():
+    overlay = addon("overlay")
+    _area, _region, space = viewport()
+    key = space.region_3d.as_pointer()
+    if overlay.cache.error:
+        raise RuntimeError(overlay.cache.error)
+    return overlay.cache.is_current(key) and overlay.cache.views[key].level == overlay.REFINED
+
+
+def overlay_coarse():
+    overlay = addon("overlay")
+    _area, _region, space = viewport()
+    return overlay.cache.is_current(space.region_3d.as_pointer())
+
+
+def move_light(sign):
+    light = light_object()
+    light.location.x += 0.05 * sign
+
+
+def tick_generator():
+    scene = bpy.context.scene
+    area, region, space = viewport()
+    scene.render.engine = "VSGL"
+    scene.vsgl.viewport_samples = SAMPLES
+    scene.vsgl.viewport_resolution_scale = SCALE
+    for obj in scene.objects:
+        obj.select_set(False)
+    space.region_3d.view_perspective = "CAMERA"
+    space.shading.type = "RENDERED"
+    area.tag_redraw()
+    result["region"] = [region.width, region.height]
+    started = time.perf_counter()
+    while not rendered_converged():  # warm-up: shaders compiled, first convergence
+        if time.perf_counter() - started > TIMEOUT:
+            raise RuntimeError("no convergence")
+        yield POLL
+    converged_image = None
+    for repeat in range(REPEATS + 1):
+        pipeline = the_pipeline()
+        first_index = pipeline.steps
+        snapshots = []
+        undo = snapshotting(pipeline, snapshots) if repeat == 0 else None
+        trips = round_trips()
+        change = time.perf_counter()
+        move_light(1 if repeat % 2 == 0 else -1)
+        area.tag_redraw()
+        while not (pipeline.steps > first_index and rendered_converged()):
+            if time.perf_counter() - change > TIMEOUT:
+                raise RuntimeError("no convergence after a change")
+            yield POLL
+        done = time.perf_counter()
+        if undo is not None:
+            undo()
+        entries = [dict(e) for e in pipeline.history if e["index"] >= first_index]
+        after = round_trips()
+        record = {"repeat": repeat, "entries": [{k: v for k, v in e.items() if k != "counts"} for e in entries],
+                  "first_image_wall": entries[0]["ended"] - change, "first_step_seconds": entries[0]["seconds"],
+                  "converged_wall": done - change, "round_trips": {k: after[k] - trips[k] for k in after}}
+        if snapshots:
+            converged_image = average_image(pipeline)
+            work = 0.0
+            seconds = {e["index"]: e["seconds"] for e in entries}
+            curve = []
+            for index, samples, image in snapshots:
+                work = sum(s for i, s in seconds.items() if i <= index)
+                curve.append({"index": index, "samples": samples, "work_seconds": work,
+                              "relative_rmse": rmse(image, converged_image)})
+            record["error_curve"] = curve
+        result["rendered"].append(record)
+    # --- the overlay over Solid shading, the baseline ---
+    space.shading.type = "SOLID"
+    scene.vsgl.overlay_mode = "COMBINED"
+    scene.vsgl.overlay_resolution_scale = SCALE
+    scene.vsgl.show_overlay = True
+    area.tag_redraw()
+    started = time.perf_counter()
+    while not overlay_refined():
+        if time.perf_counter() - started > TIMEOUT:
+            raise RuntimeError("no refined overlay")
+        yield POLL
+    cache = addon("overlay").cache
+    for repeat in range(REPEATS):
+        first_update = cache.updates
+        trips = round_trips()
+        change = time.perf_counter()
+        move_light(1 if repeat % 2 == 0 else -1)
+        area.tag_redraw()
+        coarse_wall = None
+        while True:
+            if coarse_wall is None and cache.updates > first_update and overlay_coarse():
+                coarse_wall = time.perf_counter() - change
+            if cache.updates > first_update and overlay_refined():
+                break
+            if time.perf_counter() - change > TIMEOUT:
+                raise RuntimeError("no refined overlay after a change")
+            yield POLL
+        done = time.perf_counter()
+        after = round_trips()
+        updates = [dict(u) for u in cache.history if u["index"] >= first_update]
+        result["overlay"].append({
+            "repeat": repeat, "first_image_wall": coarse_wall, "refined_wall": done - change,
+            "updates": [{"level": u["level"], "seconds": u["seconds"], "size": u.get("size")} for u in updates],
+            "round_trips": {k: after[k] - trips[k] for k in after}})
+    if converged_image is not None:
+        key = space.region_3d.as_pointer()
+        view = cache.views[key]
+        read = addon("passes.gpu_util").read_texture
+        width, height = view.size
+        low = sum(read(view.textures[name], width, height)[..., :3]
+                  for name in ("direct_light", "indirect_diffuse", "indirect_specular"))
+        full_h, full_w = converged_image.shape[:2]
+        ys = np.minimum(((np.arange(full_h) + 0.5) * height / full_h).astype(int), height - 1)
+        xs = np.minimum(((np.arange(full_w) + 0.5) * width / full_w).astype(int), width - 1)
+        # Moves alternate +, -, +, ...: after the Rendered repeats and the overlay's, the light is
+        # where it was for the first Rendered repeat, whose converged image this is.
+        result["overlay_final_relative_rmse_nearest"] = rmse(low[ys][:, xs], converged_image)
+    scene.vsgl.show_overlay = False
+
+
+generator = tick_generator()
+
+
+def finish():
+    with open(OUT, "w") as f:
+        json.dump(result, f, indent=1, default=float)
+    open(os.environ["REAL_BLENDER_SHOT_NOW"], "w").close()
+
+
+def tick():
+    try:
+        return next(generator)
+    except StopIteration:
+        finish()
+        return None
+    except Exception:
+        result["errors"].append(traceback.format_exc())
+        finish()
+        return None
+
+
+bpy.app.timers.register(tick, first_interval=0.5)

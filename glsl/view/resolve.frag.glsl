@@ -1,0 +1,36 @@
+// @require lib/joint_bilateral.glsl
+// One view sample (vsgl_addon/view_gpu.py) into the viewport's accumulation images: each image of a
+// view render, upsampled to the guide's pixels by the joint bilateral filter (the identity when the
+// render has the guide's resolution), times `weight`. Outputs rgb = radiance (Blender's units),
+// a = the guide's coverage, all times `weight` (added by blending when accumulating).
+void main()
+{
+  ivec2 pixel = clamp(ivec2(uv * vec2(textureSize(guide_position, 0))), ivec2(0),
+                      textureSize(guide_position, 0) - 1);
+  vec4 position = texelFetch(guide_position, pixel, 0);
+  vec3 normal = texelFetch(guide_normal, pixel, 0).xyz;
+  float coverage = clamp(position.a, 0.0, 1.0);
+  if (coverage <= 0.0) {
+    out_direct = vec4(0.0);
+    out_indirect_diffuse = vec4(0.0);
+    out_indirect_specular = vec4(0.0);
+    return;
+  }
+  float footprint = jbu_footprint(camera, position.xyz, projection_11, float(textureSize(low_position, 0).y));
+  vec4 dd = joint_bilateral_upsample(low_direct_diffuse, low_position, low_normal, uv, position.xyz, normal,
+                                     footprint, sigma_position, normal_power);
+  vec4 ds = joint_bilateral_upsample(low_direct_specular, low_position, low_normal, uv, position.xyz, normal,
+                                     footprint, sigma_position, normal_power);
+  vec4 id = joint_bilateral_upsample(low_indirect_diffuse, low_position, low_normal, uv, position.xyz, normal,
+                                     footprint, sigma_position, normal_power);
+  vec4 is = joint_bilateral_upsample(low_indirect_specular, low_position, low_normal, uv, position.xyz, normal,
+                                     footprint, sigma_position, normal_power);
+  // No NaN or Inf may reach a pixel.
+  vec3 direct = dd.rgb + ds.rgb;
+  direct = all(lessThan(abs(direct), vec3(1e30))) ? direct : vec3(0.0);
+  vec3 diffuse = all(lessThan(abs(id.rgb), vec3(1e30))) ? id.rgb : vec3(0.0);
+  vec3 specular = all(lessThan(abs(is.rgb), vec3(1e30))) ? is.rgb : vec3(0.0);
+  out_direct = vec4(direct, coverage) * weight;
+  out_indirect_diffuse = vec4(diffuse, coverage) * weight;
+  out_indirect_specular = vec4(specular, coverage) * weight;
+}

@@ -1,0 +1,237 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The Rendered viewport's scheduling (vsgl_addon/view_pipeline.py) with a fake GPU backend and a
+fake clock: no Blender, no GPU. The real passes and the window: test_view_pipeline_gpu.py and
+test_rendered_real_blender.py."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vsgl_addon.settings import VSGLSettings
+from vsgl_addon.view_pipeline import COARSE, LIGHTS, SAMPLE, STEP_BUDGET, ViewPipeline, view_size
+
+REGION = (200, 100)
+SETTINGS = VSGLSettings(vsgl_count=16, rsm_size=32, seed=5)
+SECONDS_PER_PIXEL = 1e-5  # a full 200 x 100 sample costs 0.2 s: about four 60 ms bands
+LIGHT_SECONDS = 0.02
+FIXED_SECONDS = 0.0  # of every view render (passes set up per light, the wait for the GPU)
+
+
+class Clock:
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self):
+        return self.now
+
+
+class Thing:
+    """A fake GPU object that counts itself alive."""
+
+    alive = 0
+
+    def __init__(self, **fields):
+        Thing.alive += 1
+        self.__dict__.update(fields)
+        self.freed = False
+
+    def free(self):
+        if not self.freed:
+            Thing.alive -= 1
+        self.freed = True
+
+
+class View(Thing):
+    """A fake view render: its G-buffer (the guide of a full-resolution band) goes with it."""
+
+    def free(self):
+        self.guide.free()
+        super().free()
+
+
+class FakeBackend:
+    """Renders flat images whose value is the light passes' seed; targets are numpy arrays."""
+
+    def __init__(self, clock):
+        self.clock = clock
+        self.renders = []  # (width, height) of every view render
+        self.light_builds = []  # seeds
+        self.displayed = []
+
+    def frame_renderer(self):
+        return Thing()
+
+    def scene_lights(self, description, settings):
+        self.clock.now += LIGHT_SECONDS
+        self.light_builds.append(settings.seed)
+        return Thing(seed=settings.seed, timings={})
+
+    def render_view(self, renderer, lights, settings, width, height, view, projection):
+        assert not lights.freed and settings.seed == lights.seed
+        self.clock.now += FIXED_SECONDS + SECONDS_PER_PIXEL * width * height
+        self.renders.append((width, height))
+        return View(value=float(lights.seed), size=(width, height), counts={"vsgls": 16},
+                    guide=Thing(size=(width, height)))
+
+    def guide(self, renderer, lights, width, height, view, projection):
+        self.clock.now += 1e-7 * width * height
+        return Thing(size=(width, height))
+
+    def guide_of(self, view):
+        return view.guide
+
+    def target(self, width, height):
+        return Thing(size=(width, height), image=np.zeros((height, width)))
+
+    def resolve(self, view, guide, target, rows, weight=1.0, add=False):
+        first, end = rows if rows is not None else (0, target.size[1])
+        assert guide.size[0] == target.size[0] and guide.size[1] == end - first
+        if add:
+            target.image[first:end] += view.value * weight
+        else:
+            target.image[first:end] = view.value * weight
+
+    def accumulate(self, source, target, weight=1.0, add=True):
+        target.image = target.image + source.image * weight if add else source.image * weight
+
+    def finish(self, target):
+        pass
+
+    def display(self, target, weight, view_pass):
+        self.displayed.append((target.image * weight, view_pass))
+
+
+@pytest.fixture
+def pipeline():
+    Thing.alive = 0
+    clock = Clock()
+    pipeline = ViewPipeline(FakeBackend(clock), clock)
+    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+    yield pipeline
+    pipeline.free()
+    assert pipeline.gpu_resource_count() == 0
+    assert Thing.alive == 0, "a fake GPU object was not freed"
+
+
+def describe():
+    return type("Description", (), {"warnings": ()})()
+
+
+def run(pipeline, samples=4, limit=200, scale=0.25):
+    done = []
+    for _ in range(limit):
+        before = pipeline.clock()
+        work = pipeline.step(describe, SETTINGS, scale, samples)
+        if work is None:
+            return done
+        done.append((work, pipeline.clock() - before))
+    raise AssertionError(f"still busy after {limit} steps")
+
+
+def test_light_passes_and_coarse_image_in_the_first_step(pipeline):
+    assert pipeline.pending(SETTINGS, 0.25) == LIGHTS
+    assert pipeline.step(describe, SETTINGS, 0.25) == LIGHTS
+    assert pipeline.statistics["level"] == COARSE and pipeline.has_image and pipeline.samples == 0
+    assert pipeline.backend.renders == [view_size(REGION, 0.25)]
+    assert pipeline.draw("combined")
+    image, view_pass = pipeline.backend.displayed[-1]
+    assert view_pass == "combined" and image.shape == (REGION[1], REGION[0])
+    assert "coarse 50×25, upsampled" in pipeline.status_text()
+
+
+def test_samples_have_new_seeds_are_averaged_and_stop_at_the_count(pipeline):
+    done = run(pipeline, samples=4)
+    assert done[0][0] == LIGHTS and all(work == SAMPLE for work, _ in done[1:])
+    # Four full-resolution samples, of seeds 5, 6, 7, 8 (the first one reuses the coarse's passes).
+    assert pipeline.samples == 4 and pipeline.converged(4)
+    assert pipeline.backend.light_builds == [5, 6, 7, 8]
+    pipeline.draw("combined")
+    np.testing.assert_allclose(pipeline.backend.displayed[-1][0], np.mean([5, 6, 7, 8]))
+    assert pipeline.status_text(4).startswith("VSGL sample 4/4 (converged)")
+    assert pipeline.pending(SETTINGS, 0.25, 4) is None
+
+
+def test_every_step_keeps_within_the_budget(pipeline):
+    done = run(pipeline, samples=3)
+    # Bands are sized from the measured time per pixel; the light passes of a new seed come first.
+    assert max(seconds for _, seconds in done[1:]) <= STEP_BUDGET * 1.05, done
+    rows = [entry["rows"] for entry in pipeline.history if entry.get("rows") and entry["rows"][1] > entry["rows"][0]]
+    assert len(rows) >= 3 * 4
+
+
+def test_a_view_change_restarts_from_a_coarse_image_without_the_light_passes(pipeline):
+    run(pipeline, samples=2)
+    builds = len(pipeline.backend.light_builds)
+    assert pipeline.request_view(np.eye(4) * 2, np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+    assert pipeline.pending(SETTINGS, 0.25, 2) == COARSE
+    assert pipeline.step(describe, SETTINGS, 0.25, 2) == COARSE
+    assert len(pipeline.backend.light_builds) == builds and pipeline.samples == 0
+    assert not pipeline.request_view(np.eye(4) * 2, np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+
+
+def test_a_scene_change_or_other_settings_rerun_the_light_passes(pipeline):
+    run(pipeline, samples=2)
+    pipeline.mark_scene_dirty()
+    assert pipeline.step(describe, SETTINGS, 0.25, 2) == LIGHTS and pipeline.samples == 0
+    run(pipeline, samples=2)
+    other = SETTINGS.overridden(vsgl_count=32)
+    assert pipeline.pending(other, 0.25, 2) == LIGHTS
+    # A new resolution scale needs only a new coarse image.
+    assert pipeline.pending(SETTINGS, 0.5, 2) == COARSE
+
+
+def test_scale_one_makes_the_coarse_image_the_first_sample(pipeline):
+    pipeline.step(describe, SETTINGS, 1.0, 2)
+    assert pipeline.samples == 1 and pipeline.backend.renders == [REGION]
+
+
+def test_a_failure_stops_until_the_scene_changes(pipeline):
+    def broken():
+        raise RuntimeError("no scene")
+
+    assert pipeline.step(broken, SETTINGS, 0.25) == LIGHTS
+    assert "no scene" in pipeline.error and pipeline.pending(SETTINGS, 0.25) is None
+    assert pipeline.status_text().startswith("VSGL error")
+    pipeline.mark_scene_dirty()
+    assert pipeline.pending(SETTINGS, 0.25) == LIGHTS
+
+
+def test_region_resize_reallocates_and_free_releases_everything(pipeline):
+    run(pipeline, samples=1)
+    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (120, 80))
+    run(pipeline, samples=1)
+    assert pipeline.target.size == (120, 80)
+    pipeline.free()
+    assert pipeline.gpu_resource_count() == 0 and not pipeline.draw("combined")
+
+
+def test_a_slow_coarse_image_gets_fewer_pixels_next_time(pipeline, monkeypatch):
+    """At 1e-4 s per pixel a 100 x 50 coarse image (scale 0.5) takes 0.5 s: the next ones shrink
+    until they fit the budget, and the factor recovers once they are cheap again."""
+    monkeypatch.setattr(__import__(__name__), "SECONDS_PER_PIXEL", 1e-4)
+    pipeline.step(describe, SETTINGS, 0.5, 1)
+    seconds = []
+    for shift in range(1, 8):
+        pipeline.request_view(np.eye(4) * (1 + shift), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+        pipeline.step(describe, SETTINGS, 0.5, 1)
+        seconds.append(pipeline.statistics["view_seconds"])
+    assert seconds[0] < 0.5 and seconds[-1] <= STEP_BUDGET, seconds
+    assert pipeline.statistics["coarse_scale"] < 0.5
+    monkeypatch.setattr(__import__(__name__), "SECONDS_PER_PIXEL", 1e-7)
+    for shift in range(8, 16):
+        pipeline.request_view(np.eye(4) * (1 + shift), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+        pipeline.step(describe, SETTINGS, 0.5, 1)
+    assert pipeline.coarse_factor == 1.0
+
+
+def test_a_fixed_cost_per_band_does_not_shrink_the_bands_to_a_row(pipeline, monkeypatch):
+    """30 ms per render whatever its size (half the budget), 1e-6 s per pixel: bands stay tens of
+    rows (a 200-pixel row costs 0.2 ms), and steps stay near the budget."""
+    monkeypatch.setattr(__import__(__name__), "FIXED_SECONDS", 0.03)
+    monkeypatch.setattr(__import__(__name__), "SECONDS_PER_PIXEL", 1e-6)
+    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (200, 1000))
+    done = run(pipeline, samples=2)
+    bands = [e["rows"][1] - e["rows"][0] for e in pipeline.history if e.get("rows") and e["rows"][1] > e["rows"][0]]
+    assert np.median(bands[2:]) >= 50, bands
+    assert max(seconds for _, seconds in done[3:]) <= STEP_BUDGET * 1.3, done

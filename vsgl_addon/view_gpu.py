@@ -1,0 +1,242 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The GPU side of the view pipeline (view_pipeline.py): view renders as textures, their joint
+bilateral upsampling into a viewport's accumulation images, and the draw of those images.
+
+Everything stays on the GPU: a view render's textures (renderer.FrameRenderer.render_view_textures)
+are resampled by ``glsl/view/resolve.frag.glsl`` (``glsl/lib/joint_bilateral.glsl``, guided by the
+full-resolution G-buffer) straight into RGBA32F accumulation textures, finished samples are added by
+blending (``glsl/view/accumulate.frag.glsl``), and ``glsl/view/display.frag.glsl`` draws the average
+into the bound framebuffer. No image is read back or uploaded per update
+(``passes.gpu_util.RoundTrips`` counts them); one texel is read per step only to wait for the GPU
+(``RoundTrips.syncs``), so a step's measured time is its own.
+
+Never touches bpy.context. Needs a GPU context, main thread.
+"""
+
+from __future__ import annotations
+
+import atexit
+
+import numpy as np
+
+from .passes.contract import GPUPass, ShaderSpec, Step
+from .passes.gpu_util import finish, fullscreen_triangle_batch
+from .settings import VIEWPORT_PASSES
+from .shaders import ShaderInterface
+
+#: The accumulation images of a view (RGBA32F; rgb radiance sum, a coverage sum).
+IMAGES = ("direct", "indirect_diffuse", "indirect_specular")
+#: Joint bilateral range parameters: positions compared in low-resolution texel footprints, and the
+#: power of the normals' cosine (reference/joint_bilateral.py has the same defaults).
+SIGMA_POSITION = 1.0
+NORMAL_POWER = 8.0
+
+_OUTPUTS = [("VEC4", f"out_{name}") for name in IMAGES]
+
+
+def _resolve_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("VEC4", "camera"), ("FLOAT", "projection_11"), ("FLOAT", "sigma_position"),
+                        ("FLOAT", "normal_power"), ("FLOAT", "weight")],
+        samplers=[("FLOAT_2D", f"low_{name}") for name in ("direct_diffuse", "direct_specular",
+                                                           "indirect_diffuse", "indirect_specular",
+                                                           "position", "normal")]
+        + [("FLOAT_2D", "guide_position"), ("FLOAT_2D", "guide_normal")],
+        vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")], fragment_outputs=_OUTPUTS)
+
+
+def _accumulate_interface() -> ShaderInterface:
+    return ShaderInterface(push_constants=[("FLOAT", "weight")],
+                           samplers=[("FLOAT_2D", f"source_{name}") for name in IMAGES],
+                           vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")],
+                           fragment_outputs=_OUTPUTS)
+
+
+def _display_interface() -> ShaderInterface:
+    return ShaderInterface(push_constants=[("INT", "mode"), ("FLOAT", "weight")],
+                           samplers=[("FLOAT_2D", f"accum_{name}") for name in IMAGES],
+                           vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")],
+                           fragment_outputs=[("VEC4", "color")])
+
+
+def _stages(fragment: str) -> dict:
+    return {"vertex": "fullscreen_triangle.vert.glsl", "fragment": f"view/{fragment}.frag.glsl"}
+
+
+def _resolve(*args, **kwargs):
+    return resolve(*args, **kwargs)
+
+
+#: The view stages' shaders (compiled once per process, freed with free_shaders()). Not a frame pass
+#: of PASSES: they run after the frame's passes, on their textures, for the viewport only.
+VIEW = GPUPass(
+    name="view",
+    label="View Resolve",
+    step=Step("view_resolve", "View Resolve"),
+    shaders={"resolve": ShaderSpec(_resolve_interface, _stages("resolve")),
+             "accumulate": ShaderSpec(_accumulate_interface, _stages("accumulate")),
+             "display": ShaderSpec(_display_interface, _stages("display"))},
+    reads=("gbuffer", "direct_light", "vsgl_shading"),
+    writes=("view_accumulation",),
+    run=_resolve,
+)
+
+
+def _batch():
+    return VIEW.resource("fullscreen_triangle", lambda: fullscreen_triangle_batch(VIEW.shader("resolve")))
+
+
+class ViewTarget:
+    """The accumulation images of one view (IMAGES, RGBA32F, width × height) and their framebuffer."""
+
+    def __init__(self, width: int, height: int):
+        import gpu
+
+        self.size = (int(width), int(height))
+        self.textures = {name: gpu.types.GPUTexture(self.size, format="RGBA32F") for name in IMAGES}
+        self.framebuffer = gpu.types.GPUFrameBuffer(color_slots=[self.textures[name] for name in IMAGES])
+        self.clear()
+
+    def clear(self) -> None:
+        with self.framebuffer.bind():
+            self.framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0))
+
+    def finish(self) -> None:
+        finish(self.textures["direct"])
+
+    def free(self) -> None:
+        self.framebuffer = None
+        self.textures.clear()
+
+    def resource_count(self) -> int:
+        return len(self.textures) + (self.framebuffer is not None)
+
+
+def _draw_into(target: ViewTarget, rows, blend: str, shader: str, set_inputs) -> None:
+    """Draw the full-screen triangle with VIEW's `shader` (inputs set by `set_inputs(program)`) into
+    rows [first, end) of `target`, with `blend`; the GPU state is restored after. The shader and
+    batch are made before the framebuffer is bound: compiling while it is bound leaves another one
+    bound in Blender 5.2 (the bind's exit then fails)."""
+    import gpu
+
+    program = VIEW.shader(shader)
+    batch = _batch()
+    first, end = rows if rows is not None else (0, target.size[1])
+    saved = (gpu.state.blend_get(), gpu.state.depth_test_get(), gpu.state.depth_mask_get(),
+             tuple(gpu.state.viewport_get()))
+    try:
+        with target.framebuffer.bind():
+            gpu.state.viewport_set(0, int(first), target.size[0], int(end - first))
+            gpu.state.depth_test_set("NONE")
+            gpu.state.depth_mask_set(False)
+            gpu.state.blend_set(blend)
+            program.bind()
+            set_inputs(program)
+            batch.draw(program)
+    finally:
+        gpu.state.blend_set(saved[0])
+        gpu.state.depth_test_set(saved[1])
+        gpu.state.depth_mask_set(saved[2])
+        gpu.state.viewport_set(*saved[3])
+
+
+def resolve(view, guide_position, guide_normal, camera, projection_11: float, target: ViewTarget,
+            rows=None, weight: float = 1.0, add: bool = False) -> None:
+    """`view` (renderer.ViewTextures) upsampled to the guide's pixels into rows [first, end) of
+    `target` (the guide covers those rows), times `weight`; added to what is there if `add`."""
+    def set_inputs(program):
+        program.uniform_float("camera", tuple(float(v) for v in camera))
+        program.uniform_float("projection_11", float(projection_11))
+        program.uniform_float("sigma_position", SIGMA_POSITION)
+        program.uniform_float("normal_power", NORMAL_POWER)
+        program.uniform_float("weight", float(weight))
+        for name in ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular",
+                     "position", "normal"):
+            program.uniform_sampler(f"low_{name}", view.textures[name])
+        program.uniform_sampler("guide_position", guide_position)
+        program.uniform_sampler("guide_normal", guide_normal)
+
+    _draw_into(target, rows, "ADDITIVE" if add else "NONE", "resolve", set_inputs)
+
+
+def accumulate(source: ViewTarget, target: ViewTarget, weight: float = 1.0, add: bool = True) -> None:
+    """`source` × weight added to (or, add=False, copied into) `target` (same size)."""
+    def set_inputs(program):
+        program.uniform_float("weight", float(weight))
+        for name in IMAGES:
+            program.uniform_sampler(f"source_{name}", source.textures[name])
+
+    _draw_into(target, None, "ADDITIVE" if add else "NONE", "accumulate", set_inputs)
+
+
+def display(target: ViewTarget, weight: float, view_pass: str) -> None:
+    """Draw `target` × weight into the bound framebuffer as VIEWPORT_PASSES option `view_pass`."""
+    import gpu
+
+    mode = VIEWPORT_PASSES.number(view_pass) if view_pass in VIEWPORT_PASSES.names else 0
+    program = VIEW.shader("display")
+    batch = _batch()
+    saved = gpu.state.blend_get()
+    try:
+        gpu.state.blend_set("NONE")
+        program.bind()
+        program.uniform_int("mode", mode)
+        program.uniform_float("weight", float(weight))
+        for name in IMAGES:
+            program.uniform_sampler(f"accum_{name}", target.textures[name])
+        batch.draw(program)
+    finally:
+        gpu.state.blend_set(saved)
+
+
+class GPUViewBackend:
+    """What view_pipeline.ViewPipeline renders and draws with: the renderer's passes, the view stages
+    above. Tests of the scheduling replace it with a fake one (no Blender, no GPU)."""
+
+    def frame_renderer(self):
+        from .renderer import FrameRenderer
+
+        return FrameRenderer()
+
+    def scene_lights(self, description, settings):
+        from .renderer import SceneLights
+
+        return SceneLights.build(description, settings)
+
+    def render_view(self, renderer, lights, settings, width, height, view_matrix, projection_matrix):
+        return renderer.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix)
+
+    def guide(self, renderer, lights, width, height, view_matrix, projection_matrix):
+        return renderer.guide(lights, width, height, view_matrix, projection_matrix)
+
+    def target(self, width, height) -> ViewTarget:
+        return ViewTarget(width, height)
+
+    def resolve(self, view, guide, target, rows, weight=1.0, add=False) -> None:
+        """`guide`: the GBuffer whose pixels are the rows' (the view's own for a full-resolution band)."""
+        from .views import camera_vector
+
+        camera = camera_vector(guide.view_matrix, guide.projection_matrix)
+        resolve(view, guide.textures["position"], guide.textures["normal"], camera,
+                float(np.asarray(guide.projection_matrix)[1, 1]), target, rows, weight, add)
+
+    def guide_of(self, view):
+        """The G-buffer a full-resolution view render carries (its own guide)."""
+        return view.gbuffer
+
+    def accumulate(self, source, target, weight=1.0, add=True) -> None:
+        accumulate(source, target, weight, add)
+
+    def finish(self, target) -> None:
+        target.finish()
+
+    def display(self, target, weight, view_pass) -> None:
+        display(target, weight, view_pass)
+
+
+def free_shaders() -> None:
+    VIEW.free_shaders()
+
+
+# Like the passes' shaders: released while Blender's GPU backend is still alive (passes/__init__.py).
+atexit.register(free_shaders)

@@ -1,0 +1,339 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""A viewport's progressive, GPU-resident view of the VSGL light, without Blender's bpy (the glue is
+engine.py's view_update / view_draw).
+
+:class:`ViewPipeline` does one unit of work per :meth:`ViewPipeline.step`, each sized to about
+STEP_BUDGET seconds, so the interface stays responsive:
+
+* after a scene change (:meth:`~ViewPipeline.mark_scene_dirty`, or other pass settings) the
+  **light passes** (RSMs, VSGL tables) and, in the same step, a **coarse** image: the view passes at
+  the resolution scale, upsampled to the viewport's pixels by the joint bilateral filter guided by
+  the full-resolution G-buffer (glsl/lib/joint_bilateral.glsl), so edges stay sharp;
+* after a view-only change, the coarse image alone: the light passes are kept;
+* then, while nothing changes, **samples** at full resolution, each in bands of rows sized to the
+  budget from the measured time per pixel; every sample after the first one has light passes of a
+  new seed (a new rotation of the VSGL lattice per light and view, pipeline._rotation), and the
+  samples are averaged, so the image converges to the techniques' expected value over the lattice
+  rotation, as Cycles' viewport samples converge to its render.
+
+Moving anything restarts from a coarse image. The images never leave the GPU: the backend
+(view_gpu.GPUViewBackend) resolves every render into the viewport's accumulation textures and draws
+their average; tests replace it with a fake one, and the clock with a fake clock.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from collections import deque
+
+import numpy as np
+
+from .overlay_cache import ViewRequest, same_view
+from .settings import VSGLSettings
+from .views import band_projection
+
+#: Seconds one step should take (one frame here): bands of full-resolution samples are sized to it.
+STEP_BUDGET = 0.06
+#: Samples averaged before the viewport stops refining (the property viewport_samples overrides it).
+DEFAULT_SAMPLES = 16
+LIGHTS, COARSE, SAMPLE = "lights", "coarse", "sample"
+
+
+def view_size(region_size, scale: float) -> tuple[int, int]:
+    """Pixels of a view render of a region of `region_size` (w, h) at resolution `scale`."""
+    return tuple(max(1, int(round(side * scale))) for side in region_size)
+
+
+class ViewPipeline:
+    """One viewport's light passes, accumulation images and progress (see the module documentation)."""
+
+    def __init__(self, backend=None, clock=time.perf_counter, step_budget: float = STEP_BUDGET):
+        if backend is None:
+            from .view_gpu import GPUViewBackend
+
+            backend = GPUViewBackend()
+        self.backend = backend
+        self.clock = clock
+        self.step_budget = step_budget
+        self.scene_version = 0
+        self.lights = None  # renderer.SceneLights of lights_version, base settings + lights_seed
+        self.lights_version = -1
+        self.lights_settings: VSGLSettings | None = None  # the base settings (seed offset 0)
+        self.lights_seed = 0  # seed offset of the current light passes
+        self.renderer = None
+        self.request: ViewRequest | None = None
+        self.target = None  # accumulation images at the region's size
+        self.sample_target = None  # the full-resolution sample being rendered band by band
+        self._accumulated_for = None  # (lights_version, request, scale) of the target's content
+        self.samples = 0  # full-resolution samples in the target (0: it holds the coarse image)
+        self._seeds_used: set[int] = set()
+        self._rows_done = 0
+        self._band_seed = None
+        self._seconds_per_pixel: float | None = None
+        # A band's cost is a fixed part (passes set up per light, the resolve, the wait for the GPU)
+        # plus a part per pixel, fitted to the last bands' (pixels, seconds): with the per-pixel part
+        # alone, a slow machine's fixed cost shrinks the bands to a row each.
+        self._band_times: deque = deque(maxlen=8)
+        self._band_fixed_seconds: float | None = None
+        # The coarse image's resolution as a fraction of the asked scale: lowered when a coarse image
+        # took longer than the step budget, raised again when it took well under (never above 1).
+        self.coarse_factor = 1.0
+        self.has_image = False
+        self.step_args = None  # set by the glue: (settings, scale, samples) of the timer's steps
+        self.steps = 0
+        self.statistics: dict = {}
+        self.history: deque = deque(maxlen=4096)
+        self.warnings: tuple[str, ...] = ()
+        self.error: str | None = None
+
+    # --- inputs -----------------------------------------------------------------------------
+    def mark_scene_dirty(self) -> None:
+        self.scene_version += 1
+        self.error = None
+
+    def request_view(self, view_matrix, projection_matrix, region_size) -> bool:
+        """Record the viewport's view (view_draw: plain numbers only). True if it changed."""
+        request = ViewRequest(np.array(view_matrix, np.float64), np.array(projection_matrix, np.float64),
+                              (int(region_size[0]), int(region_size[1])))
+        if self.request is not None and same_view(self.request, request):
+            return False
+        self.request = request
+        return True
+
+    # --- what next ------------------------------------------------------------------------------
+    def _lights_stale(self, settings: VSGLSettings) -> bool:
+        return (self.lights is None or self.lights_version != self.scene_version
+                or settings != self.lights_settings)
+
+    def _fresh(self, scale: float) -> bool:
+        key = self._accumulated_for
+        return (key is not None and self.target is not None and key[0] == self.lights_version
+                and key[2] == scale and same_view(key[1], self.request))
+
+    def pending(self, settings: VSGLSettings, scale: float, max_samples: int = DEFAULT_SAMPLES) -> str | None:
+        """The next unit of work: LIGHTS (followed by COARSE in the same step), COARSE, SAMPLE or None."""
+        if self.request is None or self.error is not None:
+            return None
+        if self._lights_stale(settings):
+            return LIGHTS
+        if not self._fresh(scale):
+            return COARSE
+        if self.samples < max_samples:
+            return SAMPLE
+        return None
+
+    def converged(self, max_samples: int = DEFAULT_SAMPLES) -> bool:
+        return self.has_image and self.samples >= max_samples
+
+    # --- work (main thread, GPU context) --------------------------------------------------------
+    def step(self, describe_scene, settings: VSGLSettings, scale: float,
+             max_samples: int = DEFAULT_SAMPLES) -> str | None:
+        """Do one unit of work; returns what it did (LIGHTS means light passes and a coarse image).
+
+        `describe_scene()` returns the SceneDescription (called only when the light passes rerun). A
+        failure stores its message in `error` and stops updates until the scene changes again.
+        """
+        work = self.pending(settings, scale, max_samples)
+        if work is None:
+            return None
+        started = self.clock()
+        entry = {"index": self.steps, "work": work}
+        try:
+            if work == LIGHTS:
+                entry["light_seconds"] = self._rebuild_lights(describe_scene, settings, 0)
+                work = COARSE
+            if work == COARSE or not self._fresh(scale):
+                entry.update(self._render_coarse(scale))
+            else:
+                entry.update(self._refine(describe_scene, settings, started, max_samples))
+        except Exception as error:  # noqa: BLE001 - shown in the header, never raised into Blender's loop
+            self.error = f"{type(error).__name__}: {error}"
+            self._free_lights()
+            entry["error"] = self.error
+            entry["traceback"] = traceback.format_exc()
+        entry["ended"] = self.clock()
+        entry["seconds"] = entry["ended"] - started
+        entry["samples"] = self.samples
+        self.statistics = entry
+        self.history.append(entry)
+        self.steps += 1
+        return entry["work"]
+
+    def _rebuild_lights(self, describe_scene, settings: VSGLSettings, seed_offset: int) -> float:
+        started = self.clock()
+        self._free_lights()
+        description = describe_scene()
+        self.warnings = tuple(description.warnings)
+        if self.renderer is None:
+            self.renderer = self.backend.frame_renderer()
+        version = self.scene_version
+        seeded = settings if seed_offset == 0 else settings.overridden(seed=settings.seed + seed_offset)
+        self.lights = self.backend.scene_lights(description, seeded)
+        self.lights_version, self.lights_settings, self.lights_seed = version, settings, seed_offset
+        return self.clock() - started
+
+    def _ensure_target(self, attribute: str, size):
+        target = getattr(self, attribute)
+        if target is None or tuple(target.size) != tuple(size):
+            if target is not None:
+                target.free()
+            target = self.backend.target(*size)
+            setattr(self, attribute, target)
+        return target
+
+    def _seeded_settings(self):
+        settings = self.lights_settings
+        return settings if self.lights_seed == 0 else settings.overridden(seed=settings.seed + self.lights_seed)
+
+    def _render_coarse(self, scale: float) -> dict:
+        request = self.request
+        full = request.region_size
+        width, height = view_size(full, scale * self.coarse_factor)
+        started = self.clock()
+        target = self._ensure_target("target", full)
+        view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, height,
+                                        request.view_matrix, request.projection_matrix)
+        try:
+            if (width, height) == tuple(full):
+                guide, own_guide = self.backend.guide_of(view), False
+            else:
+                guide = self.backend.guide(self.renderer, self.lights, full[0], full[1],
+                                           request.view_matrix, request.projection_matrix)
+                own_guide = True
+            try:
+                self.backend.resolve(view, guide, target, None, 1.0, add=False)
+            finally:
+                if own_guide:
+                    guide.free()
+            counts = dict(view.counts)
+        finally:
+            view.free()
+        self.backend.finish(target)
+        seconds = self.clock() - started
+        if self._seconds_per_pixel is None:
+            self._seconds_per_pixel = seconds / (width * height)
+        # Cost grows with the pixels, i.e. with the factor squared; the full-resolution guide's
+        # share does not shrink, so the factor moves by at most 2x per coarse image.
+        if seconds > self.step_budget:
+            self.coarse_factor = max(self.coarse_factor * max((self.step_budget / seconds) ** 0.5, 0.5), 0.05)
+        elif seconds < 0.5 * self.step_budget and self.coarse_factor < 1.0:
+            self.coarse_factor = min(self.coarse_factor * min((0.7 * self.step_budget / seconds) ** 0.5, 2.0), 1.0)
+        self._accumulated_for = (self.lights_version, request, scale)
+        self._seeds_used = set()
+        self._rows_done = 0
+        self._band_seed = None
+        # At scale 1 the coarse image is a full-resolution sample already.
+        self.samples = 1 if (width, height) == tuple(full) else 0
+        if self.samples:
+            self._seeds_used.add(self.lights_seed)
+        self.has_image = True
+        return {"level": COARSE, "size": (width, height), "view_seconds": seconds, "counts": counts,
+                "coarse_scale": scale * self.coarse_factor if (width, height) != tuple(full) else 1.0}
+
+    def _refine(self, describe_scene, settings: VSGLSettings, started: float, max_samples: int) -> dict:
+        entry: dict = {"level": SAMPLE}
+        if self._rows_done == 0 and self.lights_seed in self._seeds_used:
+            # The next sample needs light passes of a seed this accumulation has not used yet.
+            offset = max(self._seeds_used) + 1
+            entry["light_seconds"] = self._rebuild_lights(describe_scene, settings, offset)
+            if self.clock() - started > self.step_budget / 2:
+                entry["rows"] = (0, 0, self.request.region_size[1])
+                return entry
+        request = self.request
+        width, height = request.region_size
+        sample = self._ensure_target("sample_target", (width, height))
+        remaining = max(self.step_budget - (self.clock() - started), self.step_budget / 4)
+        fixed = self._band_fixed_seconds or 0.0
+        rows = height if not self._seconds_per_pixel else int((remaining - fixed) / (self._seconds_per_pixel * width))
+        rows = max(rows, height // 64)
+        first = self._rows_done
+        end = min(height, first + max(1, rows))
+        clock = self.clock()
+        view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, end - first,
+                                        request.view_matrix, band_projection(request.projection_matrix,
+                                                                             first, end, height))
+        try:
+            self.backend.resolve(view, self.backend.guide_of(view), sample, (first, end), 1.0, add=False)
+        finally:
+            view.free()
+        self.backend.finish(sample)
+        self._fit_band_cost(width * (end - first), self.clock() - clock)
+        self._rows_done = end
+        entry["rows"] = (first, end, height)
+        if end >= height:
+            self.backend.accumulate(sample, self.target, 1.0, add=self.samples > 0)
+            self.backend.finish(self.target)
+            self.samples += 1
+            self._seeds_used.add(self.lights_seed)
+            self._rows_done = 0
+        return entry
+
+    def _fit_band_cost(self, pixels: int, seconds: float) -> None:
+        """seconds ≈ fixed + per_pixel × pixels over the last bands (least squares; the fixed part
+        within [0, 0.8 budget], zero while the bands' sizes barely differ)."""
+        self._band_times.append((float(pixels), float(seconds)))
+        x = np.array([p for p, _ in self._band_times])
+        y = np.array([t for _, t in self._band_times])
+        fixed = 0.0
+        if len(x) >= 2 and x.std() > 0.2 * x.mean():
+            slope = float(((x - x.mean()) * (y - y.mean())).sum() / ((x - x.mean()) ** 2).sum())
+            fixed = float(np.clip(y.mean() - slope * x.mean(), 0.0, 0.8 * self.step_budget))
+        self._band_fixed_seconds = fixed
+        self._seconds_per_pixel = max(float(np.mean((y - fixed) / x)), 1e-12)
+
+    # --- drawing (view_draw) ------------------------------------------------------------------
+    def draw(self, view_pass: str) -> bool:
+        """Draw the average of the accumulated images into the bound framebuffer; False if none."""
+        if not self.has_image or self.target is None:
+            return False
+        self.backend.display(self.target, 1.0 / max(self.samples, 1), view_pass)
+        return True
+
+    def status_text(self, max_samples: int = DEFAULT_SAMPLES) -> str:
+        """The header line, as Cycles': the sample count and the last step's time."""
+        if self.error:
+            return f"VSGL error: {self.error}"
+        if not self.has_image:
+            return "VSGL: computing light passes…"
+        step = self.statistics.get("seconds", 0.0) * 1000.0
+        if self.samples == 0:
+            size = self.statistics.get("size")
+            what = f"coarse {size[0]}×{size[1]}, upsampled" if size else "coarse"
+            return f"VSGL {what} | {step:.0f} ms/step"
+        done = " (converged)" if self.samples >= max_samples else ""
+        return f"VSGL sample {self.samples}/{max_samples}{done} | {step:.0f} ms/step"
+
+    # --- freeing -------------------------------------------------------------------------------
+    def _free_lights(self) -> None:
+        if self.lights is not None:
+            self.lights.free()
+        self.lights = None
+        self.lights_version = -1
+        self.lights_settings = None
+        self.lights_seed = 0
+
+    def free(self) -> None:
+        """Release every GPU resource; the next step starts from scratch."""
+        self._free_lights()
+        for attribute in ("target", "sample_target"):
+            target = getattr(self, attribute)
+            if target is not None:
+                target.free()
+            setattr(self, attribute, None)
+        if self.renderer is not None:
+            self.renderer.free()
+        self.renderer = None
+        self._accumulated_for = None
+        self.samples = 0
+        self.has_image = False
+        self.step_args = None
+        self._rows_done = 0
+        self._seconds_per_pixel = None
+        self._band_fixed_seconds = None
+        self._band_times.clear()
+
+    def gpu_resource_count(self) -> int:
+        """GPU objects held (0 after free()): light passes, renderer, accumulation targets."""
+        return ((self.lights is not None) + (self.renderer is not None)
+                + sum(getattr(self, name) is not None for name in ("target", "sample_target")))
