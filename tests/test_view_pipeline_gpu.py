@@ -89,8 +89,8 @@ def test_one_full_resolution_sample_is_the_renderers_image_and_every_pass_is_sho
 
 def test_view_updates_make_no_cpu_round_trip(demo):
     """After the light passes, a view change's coarse image and its samples stay on the GPU: no
-    texture read back, no image uploaded (only the direct-light pass's per-light constants, a few
-    texels per render, and one texel read per step to wait for the GPU)."""
+    texture read back, no image uploaded (only the direct-light and MRP-ASG passes' per-light tables, a
+    few texels per render, and one texel read per step to wait for the GPU)."""
     view, projection = demo.camera.view_matrix(), demo.camera.projection_matrix()
     pipeline = ViewPipeline()
     try:
@@ -105,7 +105,10 @@ def test_view_updates_make_no_cpu_round_trip(demo):
             renders = sum(1 for entry in list(pipeline.history)[-20:] if entry.get("level"))
             assert RoundTrips.read_backs == read_backs
             image_bytes = REGION[0] * REGION[1] * 16
-            assert RoundTrips.upload_bytes - upload_bytes < image_bytes / 20, (RoundTrips.upload_bytes - upload_bytes, renders)
+            # Per render: the direct light's and MRP-ASG's per-light tables (proxies, constants),
+            # about a kilobyte, never an image.
+            uploaded = RoundTrips.upload_bytes - upload_bytes
+            assert uploaded < max(renders, 1) * image_bytes / 50, (uploaded, renders)
     finally:
         pipeline.free()
 
