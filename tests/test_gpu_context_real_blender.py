@@ -137,7 +137,7 @@ def test_every_pass_shader_compiles_in_blender_5_2():
 
 
 def test_the_ism_pass_compiles_and_matches_its_twin_in_blender_5_2():
-    """The imperfect-shadow-map pass (not yet in PASSES) in 5.2: its compute stages compile, and a
+    """The imperfect-shadow-map pass in 5.2: its compute stages compile, and a
     scene's maps equal the float64 twin's but for texels at rounding edges."""
     with scratch_dir("vsgl-ism-") as folder:
         script = folder / "ism.py"

@@ -120,7 +120,7 @@ def _black_world(scene):
 
 def occluder(scene):
     """A spot lights an orange floor patch; a low wall stands between it and a white receiver wall,
-    so most of the receiver's bounce light is blocked (we have no VSGL visibility: too bright there),
+    so most of the receiver's bounce light is blocked (without VSGL visibility: too bright there),
     while the low wall's lit-side face is an unoccluded control."""
     floor = principled("Orange floor", (0.8, 0.45, 0.15), roughness=0.5)
     # The same white twice, under two names, so the benchmark's per-material errors tell the

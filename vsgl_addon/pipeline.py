@@ -162,8 +162,8 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
 #: Point sets the imperfect shadow maps draw from: map m splats set m mod POINT_SETS (Ritschel et
 #: al. 2008 give each map its own subset; 64 keep neighbouring maps' holes apart at a small memory).
 POINT_SETS = 64
-#: Points within this many σ_v of a lobe's position are its own reflector, not an occluder of its light
-#: (2 let a wall at the foot of a lit floor leak 21 % of the light behind it, 1 leaks 4.7 %).
+#: Points within this many σ_v of a map's origin are its own reflector, not an occluder of its light
+#: (0.5 and 2 give the occluder scene the same light, benchmarks/visibility_diagnosis.py).
 OWN_REFLECTOR_SIGMAS = 1.0
 
 
