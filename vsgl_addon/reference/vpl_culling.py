@@ -46,12 +46,12 @@ def vpl_xi(index, seed, frame):
     """The one uniform xi in (0, 1) of VPL ``index`` for a seed and a frame (004 Eqs. 2-3: one
     random number per light, not per pixel, so a light is either in or out for the whole image).
 
-    24 bits, (h + 1/2) / 2^24: exact in float32, never 0 or 1.
+    23 bits, (h + 1/2) / 2^23: h + 1/2 < 2^23 is exact in float32, never 0 or 1.
     """
     frame_hash = pcg_hash(np.asarray(frame, dtype=np.uint64))
     seed_hash = pcg_hash((np.asarray(seed, dtype=np.uint64) ^ frame_hash.astype(np.uint64)))
     h = pcg_hash((np.asarray(index, dtype=np.uint64) + seed_hash.astype(np.uint64)) & np.uint64(0xFFFFFFFF))
-    return ((h >> np.uint32(8)).astype(np.float64) + 0.5) / 16777216.0
+    return ((h >> np.uint32(9)).astype(np.float64) + 0.5) / 8388608.0
 
 
 def acceptance_probability(intensity, distance_squared, delta):
