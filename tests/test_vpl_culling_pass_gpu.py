@@ -39,9 +39,9 @@ def wall_gbuffer(width, height, hole=False):
     return position, normal, albedo, np.linalg.inv(v2w), proj, v2w, inv_proj
 
 
-def run_pass(position, normal, albedo, vpls, w2v, proj, delta, seed=3, frame=0):
+def run_pass(position, normal, albedo, vpls, w2v, proj, delta, seed=3, frame=0, interleave=1, offset=0):
     textures = [texture_from_array(a) for a in (position, normal, albedo)]
-    result = pass_.run(*textures, vpls, w2v, proj, delta, seed, frame)
+    result = pass_.run(*textures, vpls, w2v, proj, delta, seed, frame, interleave, offset)
     image, counts = result.read(), result.read_counts()
     lists = result.read_lists()
     result.free()
@@ -127,3 +127,19 @@ def test_no_vpls_and_single_vpl():
     one = _vpls(1, flux_scale=1.0)
     image, counts, _ = run_pass(position, normal, albedo, one, w2v, proj, 1e-6)
     assert np.all(np.isfinite(image)) and image.max() > 0.0
+
+
+@pytest.mark.parametrize("interleave", [2, 4])
+def test_interleaved_subsets_average_to_full_estimate(interleave):
+    """Each of the N^2 offsets shades a different VPL subset per pixel; their mean is the N = 1 image."""
+    position, normal, albedo, w2v, proj, *_ = wall_gbuffer(48, 32)
+    vpls = _vpls(120)
+    full, _, _ = run_pass(position, normal, albedo, vpls, w2v, proj, 1e-3)
+    images = [run_pass(position, normal, albedo, vpls, w2v, proj, 1e-3, interleave=interleave, offset=o)[0]
+              for o in range(interleave**2)]
+    mean = np.mean(images, axis=0)
+    np.testing.assert_allclose(mean, full, rtol=1e-5, atol=1e-7 * full.max())
+    # One sub-image differs from the full image (it really shades a subset).
+    assert np.max(np.abs(images[0] - full)) > 1e-3 * full.max()
+    with pytest.raises(ValueError):
+        run_pass(position, normal, albedo, vpls, w2v, proj, 1e-3, interleave=3)

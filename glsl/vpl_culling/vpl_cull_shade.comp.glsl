@@ -14,6 +14,9 @@
 //    up to its capacity), then every pixel shades the chunk's list with the exact GGX BRDF at the
 //    VPL and its own diffuse lobe, weighted 1/p where p > xi (Eqs. 2-3). Chunking keeps the shared
 //    list from overflowing, so the result is exact whatever the list capacity.
+// Interleaved sampling (004 section 6): with vpl_interleave.x = N > 1 the pixel shades only the
+// VPLs i with i % N^2 = its sub-image ((x % N) + N (y % N) + offset) % N^2, weighted N^2: each
+// sub-image sees a different subset, and the mean over the N^2 offsets is the full estimate.
 // Table rows per VPL (record k of VPL i at texel (i % W, 4 (i / W) + k)): position + roughness,
 // normal + scalar flux, incoming, Phi Rs.
 
@@ -110,6 +113,10 @@ void main()
                 + vec4(0.0, 0.0, 0.0, p.w);
   }
 
+  uint interleave = uint(max(vpl_interleave.x, 1));
+  uint subsets = interleave * interleave;
+  uint subset = (uint(pixel.x) % interleave + interleave * (uint(pixel.y) % interleave) + uint(vpl_interleave.y))
+                % subsets;
   vec3 radiance = vec3(0.0);
   for (uint base = 0u; base < count; base += 256u) {
     if (local == 0u) {
@@ -141,6 +148,9 @@ void main()
     if (covered) {
       for (uint k = 0u; k < chunk_count; k++) {
         uint j = chunk_list[k];
+        if (j % subsets != subset) {
+          continue;
+        }
         vec4 r0 = vpl_record(j, 0);
         vec4 r1 = vpl_record(j, 1);
         vec4 r2 = vpl_record(j, 2);
@@ -159,6 +169,6 @@ void main()
     imageStore(vpl_tile_counts, tile, uvec4(tile_total));
   }
   if (inside) {
-    imageStore(vpl_radiance, pixel, vec4(albedo * (radiance / PI), 0.0));
+    imageStore(vpl_radiance, pixel, vec4(albedo * (radiance * (float(subsets) / PI)), 0.0));
   }
 }

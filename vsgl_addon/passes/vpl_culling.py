@@ -35,7 +35,7 @@ LIST_CAPACITY = 1024
 
 def _interface() -> ShaderInterface:
     return ShaderInterface(
-        push_constants=[("VEC4", "vpl_params"), ("IVEC4", "vpl_sizes")],
+        push_constants=[("VEC4", "vpl_params"), ("IVEC4", "vpl_sizes"), ("IVEC4", "vpl_interleave")],
         samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal"),
                   ("FLOAT_2D", "receiver_albedo"), ("FLOAT_2D", "vpl_table"), ("FLOAT_2D", "vpl_camera")],
         images=[("RGBA32F", "FLOAT_2D", "vpl_radiance"), ("R32UI", "UINT_2D", "vpl_tile_lists"),
@@ -89,9 +89,17 @@ def _read_uint(texture, width: int, height: int) -> np.ndarray:
     return np.array(buffer, dtype=np.uint32).reshape(height, width)
 
 
+#: Interleaved sampling factors N (N x N sub-images, 004 section 6).
+INTERLEAVE_FACTORS = (1, 2, 4, 8)
+
+
 def run(position, normal, albedo, vpls, world_to_view, projection, delta: float, seed: int = 0,
-        frame: int = 0) -> VPLCullingResult:
-    """Cull and shade ``vpls`` for the receivers in the three (width, height) textures."""
+        frame: int = 0, interleave: int = 1, interleave_offset: int = 0) -> VPLCullingResult:
+    """Cull and shade ``vpls`` for the receivers in the three (width, height) textures; ``seed`` and
+    ``frame`` draw the VPLs' xi, ``interleave`` N and ``interleave_offset`` choose each pixel's
+    subset (progressive rendering steps both)."""
+    if interleave not in INTERLEAVE_FACTORS:
+        raise ValueError(f"interleave must be one of {INTERLEAVE_FACTORS}, got {interleave}")
     import gpu
 
     width, height = position.width, position.height
@@ -110,6 +118,7 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
     shader.bind()
     shader.uniform_float("vpl_params", (float(delta), float(count), float(seed), float(frame)))
     shader.uniform_int("vpl_sizes", (TABLE_WIDTH, LIST_CAPACITY, tiles[0], tiles[1]))
+    shader.uniform_int("vpl_interleave", (int(interleave), int(interleave_offset), 0, 0))
     shader.uniform_sampler("gbuffer_position", position)
     shader.uniform_sampler("gbuffer_normal", normal)
     shader.uniform_sampler("receiver_albedo", albedo)
