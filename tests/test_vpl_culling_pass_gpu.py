@@ -143,3 +143,22 @@ def test_interleaved_subsets_average_to_full_estimate(interleave):
     assert np.max(np.abs(images[0] - full)) > 1e-3 * full.max()
     with pytest.raises(ValueError):
         run_pass(position, normal, albedo, vpls, w2v, proj, 1e-3, interleave=3)
+
+
+def test_progressive_samples_and_denoise():
+    """S frames average towards brute force (error falls with S); the filter keeps a flat wall's
+    mean and lowers the interleaved image's error."""
+    position, normal, albedo, w2v, proj, *_ = wall_gbuffer(64, 48)
+    vpls = _vpls(300)
+    textures = [texture_from_array(a) for a in (position, normal, albedo)]
+    brute = reference_image(position, normal, albedo, vpls, 0.0, None)
+
+    def error(image):
+        return np.sqrt(np.mean((image[..., :3] - brute) ** 2)) / brute.mean()
+
+    one = pass_.render_caustics(*textures, vpls, w2v, proj, 3e-2, samples=1, interleave=2)
+    many = pass_.render_caustics(*textures, vpls, w2v, proj, 3e-2, samples=16, interleave=2)
+    filtered = pass_.render_caustics(*textures, vpls, w2v, proj, 3e-2, samples=1, interleave=2, radius=4)
+    assert np.all(np.isfinite(filtered))
+    assert error(many) < 0.5 * error(one)
+    assert error(filtered) < error(one)

@@ -46,6 +46,40 @@ def _interface() -> ShaderInterface:
     )
 
 
+def _denoise_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("IVEC4", "denoise_params"), ("VEC4", "denoise_eye")],
+        samplers=[("FLOAT_2D", "vpl_noisy"), ("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal")],
+        images=[("RGBA32F", "FLOAT_2D", "vpl_denoised")],
+        local_group_size=(8, 8, 1),
+    )
+
+
+#: The filter's guide: off the centre's tangent plane by this fraction of its depth weighs e^-1;
+#: normals weigh (n_p . n_q)^NORMAL_POWER.
+DENOISE_SIGMA_PLANE = 0.02
+DENOISE_NORMAL_POWER = 16
+
+
+def denoise(radiance, position, normal, radius: int, eye):
+    """The cross-bilateral filtered copy of ``radiance`` (radius 0: ``radiance`` itself)."""
+    import gpu
+
+    if radius <= 0:
+        return radiance
+    out = gpu.types.GPUTexture((radiance.width, radiance.height), format="RGBA32F")
+    shader = PASS.shader("denoise")
+    shader.bind()
+    shader.uniform_int("denoise_params", (int(radius), DENOISE_NORMAL_POWER, 0, 0))
+    shader.uniform_float("denoise_eye", (*(float(v) for v in eye), DENOISE_SIGMA_PLANE))
+    shader.uniform_sampler("vpl_noisy", radiance)
+    shader.uniform_sampler("gbuffer_position", position)
+    shader.uniform_sampler("gbuffer_normal", normal)
+    shader.image("vpl_denoised", out)
+    gpu.compute.dispatch(shader, math.ceil(radiance.width / 8), math.ceil(radiance.height / 8), 1)
+    return out
+
+
 def vpl_table(vpls) -> np.ndarray:
     """The (4 ceil(n / W), W, 4) float32 table of the VPL records (see the stage's header)."""
     count = len(vpls["roughness"])
@@ -114,7 +148,7 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
     lists = gpu.types.GPUTexture((LIST_CAPACITY, tiles[0] * tiles[1]), format="R32UI")
     lists.clear(format="UINT", value=(-1,))
     counts = gpu.types.GPUTexture(tiles, format="R32UI")
-    shader = PASS.shader()
+    shader = PASS.shader("vpl_culling")
     shader.bind()
     shader.uniform_float("vpl_params", (float(delta), float(count), float(seed), float(frame)))
     shader.uniform_int("vpl_sizes", (TABLE_WIDTH, LIST_CAPACITY, tiles[0], tiles[1]))
@@ -131,11 +165,28 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
     return VPLCullingResult(radiance, lists, counts, (width, height), tiles, count)
 
 
+def render_caustics(position, normal, albedo, vpls, world_to_view, projection, delta: float, *, samples: int = 1,
+                    interleave: int = 1, radius: int = 0, seed: int = 0, frame: int = 0) -> np.ndarray:
+    """The progressive VPL image, read back (h, w, 4): the mean of ``samples`` culled frames (each its
+    own xi draw and interleave offset; noise falls as 1/sqrt(S) towards the unbiased result), then
+    the cross-bilateral filter of ``radius`` (0: none)."""
+    total = None
+    eye = np.linalg.inv(np.asarray(world_to_view, np.float64))[:3, 3]
+    for step in range(max(int(samples), 1)):
+        result = run(position, normal, albedo, vpls, world_to_view, projection, delta, seed,
+                     frame * max(int(samples), 1) + step, interleave, step % (interleave * interleave))
+        image = read_texture(denoise(result.radiance, position, normal, radius, eye), *result.size)
+        result.free()
+        total = image.astype(np.float64) if total is None else total + image
+    return (total / max(int(samples), 1)).astype(np.float32)
+
+
 PASS = GPUPass(
     name="vpl_culling",
     label="Caustics (VPL)",
     step=Step("vpl_culling", "Caustics (VPL)", {"vpls": "VPLs", "vpls_per_pixel": "VPLs per Pixel"}),
-    shaders={"vpl_culling": ShaderSpec(_interface, {"compute": "vpl_culling/vpl_cull_shade.comp.glsl"})},
+    shaders={"vpl_culling": ShaderSpec(_interface, {"compute": "vpl_culling/vpl_cull_shade.comp.glsl"}),
+             "denoise": ShaderSpec(_denoise_interface, {"compute": "vpl_culling/vpl_denoise.comp.glsl"})},
     reads=(),
     writes=(),
     run=run,
