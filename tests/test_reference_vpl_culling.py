@@ -287,3 +287,36 @@ def test_vpls_from_rsm_select_lit_sharp_texels():
                                   np.array([[0.05]]), 0.1)
     assert one["position"].shape == (1, 3)
     assert ggx.microfacet_brdf(one["incoming"], one["normal"], one["normal"], 0.05, 1.0).shape == (1,)
+
+
+def orthographic(half, near, far):
+    return np.array([[1 / half, 0, 0, 0], [0, 1 / half, 0, 0],
+                     [0, 0, -2 / (far - near), -(far + near) / (far - near)], [0, 0, 0, 1]])
+
+
+@pytest.mark.parametrize("projection", [perspective(np.radians(50.0), 1.5, 0.1, 30.0), orthographic(3.0, 0.1, 30.0)])
+def test_tile_frustum_holds_exactly_the_tile(projection):
+    """Points whose NDC lies in the tile and whose depth lies in the range are inside every plane;
+    points beside the tile or beyond its depth range are outside one."""
+    rng = np.random.default_rng(RNG_SEED + 6)
+    v2w = look_at(np.array([1.0, -2.0, 1.0]), np.array([0.0, 3.0, 0.5]))
+    inv_proj = np.linalg.inv(projection)
+    lo, hi, dmin, dmax = np.array([-0.3, 0.1]), np.array([-0.1, 0.35]), 2.0, 5.0
+    planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, dmin, dmax)
+
+    def world_points(ndc_xy, depth):
+        near = np.einsum("ij,nj->ni", inv_proj, np.column_stack([ndc_xy, -np.ones(len(depth)), np.ones(len(depth))]))
+        far = np.einsum("ij,nj->ni", inv_proj, np.column_stack([ndc_xy, np.ones(len(depth)), np.ones(len(depth))]))
+        near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
+        t = (depth + near[:, 2]) / (near[:, 2] - far[:, 2])
+        view = near + t[:, None] * (far - near)
+        return view @ v2w[:3, :3].T + v2w[:3, 3]
+
+    n = 2000
+    inside = world_points(rng.uniform(lo, hi, (n, 2)), rng.uniform(dmin, dmax, n))
+    values = inside @ planes[:, :3].T + planes[:, 3]
+    assert np.all(values >= -1e-9 * np.abs(planes[:, :3]).max())
+    beside = world_points(rng.uniform(hi + 0.01, hi + 0.3, (n, 2)), rng.uniform(dmin, dmax, n))
+    beyond = world_points(rng.uniform(lo, hi, (n, 2)), rng.uniform(dmax * 1.01, dmax * 2, n))
+    for outside in (beside, beyond):
+        assert np.all(np.any(outside @ planes[:, :3].T + planes[:, 3] < 0.0, axis=1))

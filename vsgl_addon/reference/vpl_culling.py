@@ -236,37 +236,36 @@ def glossy_bounding_volumes(vpls, delta, xi, fmax=1.0):
 
 
 def tile_frustum_planes(inverse_projection, view_to_world, tile_ndc_min, tile_ndc_max, depth_min, depth_max):
-    """World-space planes (n, d) of a perspective tile frustum, inside n.x + d >= 0.
+    """World-space planes (n, d) of a tile frustum, inside n.x + d >= 0 (the GPU stage's planes).
 
     The tile spans NDC [min, max] in x and y and view-space depth [depth_min, depth_max] (positive
-    distances along -z). The four side planes pass through the eye; the two depth planes are
-    perpendicular to the view axis (004 Eq. 17 rotates the spheroid so this stays true per tile)."""
+    distances along -z). Each side plane holds a tile edge's near and far corner points
+    (perspective or orthographic); the two depth planes are perpendicular to the view axis (004
+    Eq. 17 rotates the spheroid so this stays true per tile). Planes are made in view space and
+    taken to world space as covectors, p_w = W2V^T p_v (the stretched-plane test does not depend
+    on their scale)."""
     inv = f64(inverse_projection)
     v2w = f64(view_to_world)
+    w2v = np.linalg.inv(v2w)
 
-    def view_ray(x, y):
-        p = inv @ np.array([x, y, 1.0, 1.0])
+    def unproject(x, y, z):
+        p = inv @ np.array([x, y, z, 1.0])
         return p[:3] / p[3]
 
     (x0, y0), (x1, y1) = tile_ndc_min, tile_ndc_max
-    corners = [view_ray(x0, y0), view_ray(x1, y0), view_ray(x1, y1), view_ray(x0, y1)]
+    ndc = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+    near = [unproject(x, y, -1.0) for x, y in ndc]
+    far = [unproject(x, y, 1.0) for x, y in ndc]
+    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    centre_near, centre_far = unproject(cx, cy, -1.0), unproject(cx, cy, 1.0)
+    t = (0.5 * (depth_min + depth_max) + centre_near[2]) / (centre_near[2] - centre_far[2])
+    inner = np.append(centre_near + t * (centre_far - centre_near), 1.0)
     planes = []
-    for a, b in zip(corners, corners[1:] + corners[:1]):
-        n = np.cross(b, a)
-        n = n / np.linalg.norm(n)
-        planes.append(np.append(n, 0.0))
+    for k in range(4):
+        a, b = near[k], near[(k + 1) % 4]
+        n = np.cross(b - a, far[k] - a)
+        plane = np.append(n, -n @ a)
+        planes.append(plane if plane @ inner >= 0.0 else -plane)
     planes.append(np.array([0.0, 0.0, -1.0, -depth_min]))  # -z >= depth_min
     planes.append(np.array([0.0, 0.0, 1.0, depth_max]))   # -z <= depth_max
-    planes = np.array(planes)
-    # To world: a plane (n, d) in view space is (R n, d - (R n).t) in world space.
-    rotation = v2w[:3, :3]
-    translation = v2w[:3, 3]
-    normals = planes[:, :3] @ rotation.T
-    offsets = planes[:, 3] - normals @ translation
-    # Orient every plane so the frustum's centre is inside, whatever the corners' winding.
-    mid = np.array(corners).mean(axis=0)
-    centre_world = rotation @ (mid * (0.5 * (depth_min + depth_max) / -mid[2])) + translation
-    sign = np.where(normals @ centre_world + offsets >= 0.0, 1.0, -1.0)
-    normals = normals * sign[:, None]
-    offsets = offsets * sign
-    return np.concatenate([normals, offsets[:, None]], axis=1)
+    return np.array(planes) @ w2v
