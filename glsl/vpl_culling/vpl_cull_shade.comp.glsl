@@ -118,7 +118,10 @@ void main()
   uint subset = (uint(pixel.x) % interleave + interleave * (uint(pixel.y) % interleave) + uint(vpl_interleave.y))
                 % subsets;
   vec3 radiance = vec3(0.0);
-  for (uint base = 0u; base < count; base += 256u) {
+  // tile_used is the same for the whole group (read after a barrier), so an empty tile skips the
+  // chunks, barriers included, without breaking uniform control flow.
+  uint chunk_end = tile_used ? count : 0u;
+  for (uint base = 0u; base < chunk_end; base += 256u) {
     if (local == 0u) {
       chunk_count = 0u;
     }
