@@ -207,6 +207,9 @@ class ShaderInterface:
     flat_varyings: list[tuple[str, str]] = field(default_factory=list)
     fragment_outputs: list[tuple[str, str]] = field(default_factory=list)  # (type, name)
     local_group_size: tuple[int, ...] | None = None
+    # Compute-shader `shared` declarations: Blender 5.2 drops a `shared` written in compute_source,
+    # typedef_source keeps it on 5.0 and 5.2 (blender-gpu.md).
+    shared: str = ""
 
 
 def create_shader(name: str, interface: ShaderInterface, *, vertex: str | None = None,
@@ -241,6 +244,8 @@ def create_shader(name: str, interface: ShaderInterface, *, vertex: str | None =
         info.fragment_out(slot, glsl_type, output)
     if interface.local_group_size:
         info.local_group_size(*interface.local_group_size)
+    if interface.shared:
+        info.typedef_source(interface.shared)
 
     sources = []
     code = code or {}

@@ -1,0 +1,177 @@
+// @require lib/vpl_culling.glsl
+//
+// Tiled stochastic light culling and shading of glossy VPLs (004 section 5; twin:
+// reference/vpl_culling.py shade_glossy_vpls with the tile lists of ellipsoid_frustum_overlap).
+// One work group per 16x16-pixel tile:
+// 1. the tile's view depth range over its covered pixels (shared atomicMin/Max on the float bits of
+//    the non-negative depth, whose uint order is the float order);
+// 2. the tile frustum: four side planes through the tile's corner rays and two depth planes,
+//    made in view space and taken to world space as covectors (p_w = W2V^T p_v; the stretched-plane
+//    distance is invariant to the planes' scale), so the spheroid is tested where it was built
+//    (Eq. 16; Eq. 17's rotation keeping the depth planes perpendicular is implicit in view space);
+// 3. the VPLs in chunks of 256: each invocation tests one VPL's spheroid (Eqs. 13-15) against the
+//    frustum and appends it to the chunk's shared list (and to the tile's list in the R32UI image,
+//    up to its capacity), then every pixel shades the chunk's list with the exact GGX BRDF at the
+//    VPL and its own diffuse lobe, weighted 1/p where p > xi (Eqs. 2-3). Chunking keeps the shared
+//    list from overflowing, so the result is exact whatever the list capacity.
+// Interleaved sampling (004 section 6): with vpl_interleave.x = N > 1 the pixel shades only the
+// VPLs i with i % N^2 = its sub-image ((x % N) + N (y % N) + offset) % N^2, weighted N^2: each
+// sub-image sees a different subset, and the mean over the N^2 offsets is the full estimate.
+// Table rows per VPL (record k of VPL i at texel (i % W, 4 (i / W) + k)): position + roughness,
+// normal + scalar flux, incoming, Phi Rs.
+
+// Slack of the plane test: a spheroid touching the tile within float32 rounding stays listed.
+const float VPL_PLANE_SLACK = 1e-4;
+
+vec4 vpl_record(uint i, int k)
+{
+  int width = vpl_sizes.x;
+  return texelFetch(vpl_table, ivec2(int(i) % width, 4 * (int(i) / width) + k), 0);
+}
+
+vec4 camera_row(int k)
+{
+  return texelFetch(vpl_camera, ivec2(0, k), 0);
+}
+
+vec3 unproject(vec4 inverse_projection[4], vec2 ndc, float z)
+{
+  vec4 p = vec4(ndc, z, 1.0);
+  vec4 v = vec4(dot(inverse_projection[0], p), dot(inverse_projection[1], p), dot(inverse_projection[2], p),
+                dot(inverse_projection[3], p));
+  return v.xyz / v.w;
+}
+
+void main()
+{
+  ivec2 size = textureSize(gbuffer_position, 0);
+  ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 tile = ivec2(gl_WorkGroupID.xy);
+  uint local = gl_LocalInvocationIndex;
+  int tile_index = tile.y * vpl_sizes.z + tile.x;
+  uint count = uint(vpl_params.y);
+  uint seed = uint(vpl_params.z);
+  uint frame = uint(vpl_params.w);
+  float delta = vpl_params.x;
+  vec4 world_to_view[4] = vec4[4](camera_row(0), camera_row(1), camera_row(2), camera_row(3));
+  vec4 inverse_projection[4] = vec4[4](camera_row(4), camera_row(5), camera_row(6), camera_row(7));
+
+  if (local == 0u) {
+    tile_depth_min = 0x7F7FFFFFu;
+    tile_depth_max = 0u;
+    tile_covered = 0u;
+    tile_total = 0u;
+  }
+  barrier();
+  bool inside = all(lessThan(pixel, size));
+  vec4 position = inside ? texelFetch(gbuffer_position, pixel, 0) : vec4(0.0);
+  bool covered = inside && position.w > 0.0;
+  vec3 receiver = position.xyz;
+  vec3 receiver_normal = covered ? texelFetch(gbuffer_normal, pixel, 0).xyz : vec3(0.0, 0.0, 1.0);
+  vec3 albedo = covered ? texelFetch(receiver_albedo, pixel, 0).rgb : vec3(0.0);
+  if (covered) {
+    vec4 p = vec4(receiver, 1.0);
+    float depth = max(-dot(world_to_view[2], p), 0.0);
+    atomicMin(tile_depth_min, floatBitsToUint(depth));
+    atomicMax(tile_depth_max, floatBitsToUint(depth));
+    atomicOr(tile_covered, 1u);
+  }
+  barrier();
+  bool tile_used = tile_covered != 0u;
+  float depth_min = uintBitsToFloat(tile_depth_min);
+  float depth_max = uintBitsToFloat(tile_depth_max);
+
+  // Tile frustum in view space, then world space.
+  vec2 ndc_min = vec2(tile * 16) / vec2(size) * 2.0 - 1.0;
+  vec2 ndc_max = vec2(min((tile + 1) * 16, size)) / vec2(size) * 2.0 - 1.0;
+  vec2 corner_ndc[4] = vec2[4](ndc_min, vec2(ndc_max.x, ndc_min.y), ndc_max, vec2(ndc_min.x, ndc_max.y));
+  vec3 near_[4];
+  vec3 far_[4];
+  for (int k = 0; k < 4; k++) {
+    near_[k] = unproject(inverse_projection, corner_ndc[k], -1.0);
+    far_[k] = unproject(inverse_projection, corner_ndc[k], 1.0);
+  }
+  // A point inside: the centre ray at the middle depth (orients every plane).
+  vec3 centre_near = unproject(inverse_projection, 0.5 * (ndc_min + ndc_max), -1.0);
+  vec3 centre_far = unproject(inverse_projection, 0.5 * (ndc_min + ndc_max), 1.0);
+  float mid = 0.5 * (depth_min + depth_max);
+  float t = (mid + centre_near.z) / (centre_near.z - centre_far.z);
+  vec3 inner = mix(centre_near, centre_far, t);
+  vec4 planes[6];
+  for (int k = 0; k < 4; k++) {
+    vec3 a = near_[k];
+    vec3 b = near_[(k + 1) % 4];
+    vec3 n = cross(b - a, far_[k] - a);
+    vec4 plane = vec4(n, -dot(n, a));
+    planes[k] = dot(plane, vec4(inner, 1.0)) >= 0.0 ? plane : -plane;
+  }
+  planes[4] = vec4(0.0, 0.0, -1.0, -depth_min);
+  planes[5] = vec4(0.0, 0.0, 1.0, depth_max);
+  for (int k = 0; k < 6; k++) {
+    vec4 p = planes[k];
+    planes[k] = p.x * world_to_view[0] + p.y * world_to_view[1] + p.z * world_to_view[2]
+                + vec4(0.0, 0.0, 0.0, p.w);
+  }
+
+  uint interleave = uint(max(vpl_interleave.x, 1));
+  uint subsets = interleave * interleave;
+  uint subset = (uint(pixel.x) % interleave + interleave * (uint(pixel.y) % interleave) + uint(vpl_interleave.y))
+                % subsets;
+  vec3 radiance = vec3(0.0);
+  // tile_used is the same for the whole group (read after a barrier), so an empty tile skips the
+  // chunks, barriers included, without breaking uniform control flow.
+  uint chunk_end = tile_used ? count : 0u;
+  for (uint base = 0u; base < chunk_end; base += 256u) {
+    if (local == 0u) {
+      chunk_count = 0u;
+    }
+    barrier();
+    uint i = base + local;
+    if (tile_used && i < count) {
+      vec4 r0 = vpl_record(i, 0);
+      vec4 r1 = vpl_record(i, 1);
+      vec4 r2 = vpl_record(i, 2);
+      float xi = vpl_xi(i, seed, frame);
+      vec3 c, axes, u, v, w;
+      ggx_spheroid(r0.xyz, r1.xyz, r2.xyz, r0.w, r1.w, delta, xi, 1.0, c, axes, u, v, w);
+      bool listed = r1.w > 0.0;
+      for (int k = 0; k < 6; k++) {
+        listed = listed && ellipsoid_plane_distance(planes[k].xyz, planes[k].w, c, axes, u, v, w)
+                           >= -1.0 - VPL_PLANE_SLACK;
+      }
+      if (listed) {
+        chunk_list[atomicAdd(chunk_count, 1u)] = i;
+        uint slot = atomicAdd(tile_total, 1u);
+        if (int(slot) < vpl_sizes.y) {
+          imageStore(vpl_tile_lists, ivec2(int(slot), tile_index), uvec4(i));
+        }
+      }
+    }
+    barrier();
+    if (covered) {
+      for (uint k = 0u; k < chunk_count; k++) {
+        uint j = chunk_list[k];
+        if (j % subsets != subset) {
+          continue;
+        }
+        vec4 r0 = vpl_record(j, 0);
+        vec4 r1 = vpl_record(j, 1);
+        vec4 r2 = vpl_record(j, 2);
+        float intensity, l2;
+        float geometry = glossy_vpl_geometry(receiver, receiver_normal, r0.xyz, r1.xyz, r2.xyz, r0.w, r1.w,
+                                             intensity, l2);
+        float p = acceptance_probability(intensity, l2, delta);
+        if (p > vpl_xi(j, seed, frame)) {
+          radiance += vpl_record(j, 3).rgb * (geometry / p);
+        }
+      }
+    }
+    barrier();
+  }
+  if (local == 0u) {
+    imageStore(vpl_tile_counts, tile, uvec4(tile_total));
+  }
+  if (inside) {
+    imageStore(vpl_radiance, pixel, vec4(albedo * (radiance * (float(subsets) / PI)), 0.0));
+  }
+}

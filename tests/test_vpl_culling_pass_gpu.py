@@ -1,0 +1,164 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The tiled culling + shading compute pass (vsgl_addon/passes/vpl_culling.py) on llvmpipe against
+the float64 reference: the image equals shading every accepted VPL without culling for the same xi
+(culling exactness), delta -> 0 equals brute force, the tile lists hold every VPL a pixel of the
+tile accepts and match the reference's spheroid lists, and empty inputs give black, finite images."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from test_reference_vpl_culling import look_at, perspective, small_scene
+from vsgl_addon.passes import vpl_culling as pass_
+from vsgl_addon.passes.gpu_util import texture_from_array
+from vsgl_addon.reference import vpl_culling as vc
+
+pytestmark = pytest.mark.gpu
+
+
+def wall_gbuffer(width, height, hole=False):
+    eye, target = np.array([-1.0, 0.0, 1.5]), np.array([2.0, 0.0, 1.5])
+    v2w = look_at(eye, target)
+    proj = perspective(np.radians(60.0), width / height, 0.1, 20.0)
+    inv_proj = np.linalg.inv(proj)
+    nx, ny = np.meshgrid((np.arange(width) + 0.5) / width * 2 - 1, (np.arange(height) + 0.5) / height * 2 - 1)
+    view = np.einsum("ij,...j->...i", inv_proj, np.stack([nx, ny, np.ones_like(nx), np.ones_like(nx)], -1))
+    dirs = (view[..., :3] / view[..., 3:]) @ v2w[:3, :3].T
+    t = (2.0 - eye[0]) / dirs[..., 0]
+    points = eye + t[..., None] * dirs
+    coverage = np.ones((height, width))
+    if hole:  # background pixels (no geometry) and one fully empty tile
+        coverage[:16, :16] = 0.0
+        coverage[20:24, 30:40] = 0.0
+    position = np.concatenate([points, coverage[..., None]], -1)
+    normal = np.zeros((height, width, 4))
+    normal[..., 0] = -1.0
+    albedo = np.zeros((height, width, 4))
+    albedo[..., :3] = [0.8, 0.6, 0.4]
+    return position, normal, albedo, np.linalg.inv(v2w), proj, v2w, inv_proj
+
+
+def run_pass(position, normal, albedo, vpls, w2v, proj, delta, seed=3, frame=0, interleave=1, offset=0):
+    textures = [texture_from_array(a) for a in (position, normal, albedo)]
+    result = pass_.run(*textures, vpls, w2v, proj, delta, seed, frame, interleave, offset)
+    image, counts = result.read(), result.read_counts()
+    lists = result.read_lists()
+    result.free()
+    return image.astype(np.float64), counts, lists
+
+
+def reference_image(position, normal, albedo, vpls, delta, xi):
+    h, w = position.shape[:2]
+    points = position[..., :3].reshape(-1, 3)
+    out = vc.shade_glossy_vpls(points, normal[..., :3].reshape(-1, 3), albedo[..., :3].reshape(-1, 3),
+                               vpls, delta, xi).reshape(h, w, 3)
+    return out * (position[..., 3:] > 0.0)
+
+
+def _vpls(count, flux_scale=1e-3):
+    vpls = small_scene(np.random.default_rng(8), count=count, roughness=0.08, flux_scale=flux_scale)
+    # float32 what the GPU sees
+    return {k: v.astype(np.float32).astype(np.float64) for k, v in vpls.items()}
+
+
+@pytest.mark.parametrize("delta", [1e-3, 1e-2, 0.0])
+def test_tiled_pass_equals_untiled_reference(delta):
+    position, normal, albedo, w2v, proj, v2w, inv_proj = wall_gbuffer(64, 48, hole=True)
+    vpls = _vpls(300)  # more than one chunk of 256
+    xi = vc.vpl_xi(np.arange(300), 3, 0)
+    image, counts, lists = run_pass(position, normal, albedo, vpls, w2v, proj, delta)
+    reference = reference_image(position, normal, albedo, vpls, delta, xi)
+    assert np.all(np.isfinite(image))
+    assert reference.max() > 0.0
+    err = np.abs(image[..., :3] - reference)
+    assert np.all(err <= 2e-3 * reference + 1e-6 * reference.max()), f"worst {np.max(err / (reference + 1e-30)):.3g}"
+    assert counts.shape == (3, 4)
+    assert counts[0, 0] == 0  # the empty tile lists nothing
+    # Every VPL a pixel of the tile accepts is listed.
+    h, w = position.shape[:2]
+    for ty in range(3):
+        for tx in range(4):
+            sl = (slice(16 * ty, 16 * ty + 16), slice(16 * tx, 16 * tx + 16))
+            cov = position[sl][..., 3].reshape(-1) > 0.0
+            if not cov.any():
+                continue
+            pts = position[sl][..., :3].reshape(-1, 3)[cov]
+            _, intensity, l2 = vc.glossy_vpl_radiance(
+                pts[:, None], normal[sl][..., :3].reshape(-1, 3)[cov][:, None], np.ones((len(pts), 1, 3)),
+                vpls["position"][None], vpls["normal"][None], vpls["incoming"][None], vpls["roughness"][None],
+                vpls["flux"][None], vpls["rs"][None])
+            needed = np.flatnonzero(np.any(vc.acceptance_probability(intensity, l2, delta) > xi[None], axis=0)
+                                    if delta > 0 else np.ones(300, bool))
+            listed = set(lists[ty * 4 + tx, :counts[ty, tx]].tolist())
+            assert set(needed.tolist()) <= listed
+    if delta == 0.0:
+        assert np.all(counts[counts > 0] == 300)
+
+
+def test_tile_counts_match_reference_lists():
+    position, normal, albedo, w2v, proj, v2w, inv_proj = wall_gbuffer(64, 64)
+    vpls = _vpls(200)
+    delta = 1e-2
+    xi = vc.vpl_xi(np.arange(200), 3, 0)
+    _, counts, _ = run_pass(position, normal, albedo, vpls, w2v, proj, delta)
+    centre, axes, rotation = vc.glossy_bounding_volumes(vpls, delta, xi)
+    # View depth of the wall's pixels.
+    depth = -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
+    ref = np.zeros((4, 4), int)
+    for ty in range(4):
+        for tx in range(4):
+            sl = (slice(16 * ty, 16 * ty + 16), slice(16 * tx, 16 * tx + 16))
+            lo = np.array([tx, ty]) * 16 / 64 * 2 - 1
+            hi = np.array([tx + 1, ty + 1]) * 16 / 64 * 2 - 1
+            planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, depth[sl].min(), depth[sl].max())
+            ref[ty, tx] = vc.ellipsoid_frustum_overlap(planes[None], centre, axes, rotation).sum()
+    assert ref.sum() > 0
+    # Equal up to spheroids that touch a tile within float32 rounding (the GPU's slack keeps them).
+    assert np.all(counts >= ref) and np.all(counts - ref <= np.maximum(2, 0.02 * ref))
+
+
+def test_no_vpls_and_single_vpl():
+    position, normal, albedo, w2v, proj, *_ = wall_gbuffer(20, 17)
+    empty = {k: v[:0] for k, v in _vpls(1).items()}
+    image, counts, _ = run_pass(position, normal, albedo, empty, w2v, proj, 1e-3)
+    np.testing.assert_array_equal(image, 0.0)
+    np.testing.assert_array_equal(counts, 0)
+    one = _vpls(1, flux_scale=1.0)
+    image, counts, _ = run_pass(position, normal, albedo, one, w2v, proj, 1e-6)
+    assert np.all(np.isfinite(image)) and image.max() > 0.0
+
+
+@pytest.mark.parametrize("interleave", [2, 4])
+def test_interleaved_subsets_average_to_full_estimate(interleave):
+    """Each of the N^2 offsets shades a different VPL subset per pixel; their mean is the N = 1 image."""
+    position, normal, albedo, w2v, proj, *_ = wall_gbuffer(48, 32)
+    vpls = _vpls(120)
+    full, _, _ = run_pass(position, normal, albedo, vpls, w2v, proj, 1e-3)
+    images = [run_pass(position, normal, albedo, vpls, w2v, proj, 1e-3, interleave=interleave, offset=o)[0]
+              for o in range(interleave**2)]
+    mean = np.mean(images, axis=0)
+    np.testing.assert_allclose(mean, full, rtol=1e-5, atol=1e-7 * full.max())
+    # One sub-image differs from the full image (it really shades a subset).
+    assert np.max(np.abs(images[0] - full)) > 1e-3 * full.max()
+    with pytest.raises(ValueError):
+        run_pass(position, normal, albedo, vpls, w2v, proj, 1e-3, interleave=3)
+
+
+def test_progressive_samples_and_denoise():
+    """S frames average towards brute force (error falls with S); the filter keeps a flat wall's
+    mean and lowers the interleaved image's error."""
+    position, normal, albedo, w2v, proj, *_ = wall_gbuffer(64, 48)
+    vpls = _vpls(300)
+    textures = [texture_from_array(a) for a in (position, normal, albedo)]
+    brute = reference_image(position, normal, albedo, vpls, 0.0, None)
+
+    def error(image):
+        return np.sqrt(np.mean((image[..., :3] - brute) ** 2)) / brute.mean()
+
+    one = pass_.render_caustics(*textures, vpls, w2v, proj, 3e-2, samples=1, interleave=2)
+    many = pass_.render_caustics(*textures, vpls, w2v, proj, 3e-2, samples=16, interleave=2)
+    filtered = pass_.render_caustics(*textures, vpls, w2v, proj, 3e-2, samples=1, interleave=2, radius=4)
+    assert np.all(np.isfinite(filtered))
+    assert error(many) < 0.5 * error(one)
+    assert error(filtered) < error(one)

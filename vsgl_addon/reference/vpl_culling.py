@@ -1,0 +1,271 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Stochastic light culling of VPLs on GGX microsurfaces, float64 (formulas.md section 7).
+
+Paper 004 = Tokuyoshi and Harada, "Stochastic light culling for VPLs on GGX microsurfaces"
+(EGSR 2017). Conventions of :mod:`.ggx`: numpy broadcasting over leading axes, vectors in a
+trailing axis of length 3, directions pointing away from the surface.
+
+A glossy VPL is an RSM texel of a sharp specular reflector (alpha < alpha_c, light-paths.md): its
+position q, normal n, direction towards the light w_i, flux Phi (RGB), specular albedo Rs (RGB) and
+GGX roughness alpha. It emits the intensity I(w_o) = Phi Rs f1(w_i, w_o) <w_o, n>, f1 the GGX BRDF
+with F = 1: Rs is the texel's directional albedo with Fresnel already in it (``reference.rsm``), and
+Rs <= 1 is what makes Fmax = 1 a safe bound of Eq. 9. The acceptance test uses the scalar
+intensity of the brightest channel, so one xi and one range serve the three channels.
+
+Every quantity a GPU twin needs (hash, xi, ranges, spheroid, plane test) is a function here with the
+GLSL name of ``glsl/lib/vpl_culling.glsl``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .ggx import ggx_g1_denominator, ggx_ndf, microfacet_brdf
+from .numerics import dot, f64, norm, safe_normalize
+
+# delta xi is clamped here: xi = 0 (accept at every distance) would give an infinite range; with
+# this floor the radius of a unit-flux VPL stays below 1e15, whose square is finite in float32.
+DELTA_XI_MIN = 1e-30
+# (1/3)^(3/4) and (4/27)^(1/4): centre offset and radius of the sphere that bounds the diffuse
+# VPL's range surface rho(theta) = R0 sqrt(cos theta) (formulas.md section 7).
+DIFFUSE_CENTRE = (1.0 / 3.0) ** 0.75
+DIFFUSE_RADIUS = (4.0 / 27.0) ** 0.25
+
+
+def pcg_hash(value):
+    """PCG-RXS-M-XS 32-bit hash (Jarzynski and Olano 2020) on uint32, wrapping like GLSL uint."""
+    v = np.asarray(value, dtype=np.uint64) & np.uint64(0xFFFFFFFF)
+    mask = np.uint64(0xFFFFFFFF)
+    state = (v * np.uint64(747796405) + np.uint64(2891336453)) & mask
+    shift = (state >> np.uint64(28)) + np.uint64(4)
+    word = (((state >> shift) ^ state) * np.uint64(277803737)) & mask
+    return ((word >> np.uint64(22)) ^ word).astype(np.uint32)
+
+
+def vpl_xi(index, seed, frame):
+    """The one uniform xi in (0, 1) of VPL ``index`` for a seed and a frame (004 Eqs. 2-3: one
+    random number per light, not per pixel, so a light is either in or out for the whole image).
+
+    23 bits, (h + 1/2) / 2^23: h + 1/2 < 2^23 is exact in float32, never 0 or 1.
+    """
+    frame_hash = pcg_hash(np.asarray(frame, dtype=np.uint64))
+    seed_hash = pcg_hash((np.asarray(seed, dtype=np.uint64) ^ frame_hash.astype(np.uint64)))
+    h = pcg_hash((np.asarray(index, dtype=np.uint64) + seed_hash.astype(np.uint64)) & np.uint64(0xFFFFFFFF))
+    return ((h >> np.uint32(9)).astype(np.float64) + 0.5) / 8388608.0
+
+
+def acceptance_probability(intensity, distance_squared, delta):
+    """p = min(I(w_o) / (delta l^2), 1) (004 Eq. 2); 1 at l = 0 with I > 0, 0 where I = 0."""
+    intensity = f64(intensity)
+    den = f64(delta) * f64(distance_squared)
+    p = np.where(den > 0.0, intensity / np.where(den > 0.0, den, 1.0), np.where(intensity > 0.0, 1.0, 0.0))
+    return np.clip(p, 0.0, 1.0)
+
+
+def light_range(intensity, delta, xi):
+    """l_max(w_o) = sqrt(I(w_o) / (delta xi)) (004 Eq. 5): the VPL is accepted at x iff
+    |x - q| < l_max, i.e. p > xi."""
+    return np.sqrt(np.maximum(f64(intensity), 0.0) / np.maximum(f64(delta) * f64(xi), DELTA_XI_MIN))
+
+
+def glossy_intensity(incoming, outgoing, normal, roughness, flux):
+    """Scalar I(w_o) = Phi f1(w_i, w_o) <w_o, n> of a glossy VPL (F = 1), ``flux`` the scalar flux
+    (the brightest channel of Phi Rs)."""
+    cos_o = np.maximum(dot(f64(outgoing), f64(normal)), 0.0)
+    return f64(flux) * microfacet_brdf(incoming, outgoing, normal, roughness, 1.0) * cos_o
+
+
+def mirror_direction(incoming, normal):
+    """w_u = 2 (w_i . n) n - w_i, the axis of the GGX range surface (004 Eq. 10)."""
+    incoming = f64(incoming)
+    normal = f64(normal)
+    return 2.0 * dot(incoming, normal)[..., None] * normal - incoming
+
+
+def ggx_range_radius(cos_incidence, roughness, flux, delta, xi, fmax=1.0):
+    """r = sqrt(Phi Fmax G1dist(w_i) / (4 pi delta xi |w_i . n|)) (004 Eq. 12).
+
+    G1dist(c)/|c| = 2 / (|c| + sqrt((1 - alpha^2) c^2 + alpha^2)) -> 2/alpha at grazing incidence,
+    so the ratio is formed without dividing by |c| (finite for c -> 0).
+    """
+    c = np.abs(f64(cos_incidence))
+    a2 = f64(roughness) ** 2
+    g1_over_cos = 2.0 / ggx_g1_denominator(c, a2)
+    num = np.maximum(f64(flux), 0.0) * f64(fmax) * g1_over_cos
+    return np.sqrt(num / (4.0 * np.pi * np.maximum(f64(delta) * f64(xi), DELTA_XI_MIN)))
+
+
+def ggx_bounding_surface(theta, radius, roughness):
+    """s(w_o) = r sqrt(pi D(cos(theta/2))) (004 Eq. 12), theta the angle from w_u."""
+    return f64(radius) * np.sqrt(np.pi * ggx_ndf(np.cos(0.5 * f64(theta)), roughness))
+
+
+def ggx_spheroid(position, normal, incoming, roughness, flux, delta, xi, fmax=1.0):
+    """Bounding spheroid of a glossy VPL's range (004 Eqs. 13-15).
+
+    Returns (centre, semi_axes, rotation): semi-axes (r_u, r_v, r_w) = ((1 + a^2)/(2a) r, r, r),
+    rotation rows (w_u, w_w x w_u, w_w) with w_w = w_u x n / |w_u x n| (Eq. 14), centre
+    q + (1 - a^2)/(2a) r w_u (Eq. 15). At normal incidence w_u = n and the cross product vanishes;
+    the spheroid is symmetric about w_u, so any unit w_w perpendicular to it serves.
+    """
+    position = f64(position)
+    normal = f64(normal)
+    incoming = f64(incoming)
+    alpha = f64(roughness)
+    w_u = safe_normalize(mirror_direction(incoming, normal), normal)
+    r = ggx_range_radius(dot(incoming, normal), alpha, flux, delta, xi, fmax)
+    cross = np.cross(w_u, normal)
+    # Fallback axis: w_u x (e_x or e_y, whichever is less parallel to w_u).
+    helper = np.where((np.abs(w_u[..., 0]) < 0.9)[..., None], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    fallback = np.cross(w_u, helper)
+    fallback = fallback / norm(fallback)[..., None]
+    length = norm(cross)
+    w_w = np.where((length > 1e-9)[..., None], cross / np.maximum(length, 1e-300)[..., None], fallback)
+    w_v = np.cross(w_w, w_u)
+    rotation = np.stack([w_u, w_v, w_w], axis=-2)
+    stretch = (1.0 + alpha * alpha) / (2.0 * alpha)
+    offset = (1.0 - alpha * alpha) / (2.0 * alpha)
+    semi_axes = np.stack([stretch * r, r, r], axis=-1)
+    centre = position + (offset * r)[..., None] * w_u
+    return centre, semi_axes, rotation
+
+
+def diffuse_sphere(position, normal, flux_reflectance, delta, xi):
+    """Bounding sphere of a diffuse VPL's range (formulas.md section 7): with
+    R0 = sqrt(Phi k / (pi delta xi)), centre q + (1/3)^(3/4) R0 n and radius (4/27)^(1/4) R0."""
+    r0 = np.sqrt(np.maximum(f64(flux_reflectance), 0.0) / (np.pi * np.maximum(f64(delta) * f64(xi), DELTA_XI_MIN)))
+    centre = f64(position) + (DIFFUSE_CENTRE * r0)[..., None] * f64(normal)
+    return centre, DIFFUSE_RADIUS * r0
+
+
+def spheroid_contains(points, centre, semi_axes, rotation, slack=0.0):
+    """|diag(1/axes) R (x - c)| <= 1 + slack: x inside the spheroid."""
+    local = np.einsum("...ij,...j->...i", f64(rotation), f64(points) - f64(centre))
+    return norm(local / f64(semi_axes)) <= 1.0 + slack
+
+
+def ellipsoid_plane_distance(plane_normal, plane_offset, centre, semi_axes, rotation):
+    """Signed distance of the ellipsoid's stretched centre from the stretched plane (004 Eq. 16).
+
+    Stretching space by S = R^T diag(1/a) R makes the ellipsoid the unit sphere; the plane
+    n.x + d = 0 becomes (S^-1 n).x' + n.c + d = 0, so the sphere test reads
+    (n.c + d) / |diag(a) R n| >= -1 for the ellipsoid to reach the plane's positive side.
+    """
+    plane_normal = f64(plane_normal)
+    rn = np.einsum("...ij,...j->...i", f64(rotation), plane_normal)
+    support = norm(f64(semi_axes) * rn)
+    return (dot(plane_normal, f64(centre)) + f64(plane_offset)) / np.maximum(support, 1e-300)
+
+
+def ellipsoid_frustum_overlap(planes, centre, semi_axes, rotation):
+    """Conservative ellipsoid-frustum test (004 Eqs. 16-17): False only when the ellipsoid lies
+    wholly outside one of the frustum's planes. ``planes`` (..., P, 4) = (n, d), inside n.x + d >= 0.
+    Plane by plane it never rejects an ellipsoid that meets the frustum (no false negatives)."""
+    planes = f64(planes)
+    distance = ellipsoid_plane_distance(planes[..., :3], planes[..., 3], centre[..., None, :],
+                                        semi_axes[..., None, :], rotation[..., None, :, :])
+    return np.all(distance >= -1.0, axis=-1)
+
+
+def glossy_vpl_radiance(receiver, receiver_normal, receiver_albedo, position, normal, incoming,
+                        roughness, flux_rgb, rs_rgb):
+    """Unshadowed radiance a glossy VPL puts on a diffuse receiver at x:
+    L = (albedo/pi) Phi Rs f1(w_i, w_o) <w_o, n_q> <-w_o, n_x> / l^2, w_o = (x - q)/l (RGB).
+
+    Also returns the scalar acceptance intensity I(w_o) and l^2."""
+    d = f64(receiver) - f64(position)
+    l2 = dot(d, d)
+    w_o = safe_normalize(d, f64(normal), np.sqrt(l2))
+    f1 = microfacet_brdf(incoming, w_o, normal, roughness, 1.0)
+    cos_q = np.maximum(dot(w_o, f64(normal)), 0.0)
+    cos_x = np.maximum(-dot(w_o, f64(receiver_normal)), 0.0)
+    flux_spec = f64(flux_rgb) * f64(rs_rgb)
+    intensity = np.max(flux_spec, axis=-1) * f1 * cos_q
+    geometry = np.where(l2 > 0.0, f1 * cos_q * cos_x / np.where(l2 > 0.0, l2, 1.0), 0.0)
+    radiance = f64(receiver_albedo) / np.pi * flux_spec * geometry[..., None]
+    return radiance, intensity, l2
+
+
+def stochastic_weight(intensity, distance_squared, delta, xi):
+    """1/p where the VPL is accepted (p > xi), else 0 (004 Eq. 3): the estimator's weight."""
+    p = acceptance_probability(intensity, distance_squared, delta)
+    return np.where(p > xi, 1.0 / np.where(p > 0.0, p, 1.0), 0.0)
+
+
+def shade_glossy_vpls(receivers, receiver_normals, receiver_albedo, vpls, delta, xi, accepted=None):
+    """Sum over VPLs of radiance weighted by 1/p for accepted VPLs (Eq. 3); ``xi`` per VPL.
+
+    ``receivers`` (P, 3), ``vpls`` a dict of (K, ...) arrays; ``accepted`` an optional (P, K)
+    mask (the tile lists) applied on top. delta = 0 gives brute force (every VPL, weight 1)."""
+    radiance, intensity, l2 = glossy_vpl_radiance(
+        receivers[:, None, :], receiver_normals[:, None, :], receiver_albedo[:, None, :],
+        vpls["position"][None], vpls["normal"][None], vpls["incoming"][None],
+        vpls["roughness"][None], vpls["flux"][None], vpls["rs"][None])
+    if delta > 0.0:
+        weight = stochastic_weight(intensity, l2, delta, xi[None, :])
+    else:
+        weight = np.ones_like(intensity)
+    if accepted is not None:
+        weight = weight * accepted
+    return np.sum(radiance * weight[..., None], axis=1)
+
+
+def glossy_vpls_from_rsm(position, normal, incoming, flux, rs, roughness, caustic_roughness):
+    """The RSM texels of sharp reflectors (alpha < alpha_c, lit: flux > 0) as glossy VPLs; the
+    texel arrays flattened, nothing resampled (the VPL set is as stable as the RSM)."""
+    roughness = f64(roughness).reshape(-1)
+    flux = f64(flux).reshape(-1, 3)
+    rs = f64(rs).reshape(-1, 3)
+    keep = (roughness < caustic_roughness) & (np.max(flux * rs, axis=-1) > 0.0)
+    return {
+        "position": f64(position).reshape(-1, 3)[keep],
+        "normal": f64(normal).reshape(-1, 3)[keep],
+        "incoming": f64(incoming).reshape(-1, 3)[keep],
+        "flux": flux[keep],
+        "rs": rs[keep],
+        "roughness": roughness[keep],
+        "texel": np.flatnonzero(keep),
+    }
+
+
+def glossy_bounding_volumes(vpls, delta, xi, fmax=1.0):
+    """Spheroids (Eqs. 13-15) of a VPL dict for per-VPL xi."""
+    scalar_flux = np.max(vpls["flux"] * vpls["rs"], axis=-1)
+    return ggx_spheroid(vpls["position"], vpls["normal"], vpls["incoming"], vpls["roughness"],
+                        scalar_flux, delta, xi, fmax)
+
+
+def tile_frustum_planes(inverse_projection, view_to_world, tile_ndc_min, tile_ndc_max, depth_min, depth_max):
+    """World-space planes (n, d) of a tile frustum, inside n.x + d >= 0 (the GPU stage's planes).
+
+    The tile spans NDC [min, max] in x and y and view-space depth [depth_min, depth_max] (positive
+    distances along -z). Each side plane holds a tile edge's near and far corner points
+    (perspective or orthographic); the two depth planes are perpendicular to the view axis (004
+    Eq. 17 rotates the spheroid so this stays true per tile). Planes are made in view space and
+    taken to world space as covectors, p_w = W2V^T p_v (the stretched-plane test does not depend
+    on their scale)."""
+    inv = f64(inverse_projection)
+    v2w = f64(view_to_world)
+    w2v = np.linalg.inv(v2w)
+
+    def unproject(x, y, z):
+        p = inv @ np.array([x, y, z, 1.0])
+        return p[:3] / p[3]
+
+    (x0, y0), (x1, y1) = tile_ndc_min, tile_ndc_max
+    ndc = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+    near = [unproject(x, y, -1.0) for x, y in ndc]
+    far = [unproject(x, y, 1.0) for x, y in ndc]
+    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    centre_near, centre_far = unproject(cx, cy, -1.0), unproject(cx, cy, 1.0)
+    t = (0.5 * (depth_min + depth_max) + centre_near[2]) / (centre_near[2] - centre_far[2])
+    inner = np.append(centre_near + t * (centre_far - centre_near), 1.0)
+    planes = []
+    for k in range(4):
+        a, b = near[k], near[(k + 1) % 4]
+        n = np.cross(b - a, far[k] - a)
+        plane = np.append(n, -n @ a)
+        planes.append(plane if plane @ inner >= 0.0 else -plane)
+    planes.append(np.array([0.0, 0.0, -1.0, -depth_min]))  # -z >= depth_min
+    planes.append(np.array([0.0, 0.0, 1.0, depth_max]))   # -z <= depth_max
+    return np.array(planes) @ w2v
