@@ -1,5 +1,6 @@
 // @require direct_light/light_at_surface.glsl
 // @require lib/shadow.glsl
+// @require direct_light/light_visibility.glsl
 // @require lib/light_links.glsl
 //
 // Direct light of one light, full screen over the camera G-buffer (vsgl_addon/passes/gbuffer.py
@@ -12,51 +13,6 @@
 // 8 + 5k: the rows of its view-projection matrix, then (perspective 1 / ortho 0, P00, P22, P23).
 // camera: (position, 1) perspective or (direction towards the camera, 0) orthographic.
 // shadow_params: (RSM size, normal offset in texels, depth bias in texels, shadows on 1 / off 0).
-
-const int DIRECT_LIGHT_MAX_VIEWS = 6;
-
-vec4 light_constant(int index)
-{
-  return texelFetch(light_constants, ivec2(index, 0), 0);
-}
-
-float view_depth_texel(int k, ivec2 texel)
-{
-  // Samplers cannot be indexed dynamically in every GLSL version: a switch.
-  if (k == 0) return texelFetch(rsm_depth_0, texel, 0).r;
-  if (k == 1) return texelFetch(rsm_depth_1, texel, 0).r;
-  if (k == 2) return texelFetch(rsm_depth_2, texel, 0).r;
-  if (k == 3) return texelFetch(rsm_depth_3, texel, 0).r;
-  if (k == 4) return texelFetch(rsm_depth_4, texel, 0).r;
-  return texelFetch(rsm_depth_5, texel, 0).r;
-}
-
-// 1 when the RSM of the light sees `position` (or nothing in front of it), 0 in shadow; the first
-// view whose frustum contains the point decides (lib/shadow.glsl). Normal offset and depth bias
-// scale with the view's texel footprint at the point. 0 when no view contains the point (outside a
-// spot cone, behind an area light).
-float direct_light_visibility(vec3 position, vec3 normal, vec3 incoming, int view_count)
-{
-  float size = shadow_params.x;
-  float tan_theta = shadow_tan_incidence(normal, incoming);
-  for (int k = 0; k < DIRECT_LIGHT_MAX_VIEWS; k++) {
-    if (k >= view_count) {
-      break;
-    }
-    int base = 8 + 5 * k;
-    mat4 view_projection = transpose(mat4(light_constant(base), light_constant(base + 1),
-                                          light_constant(base + 2), light_constant(base + 3)));
-    vec4 projection = light_constant(base + 4);
-    ivec2 texel;
-    float receiver, bias;
-    if (!shadow_map_lookup(view_projection, projection, size, shadow_params.y, shadow_params.z,
-                           tan_theta, position, normal, texel, receiver, bias)) {
-      continue;
-    }
-    return shadow_map_test(view_depth_texel(k, texel), projection, receiver, bias);
-  }
-  return 0.0;
-}
 
 void main()
 {

@@ -1,6 +1,7 @@
 // @require lib/math.glsl
 // @require lib/mrp_asg.glsl
 // @require lib/shadow.glsl
+// @require direct_light/light_visibility.glsl
 //
 // Glossy interreflection from rectangle proxies with MRP-ASG (001), one light per draw, full screen
 // over the camera G-buffer (position, normal + roughness attachments) and the shading inputs'
@@ -17,50 +18,10 @@
 // MRP-ASG shades, -, -): other receivers get no light here and alpha 0 (the renderer gives them the
 // proxies' light from the VSGLs instead); served receivers have alpha 1 (added over the lights).
 //
-// Visibility: the light's at each specular peak from its RSM depth (the first view containing the
-// peak decides, lib/shadow.glsl; a peak outside every view is unlit). The path from the proxy to the
+// Visibility: the light's at each specular peak from its RSM depth, the direct light's test
+// (direct_light/light_visibility.glsl: the first view containing the peak decides; a peak outside
+// every view is unlit). The path from the proxy to the
 // receiver is not shadowed (001 assumes no occlusion).
-
-const int MRP_MAX_VIEWS = 6;
-
-vec4 light_constant(int index)
-{
-  return texelFetch(light_constants, ivec2(index, 0), 0);
-}
-
-float mrp_view_depth(int k, ivec2 texel)
-{
-  if (k == 0) return texelFetch(rsm_depth_0, texel, 0).r;
-  if (k == 1) return texelFetch(rsm_depth_1, texel, 0).r;
-  if (k == 2) return texelFetch(rsm_depth_2, texel, 0).r;
-  if (k == 3) return texelFetch(rsm_depth_3, texel, 0).r;
-  if (k == 4) return texelFetch(rsm_depth_4, texel, 0).r;
-  return texelFetch(rsm_depth_5, texel, 0).r;
-}
-
-// The direct light's shadow test (glsl/direct_light/direct_light.frag.glsl) at a peak on a proxy.
-float mrp_light_visibility(vec3 position, vec3 normal, vec3 incoming, int view_count)
-{
-  float size = shadow_params.x;
-  float tan_theta = shadow_tan_incidence(normal, incoming);
-  for (int k = 0; k < MRP_MAX_VIEWS; k++) {
-    if (k >= view_count) {
-      break;
-    }
-    int base = 8 + 5 * k;
-    mat4 view_projection = transpose(mat4(light_constant(base), light_constant(base + 1),
-                                          light_constant(base + 2), light_constant(base + 3)));
-    vec4 projection = light_constant(base + 4);
-    ivec2 texel;
-    float receiver, bias;
-    if (!shadow_map_lookup(view_projection, projection, size, shadow_params.y, shadow_params.z,
-                           tan_theta, position, normal, texel, receiver, bias)) {
-      continue;
-    }
-    return shadow_map_test(mrp_view_depth(k, texel), projection, receiver, bias);
-  }
-  return 0.0;
-}
 
 void main()
 {
@@ -100,7 +61,7 @@ void main()
     }
     if (shadow_params.w > 0.5 && dot(radiance, radiance) > 0.0) {
       vec3 incoming = sun ? -light_axis : safe_normalize(light0.xyz - peak, p.normal);
-      radiance *= mrp_light_visibility(peak, p.normal, incoming, view_count);
+      radiance *= direct_light_visibility(peak, p.normal, incoming, view_count);
     }
     sum += radiance;
   }
