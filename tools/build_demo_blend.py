@@ -34,6 +34,18 @@ def principled(name, base_color, roughness, metallic=0.0, specular_ior_level=0.5
     return material
 
 
+def black_world(scene):
+    """A black world (no light from the background): the indirect light is the lights' alone."""
+    world = bpy.data.worlds.new("Black")
+    world.color = (0.0, 0.0, 0.0)
+    if world.node_tree is None:
+        world.use_nodes = True
+    background = next((n for n in world.node_tree.nodes if n.type == "BACKGROUND"), None)
+    if background is not None:
+        background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    scene.world = world
+
+
 def _plane(name, size, location, rotation, material):
     bpy.ops.mesh.primitive_plane_add(size=size, location=location, rotation=rotation)
     plane = bpy.context.object
@@ -80,14 +92,7 @@ def build(out: Path) -> None:
     camera.rotation_euler = look_rotation((-4.0, 5.0, -1.4))
     scene.camera = camera
 
-    world = bpy.data.worlds.new("Black")
-    world.color = (0.0, 0.0, 0.0)
-    if world.node_tree is None:
-        world.use_nodes = True
-    background = next((n for n in world.node_tree.nodes if n.type == "BACKGROUND"), None)
-    if background is not None:
-        background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    scene.world = world
+    black_world(scene)
 
     scene.render.resolution_x, scene.render.resolution_y = 480, 360
     scene.render.resolution_percentage = 100

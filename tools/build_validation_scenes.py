@@ -25,7 +25,7 @@ from pathlib import Path
 import bpy
 from mathutils import Matrix, Vector
 
-from build_demo_blend import look_rotation, principled  # tools/, this script's folder
+from build_demo_blend import black_world, look_rotation, principled  # tools/, this script's folder
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -102,17 +102,6 @@ def _camera(scene, location, target, lens=30.0):
     _aim(camera, location, target)
     scene.camera = camera
     return camera
-
-
-def _black_world(scene):
-    world = bpy.data.worlds.new("Black")
-    world.color = (0.0, 0.0, 0.0)
-    if world.node_tree is None:
-        world.use_nodes = True
-    background = next((n for n in world.node_tree.nodes if n.type == "BACKGROUND"), None)
-    if background is not None:
-        background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    scene.world = world
 
 
 # --- The scenes ----------------------------------------------------------------------------------
@@ -303,7 +292,7 @@ def build(name: str, out: Path) -> None:
     scene = bpy.context.scene
     scene.name = name
     SCENES[name](scene)
-    _black_world(scene)
+    black_world(scene)
     scene.render.resolution_x, scene.render.resolution_y = RESOLUTION
     scene.render.resolution_percentage = 100
     out.parent.mkdir(parents=True, exist_ok=True)
