@@ -19,7 +19,9 @@ stage's indirect light over those pixels, as a ratio to Cycles' on the same pixe
   point-VPL near field;
 * VPL exact, no visibility: the same, every VPL seen (the unshadowed sum is exact, not sampled);
 * VPL SG lobes, no visibility: the VPLs' lobes replaced by 000 Eqs. 6-7 (the SGs the VSGLs are
-  built from): the lobe fit alone;
+  built from): the lobe fit alone; the diffuse SG as 000 prints it (normalized over the sphere)
+  and normalized over the hemisphere (reference/sg.py DIFFUSE_HEMISPHERE_SCALE, what the VSGLs
+  carry);
 * VSGL ref, no visibility: the GPU's VSGL table (N = the scene's) shaded by the float64 reference
   (reference/vsgl_shading.shade): the lobe fit, clustering into Gaussians (000 app. B) and the
   shading approximations (000 app. C); also at larger N (--counts);
@@ -48,6 +50,7 @@ from build_validation_scenes import RESOLUTION  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
 from tradeoff.demo import COVERED, log  # noqa: E402
 from tradeoff.truth import load_reference  # noqa: E402
+from vsgl_addon.reference.sg import DIFFUSE_HEMISPHERE_SCALE  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 # Ends of a shadow segment nearer than this to either end point are not occluders (both lie on
@@ -118,15 +121,17 @@ def rsm_vpls(scene_gpu, size):
 
 
 def vpl_light(v, position, normal, view, rd, f0, alpha, lobes="exact"):
-    """(P, M) luminance of each VPL's unshadowed light at each receiver, and (P,) the near-field part."""
+    """(P, M) luminance of each VPL's unshadowed light at each receiver, (P,) the near-field part and
+    (P,) the part of the VPLs' diffuse lobes."""
     from vsgl_addon.reference.ggx import microfacet_brdf
-    from vsgl_addon.reference.sg import DIFFUSE_SHARPNESS, sg_evaluate, sg_integral, specular_lobe_warp
+    from vsgl_addon.reference.sg import diffuse_lobe_hemisphere, sg_evaluate, sg_integral, specular_lobe_warp
     from vsgl_addon.reference.vsgl_shading import _ggx_rgb
 
     if lobes == "sg":
         s_axis, s_sharp = specular_lobe_warp(v["incoming"], v["normal"], v["alpha"])
     out = np.zeros((len(position), len(v["flux"])))
     near = np.zeros(len(position))
+    diffuse_part = np.zeros(len(position))
     for p in range(len(position)):
         r = v["position"] - position[p]
         d2 = np.einsum("ij,ij->i", r, r)
@@ -140,15 +145,15 @@ def vpl_light(v, position, normal, view, rd, f0, alpha, lobes="exact"):
             spec = microfacet_brdf(v["incoming"], out_dir, v["normal"], v["alpha"], 1.0) / v["e_white"]
             i_s = v["flux"] * v["rs"] * (spec * cos_v)[:, None]
         else:
-            i_d = v["flux"] * v["rd"] * (sg_evaluate(out_dir, v["normal"], DIFFUSE_SHARPNESS)
-                                         / sg_integral(DIFFUSE_SHARPNESS))[:, None]
+            i_d = v["flux"] * v["rd"] * diffuse_lobe_hemisphere(out_dir, v["normal"])[:, None]
             i_s = v["flux"] * v["rs"] * (sg_evaluate(out_dir, s_axis, s_sharp) / sg_integral(s_sharp))[:, None]
         cos_p = np.maximum(omega @ normal[p], 0.0)
         irr = (i_d + i_s) * (np.where(ok, cos_p / np.where(ok, d2, 1.0), 0.0))[:, None]
         brdf = rd[p] / np.pi + _ggx_rgb(omega, view[p], normal[p], alpha[p], f0[p])
         out[p] = (irr * brdf) @ LUMINANCE
         near[p] = out[p][dist < 2.0 * v["footprint"]].sum()
-    return out, near
+        diffuse_part[p] = ((i_d * (np.where(ok, cos_p / np.where(ok, d2, 1.0), 0.0))[:, None] * brdf) @ LUMINANCE).sum()
+    return out, near, diffuse_part
 
 
 def visible_share(contrib, v, position, triangles, samples, rng):
@@ -221,8 +226,8 @@ def budget(name, path, stride, samples, counts, seed=0):
 
         start = time.perf_counter()
         vpls = rsm_vpls(bench.scene_gpu, settings.rsm_size)
-        exact, near = vpl_light(vpls, position, normal, view, rd, f0, alpha, "exact")
-        sg, _ = vpl_light(vpls, position, normal, view, rd, f0, alpha, "sg")
+        exact, near, _ = vpl_light(vpls, position, normal, view, rd, f0, alpha, "exact")
+        sg, _, sg_diffuse = vpl_light(vpls, position, normal, view, rd, f0, alpha, "sg")
         share, error = visible_share(exact, vpls, position, triangles, samples, np.random.default_rng(seed))
         per_pixel = exact.sum(axis=1)
         figures["vpls"] = len(vpls["flux"])
@@ -231,6 +236,7 @@ def budget(name, path, stride, samples, counts, seed=0):
         figures["vpl_exact"] = float(per_pixel.sum() / cycles)
         figures["vpl_near_share"] = float(near.sum() / per_pixel.sum())
         figures["vpl_sg"] = float(sg.sum() / cycles)
+        figures["vpl_sg_sphere"] = float((sg.sum() - sg_diffuse.sum() * (1.0 - 1.0 / DIFFUSE_HEMISPHERE_SCALE)) / cycles)
         figures["vpl_seconds"] = time.perf_counter() - start
 
         for count in counts:
@@ -260,13 +266,14 @@ def budget(name, path, stride, samples, counts, seed=0):
 
 def markdown(rows):
     lines = ["| scene | pixels | direct ours/Cycles | VPL exact, visible | VPL exact, no vis. | near-field share | "
-             "VPL SG lobes, no vis. | VSGL ref, no vis. | GPU off | GPU on | frame off |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "VPL SG lobes (Eq. 6 sphere-normalized), no vis. | VPL SG lobes (hemisphere), no vis. | "
+             "VSGL ref, no vis. | GPU off | GPU on | frame off |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, f in rows.items():
         refs = ", ".join(f"{f[k]:.3f} (N = {k.rsplit('_', 1)[1]})" for k in f if k.startswith("vsgl_ref_"))
         lines.append(f"| {name} | {f['pixels']} | {f['direct']:.3f} | {f['vpl_exact_visible']:.3f} ± "
                      f"{f['vpl_exact_visible_se']:.3f} | {f['vpl_exact']:.3f} | {f['vpl_near_share']:.3f} | "
-                     f"{f['vpl_sg']:.3f} | {refs} | {f['gpu_off']:.3f} | {f['gpu_on']:.3f} | {f['frame_off']:.3f} |")
+                     f"{f['vpl_sg_sphere']:.3f} | {f['vpl_sg']:.3f} | {refs} | {f['gpu_off']:.3f} | {f['gpu_on']:.3f} | {f['frame_off']:.3f} |")
     return "\n".join(lines) + "\n"
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from vsgl_addon.reference import mipmap, vsgl
-from vsgl_addon.reference.sg import specular_lobe_warp
+from vsgl_addon.reference.sg import DIFFUSE_HEMISPHERE_SCALE, specular_lobe_warp
 
 LUM = np.array([0.2126, 0.7152, 0.0722])
 #: λ_d of the diffuse SG lobe, ≈ 2 in 000 Eq. 6 (sg.py may refine the fit).
@@ -99,8 +99,9 @@ def check_sane(out, count, top_level):
         assert np.all(out[key] >= 0.0)
     assert np.all((out["kernel_center"] >= 0.0) & (out["kernel_center"] <= 1.0))
     assert np.all((out["kernel_level"] >= 0.0) & (out["kernel_level"] <= top_level))
-    # Each lobe's SG carries the lobe's power: c_d A(λ_d) + c_s A(λ_s) = power (000 app. B.1).
-    energy = (out["diffuse_amplitude"] * sg_integral(out["diffuse_sharpness"])[:, None]
+    # Each lobe's SG carries the lobe's power: c_d A(λ_d) + c_s A(λ_s) = power (000 app. B.1), the
+    # diffuse lobe's over its hemisphere (sphere: DIFFUSE_HEMISPHERE_SCALE times).
+    energy = (out["diffuse_amplitude"] * sg_integral(out["diffuse_sharpness"])[:, None] / DIFFUSE_HEMISPHERE_SCALE
               + out["specular_amplitude"] * sg_integral(out["specular_sharpness"])[:, None])
     np.testing.assert_allclose(energy, out["power"], rtol=1e-12, atol=1e-300)
 
@@ -379,7 +380,8 @@ def test_vsgl_parameters_of_the_whole_rsm_match_appendix_b():
     w = (fd + fs) @ LUM
     amp, axis, lam, mu, var = brute_force_vsgl(fd, rsm.normal.reshape(-1, 3),
                                                np.full(size * size, LAMBDA_D), w, y)
-    np.testing.assert_allclose(out["diffuse_amplitude"][0], amp, rtol=1e-10)
+    # The texels' diffuse lobes are 000 Eq. 6's SG normalized over the hemisphere.
+    np.testing.assert_allclose(out["diffuse_amplitude"][0], amp * DIFFUSE_HEMISPHERE_SCALE, rtol=1e-10)
     np.testing.assert_allclose(out["diffuse_axis"][0], axis, rtol=1e-12)
     np.testing.assert_allclose(out["diffuse_sharpness"][0], lam, rtol=1e-10)
     np.testing.assert_allclose(out["mean"][0], mu, rtol=1e-12)
@@ -390,9 +392,29 @@ def test_vsgl_parameters_of_the_whole_rsm_match_appendix_b():
     np.testing.assert_allclose(out["specular_axis"][0], axis, rtol=1e-12)
     np.testing.assert_allclose(out["specular_sharpness"][0], lam, rtol=1e-10)
     np.testing.assert_allclose(out["power"][0], (fd + fs).sum(0), rtol=1e-13)
-    # c_v A(λ_v) = Σ ΦR: the SG carries the cluster's power (000 app. B.1).
+    # c_v A(λ_v) = Σ ΦR (000 app. B.1), the diffuse lobe's over the hemisphere: (1 + e^(-λd)) Σ ΦRd
+    # over the sphere.
     np.testing.assert_allclose(out["diffuse_amplitude"][0] * sg_integral(out["diffuse_sharpness"][0]),
-                               fd.sum(0), rtol=1e-12)
+                               fd.sum(0) * DIFFUSE_HEMISPHERE_SCALE, rtol=1e-12)
+
+
+def test_flat_cluster_diffuse_vsgl_emits_its_power_above_the_surface():
+    """A flat reflector's VSGL diffuse lobe (λv = λd) puts Σ ΦRd into the reflector's hemisphere
+    (quadrature), as a Lambertian surface does; 000 Eq. 6 as printed (sphere-normalized) put 88 %."""
+    from vsgl_addon.reference.quadrature import sphere_quadrature
+
+    size = 4
+    rsm = make_rsm(size, seed=2)
+    normal = np.broadcast_to(np.array([0.0, 0.6, 0.8]), rsm.normal.shape).copy()
+    rsm = vsgl.RSM(rsm.position, normal, rsm.flux_diffuse, rsm.flux_specular, rsm.specular_axis,
+                   rsm.specular_sharpness)
+    out = vsgl.vsgl_parameters(vsgl.texel_moments(rsm).reshape(-1, vsgl.MOMENT_CHANNELS).sum(0)[None])
+    np.testing.assert_allclose(out["diffuse_sharpness"][0], LAMBDA_D, rtol=1e-9)
+    axis, lam = out["diffuse_axis"][0], out["diffuse_sharpness"][0]
+    n = normal[0, 0]
+    above = sphere_quadrature(lambda w: np.exp(lam * (w @ axis - 1.0)) * (w @ n > 0.0), n, equator=True)
+    np.testing.assert_allclose(above * out["diffuse_amplitude"][0], rsm.flux_diffuse.reshape(-1, 3).sum(0),
+                               rtol=1e-6)
 
 
 def test_per_lobe_positions_are_each_lobes_power_centroid():
@@ -488,7 +510,7 @@ def test_two_vsgl_mode_matches_whole_rsm_totals_and_is_exact():
     np.testing.assert_allclose(out["power"], [fd.sum(0), fs.sum(0)], rtol=1e-14)
     amp, axis, lam, mu, var = brute_force_vsgl(fd, rsm.normal.reshape(-1, 3),
                                                np.full(size * size, LAMBDA_D), fd @ LUM, y)
-    np.testing.assert_allclose(out["diffuse_amplitude"][0], amp, rtol=1e-10)
+    np.testing.assert_allclose(out["diffuse_amplitude"][0], amp * DIFFUSE_HEMISPHERE_SCALE, rtol=1e-10)
     np.testing.assert_allclose(out["diffuse_axis"][0], axis, rtol=1e-12)
     np.testing.assert_allclose(out["diffuse_sharpness"][0], lam, rtol=1e-10)
     np.testing.assert_allclose(out["mean"][0], mu, rtol=1e-12)

@@ -202,15 +202,20 @@ def table():
 @pytest.mark.parametrize("alpha", RECEIVER_ROUGHNESS)
 def test_vsgl_shading_converges_to_brute_force(table, alpha):
     """Measured (see the table): the diffuse error is the λd = 2 SG of the VPLs' Lambert lobe
-    (4 %) at N = M and grows slowly with clustering; the specular error is dominated by the
-    receiver's Gaussian fit of GGX (λh = 2/α², wider at the peak, no tails: 25-40 %)."""
+    (5.6 %: normalized over the hemisphere, sg.DIFFUSE_HEMISPHERE_SCALE, it carries Lambert's
+    energy but is 15.6 % above Lambert at the normal, where these receivers above a lit floor see
+    most of it; sphere-normalized it was 4 % here and 11-13 % short in the suite's closed rooms) at
+    N = M and grows slowly with clustering; the specular error is dominated by the receiver's
+    Gaussian fit of GGX (λh = 2/α², wider at the peak, no tails: 25-40 %; 52 % at α = 0.1, where
+    the hemisphere-normalized diffuse lobes' light on the receivers' sharp GGX lobe, 15.6 % above
+    Lambert's near the reflector's normal, adds 7 points to the 45 % of the sphere-normalized one)."""
     d_total, s_total = table[("VSGL shading N = M vs exact VPLs (total)", alpha)]
     d_sg, s_sg = table[("VPL lobes as SGs (000 Eqs. 6-7) vs exact VPLs", alpha)]
-    assert d_total <= d_sg + 1e-3 and d_total < 0.05
-    assert s_total < 0.5
+    assert d_total <= d_sg + 1e-3 and d_total < 0.06
+    assert s_total < 0.55
     for count in (16, 64):
         d_n, s_n = table[(f"VSGL shading N = {count} vs exact VPLs (total)", alpha)]
-        assert d_n < 0.08
+        assert d_n < 0.11
         assert s_n < 0.6
         d_c, s_c = table[(f"clustering N = {count} vs N = M", alpha)]
         assert d_c < 0.08 and s_c < 0.25

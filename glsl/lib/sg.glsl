@@ -8,6 +8,9 @@
 
 // Sharpness of the diffuse SG lobe, lam_d ~= 2 (000 Eq. 6). Same value as reference/sg.py.
 const float DIFFUSE_SHARPNESS = 2.0;
+// 1 + e^(-lam_d): 000 Eq. 6's lobe normalized over the hemisphere, where a Lambertian reflector
+// emits, instead of the sphere (reference/sg.py DIFFUSE_HEMISPHERE_SCALE).
+const float DIFFUSE_HEMISPHERE_SCALE = 1.1353352832366128;
 
 // Floor on |w'.n| in the spherical warp (000 Eq. 7) and on (w_o.n) in the ASG bandwidths (003): the
 // sharpness would be infinite at grazing incidence. Same value as reference/sg.py, whose comment

@@ -111,6 +111,8 @@ void write_vsgl(int column, vec4 totals[MOMENT_PLANES], vec3 fallback_mean, floa
   vec3 diffuse_amplitude, diffuse_axis, specular_amplitude, specular_axis;
   float diffuse_sharpness, specular_sharpness;
   vsgl_lobe(diffuse_power, diffuse_direction, diffuse_amplitude, diffuse_axis, diffuse_sharpness);
+  // Texels' diffuse lobes normalized over their hemisphere (reference vsgl_parameters).
+  diffuse_amplitude *= DIFFUSE_HEMISPHERE_SCALE;
   vsgl_lobe(specular_power, specular_direction, specular_amplitude, specular_axis, specular_sharpness);
   vec3 power = diffuse_power + specular_power;
   vec3 mean;

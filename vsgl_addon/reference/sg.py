@@ -20,6 +20,16 @@ from .numerics import dot, f64, norm, one_minus_exp_ratio, safe_normalize, safe_
 #: method"; see docs/accuracy.md for the measured optimum).
 DIFFUSE_SHARPNESS = 2.0
 
+#: A Lambertian reflector emits its reflected flux Φ·Rd into its hemisphere only, but 000 Eq. 6
+#: normalizes its SG lobe over the whole sphere: ∫ over the upper hemisphere of G(ω; n, λd)/A(λd)
+#: is (1 − e^(−λd))/(1 − e^(−2λd)) = 1/(1 + e^(−λd)), 0.881 at λd = 2, and the 11.9 % below the
+#: horizon enters the reflector and lights nothing. Normalizing over the hemisphere instead,
+#: Rd · G(ω; n, λd) / A_hemi(λd) with A_hemi(λ) = 2π (1 − e^(−λ))/λ, keeps "energy conservation"
+#: (000 app. A.1) where the light goes: the lobe is A(λd)/A_hemi(λd) = 1 + e^(−λd) times 000's.
+#: Brute-force VPLs from the suite's RSMs (benchmarks/energy_budget.py) lose 11-13 % with the
+#: sphere-normalized lobe against Lambert's, none with this one.
+DIFFUSE_HEMISPHERE_SCALE = 1.0 + float(np.exp(-DIFFUSE_SHARPNESS))
+
 #: Floor on |w'.n| in the spherical warp (000 Eq. 7) and on (w_o.n) in the ASG bandwidth (003).
 #: At grazing incidence the true cosine reaches 0 and the sharpness would be infinite. With 1e-4 the
 #: largest sharpness at roughness 1e-3 is 2e6 / 4e-4 = 5e9 for the SG lobe and 2e6 / (8 * 1e-8) =
@@ -107,6 +117,13 @@ def sg_lobe_normalized(omega, axis, sharpness):
     """
     lam = f64(sharpness)
     return sg_evaluate(omega, axis, lam) / (_FOUR_PI * one_minus_exp_ratio(2.0 * lam))
+
+
+def diffuse_lobe_hemisphere(omega, normal):
+    """Lambert lobe <w, n>/pi as the SG of 000 Eq. 6 normalized over the hemisphere:
+    DIFFUSE_HEMISPHERE_SCALE · G(w; n, lam_d) / A(lam_d) (its integral over w.n > 0 is 1).
+    The lobe every VPL and VSGL emits with (reference/vsgl.py vsgl_parameters)."""
+    return DIFFUSE_HEMISPHERE_SCALE * sg_lobe_normalized(omega, normal, DIFFUSE_SHARPNESS)
 
 
 def diffuse_lobe(omega, normal):

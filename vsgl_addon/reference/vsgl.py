@@ -68,7 +68,7 @@ import numpy as np
 from .. import settings  # the choices' one table (plain Python, no bpy)
 from . import mipmap
 from .numerics import dot, f64, norm, safe_normalize, safe_ratio
-from .sg import DIFFUSE_SHARPNESS, sg_integral  # λ_d ≈ 2 (000 Eq. 6); A(λ) (000 app. A)
+from .sg import DIFFUSE_HEMISPHERE_SCALE, DIFFUSE_SHARPNESS, sg_integral  # λ_d ≈ 2 (000 Eq. 6); A(λ) (000 app. A)
 
 #: Rec. 709 luminance (Blender's scene-linear RGB): scalar weight of an RGB power.
 LUMINANCE_WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
@@ -382,7 +382,10 @@ def vsgl_parameters(totals, fallback_mean=None, fallback_variance=None,
                     positional_distribution="per-lobe") -> dict:
     """VSGL parameters from cluster totals (..., 20) of ``texel_moments`` (000 app. B.1-B.3).
 
-    Per lobe: ξ̄_v = Σ w ξ̄ / Σ w, ξ_v = ξ̄_v / |ξ̄_v|, λ_v = |ξ̄_v| / (1 - |ξ̄_v|), c_v = Σ ΦR / A(λ_v).
+    Per lobe: ξ̄_v = Σ w ξ̄ / Σ w, ξ_v = ξ̄_v / |ξ̄_v|, λ_v = |ξ̄_v| / (1 - |ξ̄_v|), c_v = Σ ΦR / A(λ_v),
+    the diffuse lobe's times ``sg.DIFFUSE_HEMISPHERE_SCALE``: its texels' lobes are 000 Eq. 6's SG
+    normalized over the hemisphere (each re-emits Φ·Rd above its surface), so the Toksvig sum of
+    000 app. B.1 is that factor times the sphere-normalized one.
     Position (000 app. B.2): ``mean``/``variance`` µ_v = Σ w y / Σ w, σ_v² = Σ w |y|² / Σ w - |µ_v|²
     with w = lum(Φ (Rd + Rs)), always; ``diffuse_mean``/``diffuse_variance`` and
     ``specular_mean``/``specular_variance``, what shading places each lobe with, are the same
@@ -399,6 +402,7 @@ def vsgl_parameters(totals, fallback_mean=None, fallback_variance=None,
         fallback_variance = VARIANCE_FLOOR_ABSOLUTE
     d_power, s_power = totals[..., CH_DIFFUSE], totals[..., CH_SPECULAR]
     d_amp, d_axis, d_sharp = vsgl_lobe(d_power, totals[..., CH_DIFFUSE_DIRECTION])
+    d_amp = d_amp * DIFFUSE_HEMISPHERE_SCALE
     s_amp, s_axis, s_sharp = vsgl_lobe(s_power, totals[..., CH_SPECULAR_DIRECTION])
     power = d_power + s_power
     position_sum, position_squared_sum = combined_position_moments(totals)

@@ -63,8 +63,8 @@ import numpy as np
 from .asg import asg_specular_lobe, sg_asg_convolution
 from .ggx import fresnel_schlick, ggx_g1_denominator, microfacet_brdf
 from .numerics import dot, f64, norm, safe_normalize
-from .sg import (DIFFUSE_SHARPNESS, sg_evaluate, sg_integral, sg_product, sg_product_integral,
-                 specular_lobe_warp)
+from .sg import (DIFFUSE_SHARPNESS, diffuse_lobe_hemisphere, sg_evaluate, sg_integral, sg_product,
+                 sg_product_integral, specular_lobe_warp)
 from .vsgl import (MOMENT_CHANNELS, RSM, VARIANCE_FLOOR_ABSOLUTE, texel_moments,
                    vsgl_parameters)
 
@@ -245,7 +245,8 @@ def _ggx_rgb(incoming, outgoing, normal, alpha, f0):
 def vpl_intensity(vpls: VPLs, directions, lobes="ggx"):
     """(diffuse, specular) radiant intensity (..., M, 3) of the VPLs towards unit `directions`
     (..., M, 3): Φ Rd/π ⟨ω,n⟩ and Φ f_GGX(ω', ω) ⟨ω,n⟩ ("ggx"), or the SG lobes of 000 Eqs. 6-7,
-    Φ Rd G(ω; n, λd)/A(λd) and Φ Rs G(ω; ξs, λs)/A(λs) ("sg")."""
+    Φ Rd G(ω; n, λd)/A_hemi(λd) (normalized over the hemisphere: ``sg.DIFFUSE_HEMISPHERE_SCALE``)
+    and Φ Rs G(ω; ξs, λs)/A(λs) ("sg"): the lobes VSGL generation sums."""
     v = vpls.flat()
     cos = np.maximum(dot(directions, v.normal), 0.0)
     if lobes == "ggx":
@@ -255,8 +256,7 @@ def vpl_intensity(vpls: VPLs, directions, lobes="ggx"):
         return diffuse, spec
     if lobes == "sg":
         diffuse = (v.flux * v.diffuse_reflectance
-                   * (sg_evaluate(directions, v.normal, DIFFUSE_SHARPNESS)
-                      / sg_integral(DIFFUSE_SHARPNESS))[..., None])
+                   * diffuse_lobe_hemisphere(directions, v.normal)[..., None])
         axis, sharpness = specular_lobe_warp(v.incoming, v.normal, v.roughness)
         spec = (v.flux * v.specular_f0
                 * (sg_evaluate(directions, axis, sharpness) / sg_integral(sharpness))[..., None])
