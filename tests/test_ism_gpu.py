@@ -94,7 +94,7 @@ def test_extremes_one_texel_maps_one_point_and_a_map_no_point_reaches(size, per_
 
 
 def test_the_pass_declares_its_contract():
-    assert set(ism_pass.PASS.shaders) == {"splat", "close", "pull", "push"}
+    assert set(ism_pass.PASS.shaders) == {"splat", "close", "pull", "push", "push_final"}
     ism_pass.PASS.compile_shaders()
     ism_pass.PASS.free_shaders()
     with pytest.raises(ValueError):
@@ -112,10 +112,10 @@ def test_glsl_filtered_lookup_matches_the_reference():
     rng = np.random.default_rng(9)
     receivers = as_gpu_floats(rng.uniform([-4, -4, -1], [4, 4, 3], size=(3000, 3)))
     normals = as_gpu_floats(_unit(rng.normal(size=(3000, 3))))
-    # The atlas as the pass leaves it: one tile at (16, 0) of a 2 × 1 atlas, r = depth, g = known.
+    # The atlas as the pass leaves it: one tile at (16, 0) of a 2 × 1 atlas, r = depth (UNKNOWN_DEPTH
+    # where nothing landed).
     atlas = np.zeros((size, 2 * size, 4))
-    atlas[:, size:, 0] = np.where(np.isfinite(depth), depth, 0.0)
-    atlas[:, size:, 1] = np.isfinite(depth)
+    atlas[:, size:, 0] = np.where(np.isfinite(depth), depth, ism_pass.UNKNOWN_DEPTH)
     for radius in (0, 1, 3):
         got = evaluate_glsl(f"ism_pcf(ism_atlas, ivec2({size}, 0), {size}, origin, receiver, normal, {radius})",
                             {"origin": np.tile(origin, (3000, 1)), "receiver": receivers, "normal": normals}, 1,
@@ -165,8 +165,7 @@ def test_glsl_bilinear_and_nearest_lookups_match_the_reference():
     receivers = as_gpu_floats(rng.uniform([-4, -4, -1], [4, 4, 3], size=(3000, 3)))
     normals = as_gpu_floats(_unit(rng.normal(size=(3000, 3))))
     atlas = np.zeros((size, 2 * size, 4))
-    atlas[:, size:, 0] = np.where(np.isfinite(depth), depth, 0.0)
-    atlas[:, size:, 1] = np.isfinite(depth)
+    atlas[:, size:, 0] = np.where(np.isfinite(depth), depth, ism_pass.UNKNOWN_DEPTH)
     inputs = {"origin": np.tile(origin, (3000, 1)), "receiver": receivers, "normal": normals}
     got = evaluate_glsl(f"ism_pcf_bilinear(ism_atlas, ivec2({size}, 0), {size}, origin, receiver, normal)", inputs, 1,
                         libraries=["lib/ism.glsl"], images={"ism_atlas": atlas})

@@ -1,7 +1,9 @@
 // Imperfect shadow maps, push (twin: reference/ism.py pull_push): a level's holes take their
 // parent's filled depth, coarsest level first; one invocation per texel. ism_own is this level's
 // pulled (mean, valid) (level 0: the splatted R32UI atlas, ism_first_level = 1), ism_parent the
-// level above after its push (r = depth, g = known). Writes (depth, known) into ism_filled.
+// level above after its push (r = depth, g = known). Writes (depth, known) into ism_filled (RG32F),
+// or, ISM_PUSH_FINAL (level 0, R32F), the depth alone with ISM_UNKNOWN_DEPTH where nothing is
+// known (vsgl_addon/passes/ism.py UNKNOWN_DEPTH: the lookups then read one channel).
 void main()
 {
   ivec2 texel = ivec2(gl_GlobalInvocationID.xy);
@@ -22,5 +24,10 @@ void main()
     depth = own.r;
   }
   vec4 parent = texelFetch(ism_parent, texel / 2, 0);
+#if ISM_PUSH_FINAL
+  float known = valid ? depth : (parent.g > 0.5 ? parent.r : ISM_UNKNOWN_DEPTH);
+  imageStore(ism_filled, texel, vec4(known, 0.0, 0.0, 0.0));
+#else
   imageStore(ism_filled, texel, valid ? vec4(depth, 1.0, 0.0, 0.0) : parent);
+#endif
 }

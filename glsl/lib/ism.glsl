@@ -67,10 +67,11 @@ ivec2 octahedral_wrap(ivec2 texel, int size)
 }
 
 // Percentage-closer visibility of the origin of the map in tile `tile` (texels, of side `size`) of
-// the filled atlas (r = depth, g = known; vsgl_addon/passes/ism.py) from `receiver` with unit
+// the filled atlas (r = depth, a huge depth where no point landed: vsgl_addon/passes/ism.py
+// UNKNOWN_DEPTH, so such a texel hides nothing) from `receiver` with unit
 // `normal`: the share of the (2 radius + 1)^2 texels around the receiver's whose stored depth is
 // not nearer than the receiver less the bias, which spans the filter's footprint (reference
-// ism_pcf). A texel no point reached (g = 0) hides nothing.
+// ism_pcf).
 float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal, int radius)
 {
   vec3 offset = receiver - origin;
@@ -83,7 +84,7 @@ float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver,
   for (int dy = -radius; dy <= radius; dy++) {
     for (int dx = -radius; dx <= radius; dx++) {
       vec4 stored = texelFetch(atlas, tile + octahedral_wrap(centre + ivec2(dx, dy), size), 0);
-      lit += (stored.g < 0.5 || distance <= stored.r + bias) ? 1.0 : 0.0;
+      lit += distance <= stored.r + bias ? 1.0 : 0.0;
     }
   }
   return lit / float((2 * radius + 1) * (2 * radius + 1));
@@ -108,19 +109,21 @@ float ism_pcf_bilinear(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 
   ivec2 c11 = corner + 1;
   ivec2 c10 = ivec2(c11.x, c00.y);
   ivec2 c01 = ivec2(c00.x, c11.y);
-  // Only a block across the square's edge needs the fold's mirror (a branch: most blocks are inside).
+  // depth = (c00, c10, c01, c11). A block inside the square is one textureGather of the four texels
+  // around their shared corner (gather order: (0, 1), (1, 1), (1, 0), (0, 0)); only a block across
+  // the square's edge needs the fold's mirror, texel by texel (a branch: most blocks are inside).
+  vec4 depth;
   if (corner.x < 0 || corner.y < 0 || corner.x >= size - 1 || corner.y >= size - 1) {
-    c00 = octahedral_wrap(c00, size);
-    c10 = octahedral_wrap(c10, size);
-    c01 = octahedral_wrap(c01, size);
-    c11 = octahedral_wrap(c11, size);
+    depth = vec4(texelFetch(atlas, tile + octahedral_wrap(c00, size), 0).r,
+                 texelFetch(atlas, tile + octahedral_wrap(c10, size), 0).r,
+                 texelFetch(atlas, tile + octahedral_wrap(c01, size), 0).r,
+                 texelFetch(atlas, tile + octahedral_wrap(c11, size), 0).r);
   }
-  vec4 s00 = texelFetch(atlas, tile + c00, 0);
-  vec4 s10 = texelFetch(atlas, tile + c10, 0);
-  vec4 s01 = texelFetch(atlas, tile + c01, 0);
-  vec4 s11 = texelFetch(atlas, tile + c11, 0);
-  vec4 lit = vec4(s00.g < 0.5 || distance <= s00.r + bias, s10.g < 0.5 || distance <= s10.r + bias,
-                  s01.g < 0.5 || distance <= s01.r + bias, s11.g < 0.5 || distance <= s11.r + bias);
+  else {
+    vec4 g = textureGather(atlas, vec2(tile + c11) / vec2(textureSize(atlas, 0)), 0);
+    depth = g.wzxy;
+  }
+  vec4 lit = vec4(lessThanEqual(vec4(distance), depth + bias));
   return mix(mix(lit.x, lit.y, f.x), mix(lit.z, lit.w, f.x), f.y);
 }
 
@@ -133,5 +136,5 @@ float ism_visible_nearest(sampler2D atlas, ivec2 tile, int size, vec3 origin, ve
   float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
   float bias = ism_bias(distance, size, tan_theta, 1.0, 1e-3);
   vec4 stored = texelFetch(atlas, tile + ism_texel(offset, size), 0);
-  return (stored.g < 0.5 || distance <= stored.r + bias) ? 1.0 : 0.0;
+  return distance <= stored.r + bias ? 1.0 : 0.0;
 }

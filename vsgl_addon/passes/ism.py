@@ -16,8 +16,9 @@ Four compute stages (``glsl/ism/``):
    tile's own pyramid.
 4. ``ism_push.comp.glsl``: holes take their parent's depth, coarsest level first, down to level 0.
 
-The result, :class:`ISMAtlas`, holds the filled RG32F level 0 (r = depth, g = 1 where any point
-of the map's set landed; a map no point reached has g = 0). Needs a GPU context, main thread.
+The result, :class:`ISMAtlas`, holds the filled level 0 as R32F: the depth, or
+:data:`UNKNOWN_DEPTH` where no point of the map's set landed (a map no point reached is all
+unknown). Needs a GPU context, main thread.
 """
 
 from __future__ import annotations
@@ -63,11 +64,18 @@ def _pull_interface() -> ShaderInterface:
                            local_group_size=_LEVEL_GROUP)
 
 
-def _push_interface() -> ShaderInterface:
+def _push_interface(final: bool = False) -> ShaderInterface:
     return ShaderInterface(push_constants=[("INT", "ism_first_level")],
                            samplers=[("FLOAT_2D", "ism_own"), ("FLOAT_2D", "ism_parent")],
-                           images=[("R32UI", "UINT_2D", "ism_atlas"), ("RG32F", "FLOAT_2D", "ism_filled")],
+                           images=[("R32UI", "UINT_2D", "ism_atlas"),
+                                   ("R32F" if final else "RG32F", "FLOAT_2D", "ism_filled")],
                            local_group_size=_LEVEL_GROUP)
+
+
+#: Depth of a texel no point reached in the filled atlas (R32F): the lookups' test ``distance <=
+#: depth + bias`` then passes without a second channel, so a lookup reads one float per texel (a
+#: quarter of an RGBA32F atlas's memory, one textureGather for the bilinear filter).
+UNKNOWN_DEPTH = 1e30
 
 
 def atlas_layout(map_count: int, size: int) -> tuple[int, int]:
@@ -93,7 +101,8 @@ def atlas_layout_unchecked(map_count: int) -> tuple[int, int]:
 
 @dataclass
 class ISMAtlas:
-    """The filled maps on the GPU: ``texture`` RG32F, map m in tile (m mod columns, m div columns)."""
+    """The filled maps on the GPU: ``texture`` R32F (depth, UNKNOWN_DEPTH where nothing landed), map
+    m in tile (m mod columns, m div columns)."""
 
     texture: object
     size: int
@@ -105,10 +114,10 @@ class ISMAtlas:
     def read(self) -> np.ndarray:
         """(count, size, size) float64 depths [map, row, column]; EMPTY where the map has nothing."""
         s = self.size
-        array = read_texture(self.texture, self.columns * s, self.rows * s, channels=2).astype(np.float64)
-        tiles = array.reshape(self.rows, s, self.columns, s, 2).transpose(0, 2, 1, 3, 4).reshape(-1, s, s, 2)
+        array = read_texture(self.texture, self.columns * s, self.rows * s, channels=1).astype(np.float64)
+        tiles = array.reshape(self.rows, s, self.columns, s).transpose(0, 2, 1, 3).reshape(-1, s, s)
         tiles = tiles[:self.count]
-        return np.where(tiles[..., 1] > 0.5, tiles[..., 0], EMPTY)
+        return np.where(tiles < 0.5 * UNKNOWN_DEPTH, tiles, EMPTY)
 
     def free(self) -> None:
         self.texture = None
@@ -210,7 +219,9 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
     filled = pulled[-1] if pulled else _unknown(width, height)
     push = PASS.shader("push")
     for level in range(levels - 1, -1, -1):
-        target = gpu.types.GPUTexture((width >> level, height >> level), format="RG32F")
+        if level == 0:
+            push = PASS.shader("push_final")
+        target = gpu.types.GPUTexture((width >> level, height >> level), format="RG32F" if level else "R32F")
         push.bind()
         push.uniform_int("ism_first_level", 1 if level == 0 else 0)
         push.uniform_sampler("ism_own", pulled[level - 1] if level > 0 else filled)
@@ -220,7 +231,8 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         gpu.compute.dispatch(push, _groups(width >> level, _LEVEL_GROUP[0]), _groups(height >> level, _LEVEL_GROUP[1]), 1)
         filled = target
     if levels == 0:
-        target = gpu.types.GPUTexture((width, height), format="RG32F")
+        push = PASS.shader("push_final")
+        target = gpu.types.GPUTexture((width, height), format="R32F")
         push.bind()
         push.uniform_int("ism_first_level", 1)
         push.uniform_sampler("ism_own", filled)
@@ -249,7 +261,10 @@ PASS = GPUPass(
              "close": ShaderSpec(_close_interface, {"compute": "ism/ism_close.comp.glsl"},
                                  defines=lambda: {"ISM_GAP_REACH": GAP_REACH, "ISM_GAP_MARGIN": repr(float(GAP_MARGIN))}),
              "pull": ShaderSpec(_pull_interface, {"compute": "ism/ism_pull.comp.glsl"}),
-             "push": ShaderSpec(_push_interface, {"compute": "ism/ism_push.comp.glsl"})},
+             "push": ShaderSpec(_push_interface, {"compute": "ism/ism_push.comp.glsl"},
+                                defines=lambda: {"ISM_PUSH_FINAL": 0}),
+             "push_final": ShaderSpec(lambda: _push_interface(True), {"compute": "ism/ism_push.comp.glsl"},
+                                      defines=lambda: {"ISM_PUSH_FINAL": 1, "ISM_UNKNOWN_DEPTH": repr(UNKNOWN_DEPTH)})},
     reads=("scene", "vsgl_table"),  # the scene's surface points, the VSGLs' lobe positions
     writes=("ism_atlas",),
     run=build_ism_atlas,
