@@ -2,7 +2,7 @@
 """Where VSGL visibility's error comes from (not a test): imperfect shadow maps against exact
 visibility, per scene of the validation suite.
 
-    .venv/bin/python benchmarks/visibility_diagnosis.py [--only NAME ...] [--stride S]
+    .venv/bin/python benchmarks/visibility_diagnosis.py [--only NAME ...] [--stride S] [--material NAME]
 
 On every S-th pixel (both ways) of the suite's 240x180 camera G-buffer, each VSGL lobe's light is
 computed by the float64 reference shading (reference/vsgl_shading.shade, per term) and weighted by
@@ -17,7 +17,9 @@ three visibilities:
 
 Their means over the pixels, against Cycles' on the same pixels, separate the maps' error (ISM
 against exact) from the VSGL model's (exact against Cycles: positions as Gaussians' means, the
-diffuse approximation). Prints one line per scene and configuration.
+diffuse approximation). Prints one line per scene and configuration. ``--material``: only the
+pixels of that material (e.g. "Glossy tiles", sun_courtyard's north wall, whose courtyard face is
+in the sun's shadow).
 """
 
 from __future__ import annotations
@@ -90,7 +92,7 @@ def exact_visibility(table, maps_per_vsgl, position, triangles, exclude_sigmas, 
     return result
 
 
-def diagnose(name, path, stride, settings_overrides):
+def diagnose(name, path, stride, settings_overrides, material=None):
     import bpy
     from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.pipeline import build_visibility
@@ -115,6 +117,8 @@ def diagnose(name, path, stride, settings_overrides):
         pick = np.zeros((height, width), bool)
         pick[stride // 2::stride, stride // 2::stride] = True
         pick &= (arrays["position"][..., 3] > COVERED) & (truth["alpha"] > COVERED)
+        if material is not None:
+            pick &= bench.material_index == bench.materials.index(material)
         position = arrays["position"][..., :3][pick].astype(np.float64)
         normal = arrays["normal"][..., :3][pick].astype(np.float64)
         normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
@@ -147,7 +151,7 @@ def diagnose(name, path, stride, settings_overrides):
     finally:
         bench.free()
     cycles = float((truth["indirect"][pick] @ LUMINANCE).sum())
-    line = (f"{name} {settings_overrides}: pixels {pick.sum()}, ours/Cycles off {sums['off'] / cycles:.3f}, "
+    line = (f"{name}{'' if material is None else f' ({material})'} {settings_overrides}: pixels {pick.sum()}, ours/Cycles off {sums['off'] / cycles:.3f}, "
             f"ISM {sums['ism'] / cycles:.3f}, exact (shadow origin, 1 sigma excluded) {sums['exact'] / cycles:.3f}, "
             f"exact (bare segment to the mean) {sums['exact_mean0'] / cycles:.3f}; ISM over-shadows "
             f"{over / sums['off']:.3f} and leaks {under / sums['off']:.3f} of the unshadowed light")
@@ -161,6 +165,7 @@ def main(argv=None):
     parser.add_argument("--stride", type=int, default=6)
     parser.add_argument("--vsgl-count", type=int, default=None)
     parser.add_argument("--ism-points", type=int, default=None)
+    parser.add_argument("--material", default=None, help="only the pixels of this material")
     args = parser.parse_args(argv)
     from vsgl_addon import register
 
@@ -173,7 +178,7 @@ def main(argv=None):
     for name, path, _ in suite():
         if name in args.only:
             start = time.perf_counter()
-            diagnose(name, path, args.stride, overrides)
+            diagnose(name, path, args.stride, overrides, args.material)
             log(f"  ({time.perf_counter() - start:.0f} s)")
     return 0
 

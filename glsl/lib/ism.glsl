@@ -90,51 +90,54 @@ float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver,
   return lit / float((2 * radius + 1) * (2 * radius + 1));
 }
 
-// Bilinear percentage-closer visibility (reference ism_pcf_bilinear): the test of ism_pcf on the
-// four texels around the receiver's continuous position in the map, weighted bilinearly, so the
-// result varies smoothly across texels; a filter of about two texels from four fetches (a box of
-// 3 x 3 takes nine). The bias spans the footprint of two texels.
-float ism_pcf_bilinear(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal)
+// The lookup of the shading pass, one code path for its two filters (on llvmpipe both sides of a
+// branch that differs between neighbouring pixels run): `filtered` the bilinear
+// percentage-closer visibility (reference ism_pcf_bilinear): the test of ism_pcf on the four texels
+// around the receiver's continuous position in the map, weighted bilinearly, so the result varies
+// smoothly across texels, with the bias of two texels' footprint; else the test of the one texel
+// holding the receiver's direction (reference ism_pcf at radius 0, the bias of one texel): the same
+// block with weights 0 or 1. A block inside the square is one textureGather of the four texels
+// around their shared corner (gather order: (0, 1), (1, 1), (1, 0), (0, 0)); only a block across the
+// square's edge needs the fold's mirror, texel by texel (a branch: most blocks are inside).
+float ism_lookup(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal, bool filtered)
 {
   vec3 offset = receiver - origin;
   float distance = length(offset);
   float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
   float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
-  float bias = ism_bias(distance, size, tan_theta, 2.0, 1e-3);
+  float bias = ism_bias(distance, size, tan_theta, filtered ? 2.0 : 1.0, 1e-3);
   vec2 cell = (octahedral_encode(offset) * 0.5 + 0.5) * float(size) - 0.5;
   vec2 base = floor(cell);
   vec2 f = clamp(cell - base, 0.0, 1.0);
-  ivec2 corner = ivec2(base);
-  ivec2 c00 = corner;
-  ivec2 c11 = corner + 1;
-  ivec2 c10 = ivec2(c11.x, c00.y);
-  ivec2 c01 = ivec2(c00.x, c11.y);
-  // depth = (c00, c10, c01, c11). A block inside the square is one textureGather of the four texels
-  // around their shared corner (gather order: (0, 1), (1, 1), (1, 0), (0, 0)); only a block across
-  // the square's edge needs the fold's mirror, texel by texel (a branch: most blocks are inside).
-  vec4 depth;
-  if (corner.x < 0 || corner.y < 0 || corner.x >= size - 1 || corner.y >= size - 1) {
+  if (!filtered) {
+    // floor(cell + 0.5), the texel holding the direction, clamped to the square (ism_texel).
+    f = step(0.5, f) * vec2(lessThanEqual(base, vec2(float(size - 2))));
+  }
+  ivec2 c00 = ivec2(base);
+  ivec2 c11 = c00 + 1;
+  vec4 depth;  // (c00, c10, c01, c11)
+  if (c00.x < 0 || c00.y < 0 || c00.x >= size - 1 || c00.y >= size - 1) {
     depth = vec4(texelFetch(atlas, tile + octahedral_wrap(c00, size), 0).r,
-                 texelFetch(atlas, tile + octahedral_wrap(c10, size), 0).r,
-                 texelFetch(atlas, tile + octahedral_wrap(c01, size), 0).r,
+                 texelFetch(atlas, tile + octahedral_wrap(ivec2(c11.x, c00.y), size), 0).r,
+                 texelFetch(atlas, tile + octahedral_wrap(ivec2(c00.x, c11.y), size), 0).r,
                  texelFetch(atlas, tile + octahedral_wrap(c11, size), 0).r);
   }
   else {
-    vec4 g = textureGather(atlas, vec2(tile + c11) / vec2(textureSize(atlas, 0)), 0);
-    depth = g.wzxy;
+    depth = textureGather(atlas, vec2(tile + c11) / vec2(textureSize(atlas, 0)), 0).wzxy;
   }
   vec4 lit = vec4(lessThanEqual(vec4(distance), depth + bias));
   return mix(mix(lit.x, lit.y, f.x), mix(lit.z, lit.w, f.x), f.y);
 }
 
-// ism_pcf at radius 0 (one texel, always inside the square: no wrap).
+// Bilinear percentage-closer visibility (reference ism_pcf_bilinear; see ism_lookup): a filter of
+// about two texels.
+float ism_pcf_bilinear(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal)
+{
+  return ism_lookup(atlas, tile, size, origin, receiver, normal, true);
+}
+
+// ism_pcf at radius 0 (one texel; see ism_lookup).
 float ism_visible_nearest(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal)
 {
-  vec3 offset = receiver - origin;
-  float distance = length(offset);
-  float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
-  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
-  float bias = ism_bias(distance, size, tan_theta, 1.0, 1e-3);
-  vec4 stored = texelFetch(atlas, tile + ism_texel(offset, size), 0);
-  return distance <= stored.r + bias ? 1.0 : 0.0;
+  return ism_lookup(atlas, tile, size, origin, receiver, normal, false);
 }

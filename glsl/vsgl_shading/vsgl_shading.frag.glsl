@@ -33,11 +33,9 @@ float vsgl_visibility(int map_index, vec3 mean, float variance, vec3 axis, VSGLR
   float distance = length(rc.position - origin);
   float texel_angle = 3.5449077018110318 / float(size);  // sqrt(4 pi) / size
   float radius = sqrt(max(variance, 0.0)) / max(distance, 1e-30) / texel_angle;
-  // Under half a texel one texel; else the bilinear filter of about two texels (four fetches).
-  if (int(clamp(radius + 0.5, 0.0, float(VSGL_ISM_MAX_RADIUS))) == 0) {
-    return ism_visible_nearest(ism_atlas, tile, size, origin, rc.position, rc.normal);
-  }
-  return ism_pcf_bilinear(ism_atlas, tile, size, origin, rc.position, rc.normal);
+  // Under half a texel one texel; else the bilinear filter of about two texels (one code path).
+  bool filtered = int(clamp(radius + 0.5, 0.0, float(VSGL_ISM_MAX_RADIUS))) != 0;
+  return ism_lookup(ism_atlas, tile, size, origin, rc.position, rc.normal, filtered);
 }
 #endif
 
