@@ -111,3 +111,8 @@ def test_glsl_matches_the_reference():
     # float32 rounding of the elevation's sine, amplified by 1/sin θc near flat lobes, moves the
     # clamped ramp by a little; the share is a weight in [0, 1].
     assert np.max(np.abs(got - want)) < 2e-3, np.max(np.abs(got - want))
+    # The shading pass's form, from the lobe's VSGLPosition (its unit direction to the mean).
+    seen = evaluate_glsl("vsgl_reflector_side_seen(axis, sharpness, vsgl_position(receiver, mean, 0.01))", inputs,
+                         libraries=["lib/vsgl_shading.glsl"])
+    assert np.all(np.isfinite(seen))
+    assert np.max(np.abs(seen - want)) < 2e-3, np.max(np.abs(seen - want))

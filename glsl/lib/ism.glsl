@@ -99,7 +99,9 @@ float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver,
 // block with weights 0 or 1. A block inside the square is one textureGather of the four texels
 // around their shared corner (gather order: (0, 1), (1, 1), (1, 0), (0, 0)); only a block across the
 // square's edge needs the fold's mirror, texel by texel (a branch: most blocks are inside).
-float ism_lookup(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal, bool filtered)
+// inv_atlas_size: 1 / the atlas's size in texels (once per pixel, not per lookup).
+float ism_lookup(sampler2D atlas, vec2 inv_atlas_size, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal,
+                 bool filtered)
 {
   vec3 offset = receiver - origin;
   float distance = length(offset);
@@ -123,7 +125,7 @@ float ism_lookup(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiv
                  texelFetch(atlas, tile + octahedral_wrap(c11, size), 0).r);
   }
   else {
-    depth = textureGather(atlas, vec2(tile + c11) / vec2(textureSize(atlas, 0)), 0).wzxy;
+    depth = textureGather(atlas, vec2(tile + c11) * inv_atlas_size, 0).wzxy;
   }
   vec4 lit = vec4(lessThanEqual(vec4(distance), depth + bias));
   return mix(mix(lit.x, lit.y, f.x), mix(lit.z, lit.w, f.x), f.y);
@@ -133,11 +135,11 @@ float ism_lookup(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiv
 // about two texels.
 float ism_pcf_bilinear(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal)
 {
-  return ism_lookup(atlas, tile, size, origin, receiver, normal, true);
+  return ism_lookup(atlas, 1.0 / vec2(textureSize(atlas, 0)), tile, size, origin, receiver, normal, true);
 }
 
 // ism_pcf at radius 0 (one texel; see ism_lookup).
 float ism_visible_nearest(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal)
 {
-  return ism_lookup(atlas, tile, size, origin, receiver, normal, false);
+  return ism_lookup(atlas, 1.0 / vec2(textureSize(atlas, 0)), tile, size, origin, receiver, normal, false);
 }

@@ -185,6 +185,18 @@ VSGLPosition vsgl_position(vec3 shading_position, vec3 mean, float variance)
   return p;
 }
 
+// vsgl_reflector_side from the diffuse lobe's VSGLPosition seen from the receiver (its mean is the
+// lobe's mean): sin(elevation) = -axis . xi_mu, no second distance; a receiver at the mean
+// (lam_sigma = 0) gets 1, as there.
+float vsgl_reflector_side_seen(vec3 axis, float sharpness, VSGLPosition at)
+{
+  float planarity = clamp(1.5 * sharpness / (1.0 + sharpness), 0.0, 1.0);
+  float cos_c = 2.0 * planarity - 1.0;
+  float sin_c = sqrt(max(1.0 - cos_c * cos_c, 0.0));
+  float sin_elevation = at.lam_sigma > 0.0 ? -dot(axis, at.xi_mu) : 1.0;
+  return clamp(1.0 + sin_elevation / max(sin_c, 1e-4), 0.0, 1.0);
+}
+
 // Adds both lobes of one VSGL (its diffuse and its specular SG), each at its own position
 // (per-lobe positional distribution; with the paper's shared one, 000 app. B.2, the caller passes
 // the same VSGLPosition twice and computes it once: vsgl_addon/reference/vsgl.py

@@ -25,17 +25,20 @@
 // (a floor and the metal sphere on it share a cluster).
 
 #if VSGL_VISIBILITY
-float vsgl_visibility(int map_index, vec3 mean, float variance, vec3 axis, VSGLReceiver rc)
+float vsgl_visibility(int map_index, vec3 mean, float variance, vec3 axis, VSGLReceiver rc, vec2 inv_atlas_size)
 {
   int size = ism_params.x;
-  ivec2 tile = ivec2(map_index % ism_params.y, map_index / ism_params.y) * size;
+  // map_index / columns in float (exact here: a quotient's rounding is far below the 0.5 / columns
+  // margin for any atlas of MAX_ATLAS_SIDE): llvmpipe runs an integer division lane by lane.
+  int row = int(floor((float(map_index) + 0.5) / float(ism_params.y)));
+  ivec2 tile = ivec2(map_index - row * ism_params.y, row) * size;
   vec3 origin = ism_shadow_origin(mean, variance, axis);
   float distance = length(rc.position - origin);
   float texel_angle = 3.5449077018110318 / float(size);  // sqrt(4 pi) / size
   float radius = sqrt(max(variance, 0.0)) / max(distance, 1e-30) / texel_angle;
   // Under half a texel one texel; else the bilinear filter of about two texels (one code path).
   bool filtered = int(clamp(radius + 0.5, 0.0, float(VSGL_ISM_MAX_RADIUS))) != 0;
-  return ism_lookup(ism_atlas, tile, size, origin, rc.position, rc.normal, filtered);
+  return ism_lookup(ism_atlas, inv_atlas_size, tile, size, origin, rc.position, rc.normal, filtered);
 }
 #endif
 
@@ -59,6 +62,9 @@ void main()
   vec3 diffuse = vec3(0.0);
   vec3 specular = vec3(0.0);
   vec3 fresnel = vec3(0.0);
+#if VSGL_VISIBILITY
+  vec2 inv_atlas_size = 1.0 / vec2(textureSize(ism_atlas, 0));
+#endif
   for (int i = 0; i < vsgl_count; i++) {
     VSGLRecord vsgl = vsgl_table_load(i);
     VSGLPosition diffuse_position = vsgl_position(rc.position, vsgl.diffuse_mean, vsgl.diffuse_variance);
@@ -69,19 +75,18 @@ void main()
     vec3 diffuse_amplitude = vsgl.diffuse_amplitude;
     vec3 specular_amplitude = vsgl.specular_amplitude;
 #if VSGL_VISIBILITY
-    float reflector_side = vsgl_reflector_side(vsgl.diffuse_mean, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
-                                               rc.position);
+    float reflector_side = vsgl_reflector_side_seen(vsgl.diffuse_axis, vsgl.diffuse_sharpness, diffuse_position);
     // Branches on the uniform map count, not selects: a select would run both sides' lookups.
     if (ism_params.z == 1) {
-      float visibility = vsgl_visibility(i, vsgl.mean, vsgl.variance, vsgl.diffuse_axis, rc);
+      float visibility = vsgl_visibility(i, vsgl.mean, vsgl.variance, vsgl.diffuse_axis, rc, inv_atlas_size);
       diffuse_amplitude *= visibility * reflector_side;
       specular_amplitude *= visibility;
     }
     else {
       diffuse_amplitude *= reflector_side *
-                           vsgl_visibility(2 * i, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc);
+                           vsgl_visibility(2 * i, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc, inv_atlas_size);
       specular_amplitude *= vsgl_visibility(2 * i + 1, vsgl.specular_mean, vsgl.specular_variance,
-                                            vsgl.specular_axis, rc);
+                                            vsgl.specular_axis, rc, inv_atlas_size);
     }
 #endif
     vsgl_accumulate(rc, diffuse_position, diffuse_amplitude, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
