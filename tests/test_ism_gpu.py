@@ -154,8 +154,8 @@ def test_maps_that_would_not_fit_one_atlas_get_a_smaller_side(monkeypatch):
 
 
 def test_glsl_bilinear_and_nearest_lookups_match_the_reference():
-    """ism_pcf_bilinear (every fold of the octahedral map: blocks across the square's edges wrap)
-    and ism_visible_nearest (ism_pcf at radius 0) against the float64 twin."""
+    """ism_pcf_bilinear (receivers all around the origin: blocks at the square's edges are kept
+    inside it) and ism_visible_nearest (ism_pcf at radius 0) against the float64 twin."""
     scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
     points = sp.scene_point_sets(scene, 20000, 1, seed=4)
     origin = np.array([0.0, 0.0, 1.5])

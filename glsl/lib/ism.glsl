@@ -90,15 +90,15 @@ float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver,
   return lit / float((2 * radius + 1) * (2 * radius + 1));
 }
 
-// The lookup of the shading pass, one code path for its two filters (on llvmpipe both sides of a
-// branch that differs between neighbouring pixels run): `filtered` the bilinear
-// percentage-closer visibility (reference ism_pcf_bilinear): the test of ism_pcf on the four texels
-// around the receiver's continuous position in the map, weighted bilinearly, so the result varies
-// smoothly across texels, with the bias of two texels' footprint; else the test of the one texel
-// holding the receiver's direction (reference ism_pcf at radius 0, the bias of one texel): the same
-// block with weights 0 or 1. A block inside the square is one textureGather of the four texels
-// around their shared corner (gather order: (0, 1), (1, 1), (1, 0), (0, 0)); only a block across the
-// square's edge needs the fold's mirror, texel by texel (a branch: most blocks are inside).
+// The lookup of the shading pass, one code path for its two filters (llvmpipe runs both sides of a
+// branch that differs between neighbouring pixels, and the body of any branch): `filtered` the
+// bilinear percentage-closer visibility (reference ism_pcf_bilinear): the test of ism_pcf on the four
+// texels around the receiver's continuous position in the map, weighted bilinearly, so the result
+// varies smoothly across texels, with the bias of two texels' footprint; else the test of the one
+// texel holding the receiver's direction (reference ism_pcf at radius 0, the bias of one texel):
+// the same block with weights 0 or 1. The block is kept inside the square (clamped at its edges,
+// not wrapped across the folds: see the reference) and read by one textureGather of the four texels
+// around their shared corner (gather order: (0, 1), (1, 1), (1, 0), (0, 0)).
 // inv_atlas_size: 1 / the atlas's size in texels (once per pixel, not per lookup).
 float ism_lookup(sampler2D atlas, vec2 inv_atlas_size, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal,
                  bool filtered)
@@ -109,24 +109,11 @@ float ism_lookup(sampler2D atlas, vec2 inv_atlas_size, ivec2 tile, int size, vec
   float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
   float bias = ism_bias(distance, size, tan_theta, filtered ? 2.0 : 1.0, 1e-3);
   vec2 cell = (octahedral_encode(offset) * 0.5 + 0.5) * float(size) - 0.5;
-  vec2 base = floor(cell);
-  vec2 f = clamp(cell - base, 0.0, 1.0);
-  if (!filtered) {
-    // floor(cell + 0.5), the texel holding the direction, clamped to the square (ism_texel).
-    f = step(0.5, f) * vec2(lessThanEqual(base, vec2(float(size - 2))));
-  }
-  ivec2 c00 = ivec2(base);
-  ivec2 c11 = c00 + 1;
-  vec4 depth;  // (c00, c10, c01, c11)
-  if (c00.x < 0 || c00.y < 0 || c00.x >= size - 1 || c00.y >= size - 1) {
-    depth = vec4(texelFetch(atlas, tile + octahedral_wrap(c00, size), 0).r,
-                 texelFetch(atlas, tile + octahedral_wrap(ivec2(c11.x, c00.y), size), 0).r,
-                 texelFetch(atlas, tile + octahedral_wrap(ivec2(c00.x, c11.y), size), 0).r,
-                 texelFetch(atlas, tile + octahedral_wrap(c11, size), 0).r);
-  }
-  else {
-    depth = textureGather(atlas, vec2(tile + c11) * inv_atlas_size, 0).wzxy;
-  }
+  vec2 corner = clamp(floor(cell), vec2(0.0), vec2(float(max(size - 2, 0))));
+  // Nearest: floor(cell + 0.5), the texel holding the direction (ism_texel), is corner or corner + 1.
+  vec2 f = filtered ? clamp(cell - corner, 0.0, 1.0) : clamp(floor(cell + 0.5), 0.0, float(size - 1)) - corner;
+  f *= size > 1 ? 1.0 : 0.0;  // a 1² map: its one texel
+  vec4 depth = textureGather(atlas, (vec2(tile) + corner + 1.0) * inv_atlas_size, 0).wzxy;  // (c00, c10, c01, c11)
   vec4 lit = vec4(lessThanEqual(vec4(distance), depth + bias));
   return mix(mix(lit.x, lit.y, f.x), mix(lit.z, lit.w, f.x), f.y);
 }

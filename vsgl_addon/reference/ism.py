@@ -278,9 +278,13 @@ def ism_pcf(depth, origin, receivers, radius: int, normals=None, bias=None) -> n
 
 def ism_pcf_bilinear(depth, origin, receivers, normals=None, bias=None) -> np.ndarray:
     """The visibility test on the four texels around each receiver's continuous position in the
-    map (texel centres at (i + ½)/size of the octahedral square), weighted bilinearly and wrapping
-    across the folds: a filter of about two texels from four fetches. The default bias spans its
-    footprint (two texels)."""
+    map (texel centres at (i + ½)/size of the octahedral square), weighted bilinearly: a filter of
+    about two texels from one textureGather on the GPU. The block is kept inside the square
+    (clamped at its edges, where the weights then fall on the edge texels: the texel holding the
+    direction among them) instead of wrapping across the folds: the wrap's four separate fetches
+    and mirrors cost the shading pass more than the rest of its lookup on llvmpipe, which runs
+    both sides of a branch (benchmarks/visibility_cost.py). A 1² map: its one texel. The default
+    bias spans the filter's footprint (two texels)."""
     size = depth.shape[0]
     depth = f64(depth)
     offsets = f64(receivers) - f64(origin)
@@ -289,13 +293,14 @@ def ism_pcf_bilinear(depth, origin, receivers, normals=None, bias=None) -> np.nd
         slope = 0.0 if normals is None else tan_incidence(normals, offsets, distance)
         bias = ism_bias(distance, size, slope, slope=2.0)
     cell = (octahedral_encode(offsets) * 0.5 + 0.5) * size - 0.5
-    base = np.floor(cell)
-    f = np.clip(cell - base, 0.0, 1.0)
-    corner = base.astype(np.int64)
+    corner = np.clip(np.floor(cell), 0.0, max(size - 2, 0))
+    f = np.clip(cell - corner, 0.0, 1.0) * (size > 1)
+    corner = corner.astype(np.int64)
     total = np.zeros(distance.shape)
     for dy in (0, 1):
         for dx in (0, 1):
-            column, row = octahedral_wrap(corner[..., 0] + dx, corner[..., 1] + dy, size)
+            column = np.minimum(corner[..., 0] + dx, size - 1)
+            row = np.minimum(corner[..., 1] + dy, size - 1)
             weight = (f[..., 0] if dx else 1.0 - f[..., 0]) * (f[..., 1] if dy else 1.0 - f[..., 1])
             total += weight * (distance <= depth[row, column] + f64(bias))
     return total
