@@ -8,7 +8,9 @@ At 480x360, RSM 128² (the cost target's setting) and each N: the median over ``
 (after a warm-up; off and on alternating) of the frame's passes with visibility off and on
 (FrameRenderer timings); then
 the maps alone again with the GPU waited for after each stage (build_visibility(timed=True)), and
-the lookups as shading on − shading off. Writes ``benchmarks/results/visibility_cost.{md,json}``
+the lookups as shading on − shading off. The frames' process CPU time too (llvmpipe's threads are
+the process's: the work done, which a shared machine's load does not inflate as it does the wall
+clock), whose on / off ratio − 1 is the CPU-time extra. Writes ``benchmarks/results/visibility_cost.{md,json}``
 (or ``--results-dir``); ``validation_suite.py`` runs it too.
 """
 
@@ -17,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import time
 import sys
 from pathlib import Path
 
@@ -44,14 +47,16 @@ def measure(path: Path, counts, repeats: int = 3, rsm_size: int = 128) -> list[d
     renderer = FrameRenderer()
     try:
         for n in counts:
-            times, frames = {}, {False: [], True: []}
+            times, frames, cpu = {}, {False: [], True: []}, {False: [], True: []}
             for visibility in (False, True):  # warm-up: shaders, llvmpipe
                 renderer.render(description, base.overridden(vsgl_count=n, visibility=visibility), *SIZE)
             # Off and on alternate, so that a change of the (shared) machine's load falls on both.
             for _ in range(repeats):
                 for visibility in (False, True):
                     settings = base.overridden(vsgl_count=n, visibility=visibility)
+                    clock = time.process_time()
                     frames[visibility].append(renderer.render(description, settings, *SIZE).timings)
+                    cpu[visibility].append(time.process_time() - clock)
             for visibility, timings in frames.items():
                 times[visibility] = {name: statistics.median(f.get(name, 0.0) for f in timings)
                                      for name in timings[0]}
@@ -83,12 +88,14 @@ def measure(path: Path, counts, repeats: int = 3, rsm_size: int = 128) -> list[d
             row = {"n": n, "frame_off": off["frame"], "frame_on": on["frame"], "ratio": on["frame"] / off["frame"],
                    "extra": (on["ism"] + lookups) / off["frame"], "ism": on["ism"], "lookups": lookups,
                    "shading_off": off["vsgl_shading"], "shading_on": on["vsgl_shading"], "stages": split,
-                   "timings_off": off, "timings_on": on}
+                   "timings_off": off, "timings_on": on, "cpu_off": statistics.median(cpu[False]),
+                   "cpu_on": statistics.median(cpu[True])}
+            row["extra_cpu"] = row["cpu_on"] / row["cpu_off"] - 1.0
             total = sum(split.values()) + max(lookups, 0.0)
             row["shares"] = {**{name: value / total for name, value in split.items()},
                              "lookups": max(lookups, 0.0) / total}
             log(f"N={n}: frame {off['frame'] * 1e3:.0f} -> {on['frame'] * 1e3:.0f} ms ({row['ratio']:.2f}x; "
-                f"ISM + lookups {100 * row['extra']:.0f} % extra), split " +
+                f"ISM + lookups {100 * row['extra']:.0f} % extra; CPU time {100 * row['extra_cpu']:.0f} %), split " +
                 ", ".join(f"{k} {100 * v:.0f} %" for k, v in row["shares"].items()))
             rows.append(row)
     finally:
@@ -99,14 +106,16 @@ def measure(path: Path, counts, repeats: int = 3, rsm_size: int = 128) -> list[d
 def markdown(rows, scene: str, renderer: str) -> str:
     lines = [f"## Cost of VSGL visibility ({scene}, {SIZE[0]}x{SIZE[1]}, RSM 128², GPU: {renderer})", "",
              "Median frame (sum of passes) with visibility off and on, in one run; extra = (ISM pass + "
-             "lookups) / frame off, lookups = shading on − shading off; split of the visibility work "
-             "(stages timed with the GPU waited for after each).", "",
-             "| N | frame off ms | frame on ms | on / off | extra | ISM ms | lookups ms | splat | close | "
-             "pull-push | lookups |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "lookups) / frame off, lookups = shading on − shading off; CPU-time extra = the frames' process CPU "
+             "time on / off − 1 (the work, not inflated by the shared machine's load); split of the visibility "
+             "work (stages timed with the GPU waited for after each).", "",
+             "| N | frame off ms | frame on ms | on / off | extra | CPU-time extra | ISM ms | lookups ms | splat | "
+             "close | pull-push | lookups |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         s = r["shares"]
         lines.append(f"| {r['n']} | {r['frame_off'] * 1e3:.0f} | {r['frame_on'] * 1e3:.0f} | {r['ratio']:.2f} | "
-                     f"{100 * r['extra']:.0f} % | {r['ism'] * 1e3:.0f} | {r['lookups'] * 1e3:.0f} | "
+                     f"{100 * r['extra']:.0f} % | {100 * r['extra_cpu']:.0f} % | {r['ism'] * 1e3:.0f} | "
+                     f"{r['lookups'] * 1e3:.0f} | "
                      f"{100 * s.get('splat', 0):.0f} % | {100 * s.get('close', 0):.0f} % | "
                      f"{100 * s.get('pull_push', 0):.0f} % | {100 * s['lookups']:.0f} % |")
     return "\n".join(lines) + "\n"
