@@ -160,6 +160,22 @@ def _diffuse_rows():
             "peak relative error, at ω = n",
             float(lam / (2.0 * -math.expm1(-2.0 * lam)) - 1.0),
         ),
+    ] + _diffuse_hemisphere_rows(lam)
+
+
+def _diffuse_hemisphere_rows(lam):
+    """The lobe VPLs and VSGLs emit with: 000 Eq. 6's SG normalized over the hemisphere
+    (sg.DIFFUSE_HEMISPHERE_SCALE), which carries Lambert's energy above the horizon."""
+    scale = 1.0 + math.exp(-lam)
+    lobe = lambda w: scale * sg_lobe_normalized(w, Z_AXIS, lam)  # noqa: E731
+    above = sphere_quadrature(lambda w: lobe(w) * (w[..., 2] > 0.0), Z_AXIS, n_phi=1, equator=True)
+    l1 = sphere_quadrature(lambda w: np.abs(lobe(w) * (w[..., 2] > 0.0) - np.maximum(w[..., 2], 0.0) / np.pi),
+                           Z_AXIS, n_phi=1, equator=True)
+    name = "Diffuse SG lobe normalized over the hemisphere, (1 + e^(−λd)) G(ω;n,λd)/A(λd) ≈ ⟨ω,n⟩/π"
+    return [
+        Row(name, "λd = 2", "energy above the horizon (Lambert: 1)", float(above)),
+        Row(name, "λd = 2", "L1 error above the horizon (total energy 1)", float(l1)),
+        Row(name, "λd = 2", "peak relative error, at ω = n", float(scale * lam / (2.0 * -math.expm1(-2.0 * lam)) - 1.0)),
     ]
 
 
