@@ -71,14 +71,14 @@ def segment_visible(receivers, origin, triangles, exclude_radius, receiver_offse
 
 def exact_visibility(table, maps_per_vsgl, position, triangles, exclude_sigmas, pushed=True):
     """(P, N, 2) exact visibility of each lobe's shadow origin (reference.ism.shadow_origin of the
-    position the maps use: the VSGL's shared one with one map per VSGL, else the lobe's), or of
+    position the maps use: the VSGL's diffuse lobe's with one map per VSGL, else the lobe's), or of
     that position itself (``pushed=False``)."""
     from vsgl_addon.reference.ism import shadow_origin
 
     count = len(table["diffuse_variance"])
     result = np.ones((len(position), count, 2))
     for lobe, name in enumerate(("diffuse", "specular")):
-        at = "" if maps_per_vsgl == 1 else f"{name}_"
+        at = "diffuse_" if maps_per_vsgl == 1 else f"{name}_"
         means = table[f"{at}mean"]
         if pushed:
             means = shadow_origin(means, table[f"{at}variance"], table[f"{name}_axis"])

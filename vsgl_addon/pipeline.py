@@ -167,11 +167,13 @@ POINT_SETS = 64
 OWN_REFLECTOR_SIGMAS = 1.0
 
 
-#: Imperfect shadow maps per VSGL: 1, at its shared positional Gaussian (000 app. B.2, the
-#: Φ(Rd + Rs)-weighted mean and spread of its cluster) for both lobes, or 2, one per lobe position.
-#: The lobes come from one cluster, so their positions lie within its spread; one map halves the
-#: maps and the lookups (benchmarks/visibility_cost.py) for the accuracy in the validation suite's
-#: results.
+#: Imperfect shadow maps per VSGL: 1, at its diffuse lobe's positional Gaussian for both lobes (000
+#: app. B.2 gives a VSGL one position so as not to multiply its visibility tests; with the shared
+#: positional distribution that is it, with per-lobe positions the diffuse lobe's, Φ·Rd-weighted,
+#: which the shading pass has loaded already: the shared position would be one more texel fetch per
+#: VSGL and pixel, a sixth of the lookups' cost on llvmpipe), or 2, one per lobe position. The lobes
+#: come from one cluster, so their positions lie within its spread; one map halves the maps and the
+#: lookups (benchmarks/visibility_cost.py).
 MAPS_PER_VSGL = 1
 
 
@@ -189,8 +191,8 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
     for _, _, generation in vsgls.generations:
         table = generation.read_table()
         if MAPS_PER_VSGL == 1:
-            origins = shadow_origin(table["mean"], table["variance"], table["diffuse_axis"]).reshape(-1, 3)
-            sigma = np.sqrt(np.maximum(table["variance"], 0.0)).reshape(-1)
+            origins = shadow_origin(table["diffuse_mean"], table["diffuse_variance"], table["diffuse_axis"]).reshape(-1, 3)
+            sigma = np.sqrt(np.maximum(table["diffuse_variance"], 0.0)).reshape(-1)
         else:
             lobes = ("diffuse", "specular")
             origins = np.stack([shadow_origin(table[f"{lobe}_mean"], table[f"{lobe}_variance"], table[f"{lobe}_axis"])

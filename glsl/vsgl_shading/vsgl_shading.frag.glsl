@@ -15,7 +15,7 @@
 // VSGL_VISIBILITY 1: each lobe's light is weighted by its visibility from the pixel, a filtered
 // lookup in the lobe position's imperfect shadow map (000 sec. 5; lib/ism.glsl, atlas of
 // vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, maps per VSGL (1: map i
-// at the VSGL's shared positional Gaussian (mean, variance; 000 app. B.2) for both lobes, or 2:
+// at the VSGL's diffuse lobe's positional Gaussian (vsgl_addon/pipeline.py MAPS_PER_VSGL) for both lobes, or 2:
 // map 2i the diffuse lobe's, 2i + 1 the specular lobe's)).
 // Each map is centred on its shadow origin (lib/ism.glsl ism_shadow_origin). A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
 // sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS.
@@ -78,7 +78,7 @@ void main()
     float reflector_side = vsgl_reflector_side_seen(vsgl.diffuse_axis, vsgl.diffuse_sharpness, diffuse_position);
     // Branches on the uniform map count, not selects: a select would run both sides' lookups.
     if (ism_params.z == 1) {
-      float visibility = vsgl_visibility(i, vsgl.mean, vsgl.variance, vsgl.diffuse_axis, rc, inv_atlas_size);
+      float visibility = vsgl_visibility(i, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc, inv_atlas_size);
       diffuse_amplitude *= visibility * reflector_side;
       specular_amplitude *= visibility;
     }

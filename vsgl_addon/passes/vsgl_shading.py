@@ -175,7 +175,7 @@ class VSGLTable:
     texture: object
     count: int
     shared_positions: bool = False
-    # The imperfect shadow maps of its VSGLs (passes/ism.py ISMAtlas): one per VSGL (at its shared
+    # The imperfect shadow maps of its VSGLs (passes/ism.py ISMAtlas): one per VSGL (at its diffuse lobe's
     # position), or two (map 2i the diffuse lobe's, 2i + 1 the specular's); None: no
     # visibility, every VSGL lights every pixel it faces.
     ism: object = None
@@ -190,7 +190,7 @@ class VSGLTable:
 
     @property
     def maps_per_vsgl(self) -> int:
-        """Maps of its ISM atlas per VSGL: 1 (at each VSGL's shared position, both lobes) or 2 (one
+        """Maps of its ISM atlas per VSGL: 1 (at each VSGL's diffuse lobe position, both lobes) or 2 (one
         per lobe position)."""
         if self.ism is not None and self.count > 0:
             return 2 if self.ism.count >= 2 * self.count else 1

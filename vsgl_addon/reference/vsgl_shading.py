@@ -328,7 +328,7 @@ def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
     vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) from the lobe's shadow origin
     (reference.ism.shadow_origin) in its map of
     ``depths`` (maps, S, S), map maps_per_vsgl·i (+ 1 for the specular lobe with two maps per
-    VSGL; with one, both lobes take the map of the VSGL's shared position ``mean``): one texel where σ_v / distance is under half a texel (or ``max_radius`` is 0), else the
+    VSGL; with one, both lobes take the map of the VSGL's diffuse lobe position ``diffuse_mean``): one texel where σ_v / distance is under half a texel (or ``max_radius`` is 0), else the
     bilinear filter of about two texels (reference.ism.ism_pcf_bilinear); the diffuse lobe's times
     :func:`vsgl_reflector_side`."""
     from . import ism
@@ -343,9 +343,9 @@ def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
             if lobe == 1 and maps_per_vsgl == 1:
                 result[:, i, 1] = result[:, i, 0]
                 continue
-            # One map per VSGL: at its shared positional Gaussian (000 app. B.2), pushed along the
-            # diffuse axis (a table without it: the diffuse lobe's position).
-            at = "" if maps_per_vsgl == 1 and "mean" in vsgls else f"{name}_"
+            # One map per VSGL: at its diffuse lobe's positional Gaussian (pipeline.MAPS_PER_VSGL),
+            # pushed along the diffuse axis.
+            at = "diffuse_" if maps_per_vsgl == 1 else f"{name}_"
             variance = float(f64(vsgls[f"{at}variance"]).reshape(-1)[i])
             mean = ism.shadow_origin(f64(vsgls[f"{at}mean"]).reshape(-1, 3)[i], variance,
                                      f64(vsgls[f"{name}_axis"]).reshape(-1, 3)[i])
