@@ -2,7 +2,8 @@
 """Where the indirect light of a scene goes (not a test): Cycles against brute-force VPLs from the
 very RSM texels the GPU uses, against the VSGL model, against the GPU, on a pixel subset.
 
-    .venv/bin/python benchmarks/energy_budget.py [--only NAME ...] [--stride S] [--samples K]
+    .venv/bin/python benchmarks/energy_budget.py [--only NAME ...] [--stride S] [--samples K] [--counts N ...]
+        [--results-dir DIR]
 
 On every S-th pixel (both ways) of the suite's 240x180 camera G-buffer, the mean luminance of each
 stage's indirect light over those pixels, as a ratio to Cycles' on the same pixels:
@@ -27,7 +28,7 @@ stage's indirect light over those pixels, as a ratio to Cycles' on the same pixe
   shading approximations (000 app. C); also at larger N (--counts);
 * GPU off / on: the GPU's shading pass on the same VSGLs without and with visibility.
 
-The near-field share: the part of the exact unshadowed VPL sum from VPLs nearer the receiver than
+Writes ``benchmarks/results/energy_budget.md``. The near-field share: the part of the exact unshadowed VPL sum from VPLs nearer the receiver than
 two texel footprints (sqrt of the texel's area on its surface), where a point VPL is a poor model of
 its texel (1/d² of a point against the integral over its area).
 """
@@ -283,6 +284,7 @@ def main(argv=None):
     parser.add_argument("--stride", type=int, default=8)
     parser.add_argument("--samples", type=int, default=256, help="ray-cast VPLs per pixel")
     parser.add_argument("--counts", type=int, nargs="+", default=[256, 1024])
+    parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
     args = parser.parse_args(argv)
     from vsgl_addon import register
 
@@ -296,7 +298,13 @@ def main(argv=None):
             start = time.perf_counter()
             rows[name] = budget(name, path, args.stride, args.samples, args.counts)
             log(f"  ({time.perf_counter() - start:.0f} s)")
-    print(markdown(rows))
+    text = (f"# Energy budget of the indirect light\n\n`.venv/bin/python benchmarks/energy_budget.py --only "
+            f"{' '.join(args.only)} --stride {args.stride} --samples {args.samples} --counts "
+            f"{' '.join(map(str, args.counts))}`: mean indirect luminance over the pixel subset, each stage / "
+            "Cycles (the module documentation defines the stages).\n\n" + markdown(rows))
+    args.results_dir.mkdir(parents=True, exist_ok=True)
+    (args.results_dir / "energy_budget.md").write_text(text)
+    print(text)
     return 0
 
 
