@@ -21,7 +21,7 @@ import numpy as np
 from .layouts import GBUFFER
 from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg, shading_inputs, vsgl_shading
 from .passes.contract import LIGHT_PASSES
-from .passes.gpu_util import finish
+from .passes.gpu_util import finish, read_texture
 from .passes.rsm import SceneGPU
 from .pipeline import build_visibility, render_scene_vsgls
 from .proxies import ProxyCache, lit_proxies
@@ -208,15 +208,29 @@ class FrameRenderer:
             self._glossy_shading = None
 
     def render_view_textures(self, lights: SceneLights, settings: VSGLSettings, width: int, height: int,
-                             view_matrix, projection_matrix) -> ViewTextures:
-        """The passes of render_view, with nothing read back: the images stay textures (the
-        viewport draws them). No wait for the GPU either: the caller finishes what it times."""
+                             view_matrix, projection_matrix, timings: dict | None = None) -> ViewTextures:
+        """One view's passes, with nothing read back: the images stay textures (the viewport draws
+        them, render_view reads them). Without ``timings`` no wait for the GPU either (the caller
+        finishes what it times); with it, each pass is finished and its seconds stored under its step."""
         scene = lights.scene
+        clock = time.perf_counter()
+
+        def lap(step, texture):
+            nonlocal clock
+            if timings is None:
+                return
+            _finish(texture)
+            now = time.perf_counter()
+            timings[step.name] = now - clock
+            clock = now
+
         gbuffer = direct = None
         try:
             gbuffer = gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
+            lap(gbuffer_pass.PASS.step, gbuffer.textures["position"])
             direct = direct_light.PASS.run(gbuffer, scene.lights, lights.vsgls.views_by_light,
                                            scene_gpu=lights.scene_gpu)
+            lap(direct_light.PASS.step, direct.textures["diffuse"])
             inputs = shading_inputs.PASS.run(gbuffer)
             mode = diffuse_mode_for_kernel(settings.kernel)
             vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, lights.vsgls.tables(), mode, shading=self._shading)
@@ -229,13 +243,21 @@ class FrameRenderer:
                 vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, lights.glossy_vsgls.tables(), mode,
                                       shading=self._glossy_shading)
                 specular = self._glossy_shading.specular
+            lap(vsgl_shading.PASS.step, specular)
+            glossy_reflectors = None
             if lights.proxies:
-                # MRP-ASG's cell, composed as render_view composes it, on the GPU.
+                # MRP-ASG's cell (light-paths.md): proxy-reflected light onto glossy receivers. Without
+                # Blender's ray-visibility split the first set is every reflector's light, so a
+                # receiver outside MRP-ASG's range takes the proxies' light from it instead.
                 gated = not scene.receiver_lobe_split
                 mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, lights.vsgls.views_by_light,
                                  lights.proxies, settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
                                  receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
                 specular = self._mrp.composite_specular(self._shading.specular, specular, gated)
+                glossy_reflectors = self._mrp.texture
+                lap(mrp_asg.PASS.step, specular)
+            elif timings is not None:
+                timings[mrp_asg.PASS.step.name] = 0.0
         except BaseException:
             for item in (direct, gbuffer):
                 if item is not None:
@@ -244,8 +266,11 @@ class FrameRenderer:
         textures = {"direct_diffuse": direct.textures["diffuse"], "direct_specular": direct.textures["glossy"],
                     "indirect_diffuse": self._shading.diffuse, "indirect_specular": specular,
                     "position": gbuffer.textures["position"], "normal": gbuffer.textures["normal"]}
+        if glossy_reflectors is not None:
+            textures["indirect_glossy_reflectors"] = glossy_reflectors
         glossy_count = lights.glossy_vsgls.vsgl_count if lights.glossy_vsgls is not None else 0
-        counts = {"lights": len(scene.lights), "vsgls": lights.vsgls.vsgl_count + glossy_count,
+        counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in lights.vsgls.views_by_light.values()),
+                  "vsgls": lights.vsgls.vsgl_count + glossy_count,
                   "triangles": int(len(scene.geometry.positions)), "proxies": len(lights.proxies)}
         return ViewTextures(width, height, textures, counts, gbuffer, [direct, gbuffer])
 
@@ -276,75 +301,20 @@ class FrameRenderer:
 
     def render_view(self, lights: SceneLights, settings: VSGLSettings, width: int, height: int,
                     view_matrix, projection_matrix) -> FrameImages:
-        """One view of already built `lights`: G-buffer, direct light, VSGL shading, read-back.
+        """One view of already built `lights`: render_view_textures, each pass timed, then read back.
         `settings` must be the ones `lights` was built with (the kernel picks the diffuse mode)."""
-        scene = lights.scene
         timings: dict[str, float] = dict(lights.timings)
-        clock = time.perf_counter()
-
-        def lap(name):
-            nonlocal clock
-            now = time.perf_counter()
-            timings[name] = now - clock
-            clock = now
-
-        vsgls = lights.vsgls
-        gbuffer = direct = None
+        view = self.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix, timings)
         try:
-            gbuffer = gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
-            _finish(gbuffer.textures["position"])
-            lap(gbuffer_pass.PASS.step.name)
-            direct = direct_light.PASS.run(gbuffer, scene.lights, vsgls.views_by_light, scene_gpu=lights.scene_gpu)
-            _finish(direct.textures["diffuse"])
-            lap(direct_light.PASS.step.name)
-            inputs = shading_inputs.PASS.run(gbuffer)
-            mode = diffuse_mode_for_kernel(settings.kernel)
-            vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, vsgls.tables(), mode, shading=self._shading)
-            _finish(self._shading.diffuse)
-            glossy = lights.glossy_vsgls
-            if glossy is not None:
-                # The receivers' specular lobes see only the reflectors glossy rays see: a second
-                # shading of the same pixels, after the first one's diffuse image is read.
-                indirect_diffuse, whole_specular = self._shading.read()
-                vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, glossy.tables(), mode, shading=self._shading)
-                _finish(self._shading.diffuse)
-            lap(vsgl_shading.PASS.step.name)
-            if glossy is not None:
-                _, indirect_specular = self._shading.read()
-            else:
-                indirect_diffuse, indirect_specular = self._shading.read()
-            glossy_reflectors = served = None
-            # Without Blender's ray-visibility split the first set is every reflector's light, so a
-            # receiver outside MRP-ASG's range can take the proxies' light from it instead.
-            gated = bool(lights.proxies) and not scene.receiver_lobe_split
-            if lights.proxies:
-                # MRP-ASG's cell (light-paths.md): proxy-reflected light onto glossy receivers.
-                mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, vsgls.views_by_light, lights.proxies,
-                                 settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
-                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
-                _finish(self._mrp.texture)
-            lap(mrp_asg.PASS.step.name)
-            if lights.proxies:
-                image = self._mrp.read()
-                glossy_reflectors = _rgb(image)
-                served = image[..., 3] > 0.0
-                if gated:
-                    indirect_specular = np.where(served[..., None], indirect_specular, whole_specular)
-            direct_diffuse, direct_specular = direct.to_numpy()
-            coverage = GBUFFER.unpack_slots(gbuffer.to_numpy(), ["coverage"])["coverage"]
-            lap(READ_BACK.name)
-            glossy_count = lights.glossy_vsgls.vsgl_count if lights.glossy_vsgls is not None else 0
-            counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in vsgls.views_by_light.values()),
-                      "vsgls": vsgls.vsgl_count + glossy_count, "triangles": int(len(scene.geometry.positions)),
-                      "proxies": len(lights.proxies)}
+            clock = time.perf_counter()
+            images = {name: read_texture(texture, width, height) for name, texture in view.textures.items()
+                      if name != "normal"}
+            timings[READ_BACK.name] = time.perf_counter() - clock
+            counts = dict(view.counts)
         finally:
-            if direct is not None:
-                direct.free()
-            if gbuffer is not None:
-                gbuffer.free()
-        indirect_specular = _rgb(indirect_specular)
-        if glossy_reflectors is not None:
-            indirect_specular = indirect_specular + glossy_reflectors
-        return FrameImages(_rgb(direct_diffuse), _rgb(direct_specular), _rgb(indirect_diffuse),
-                           indirect_specular, np.clip(np.nan_to_num(coverage), 0.0, 1.0).astype(np.float32),
-                           timings, counts, glossy_reflectors)
+            view.free()
+        glossy_reflectors = images.get("indirect_glossy_reflectors")
+        return FrameImages(_rgb(images["direct_diffuse"]), _rgb(images["direct_specular"]),
+                           _rgb(images["indirect_diffuse"]), _rgb(images["indirect_specular"]),
+                           np.clip(np.nan_to_num(GBUFFER.unpack_slots(images, ["coverage"])["coverage"]), 0.0, 1.0).astype(np.float32),
+                           timings, counts, None if glossy_reflectors is None else _rgb(glossy_reflectors))
