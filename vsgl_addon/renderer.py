@@ -19,7 +19,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .layouts import GBUFFER
-from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg, shading_inputs, vsgl_shading
+from .light_paths import needs_glossy_vpls
+from .passes import (READ_BACK, UPLOAD, VPL_EXTRACTION, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg,
+                     shading_inputs, vpl_culling, vsgl_shading)
 from .passes.contract import LIGHT_PASSES
 from .passes.gpu_util import finish, read_texture
 from .passes.rsm import SceneGPU
@@ -43,10 +45,15 @@ class FrameImages:
     # The part of indirect_specular MRP-ASG carries (light reflected by a rectangle proxy onto
     # glossy receivers, 001); None: zeros.
     indirect_glossy_reflectors: np.ndarray | None = None
+    # The part of indirect_diffuse the glossy VPLs carry (sharp reflectors' light on diffuse
+    # receivers, 004); None: zeros.
+    indirect_caustics: np.ndarray | None = None
 
     def __post_init__(self):
         if self.indirect_glossy_reflectors is None:
             self.indirect_glossy_reflectors = np.zeros_like(self.indirect_specular)
+        if self.indirect_caustics is None:
+            self.indirect_caustics = np.zeros_like(self.indirect_diffuse)
 
     @property
     def direct(self) -> np.ndarray:
@@ -89,6 +96,12 @@ class SceneLights:
     glossy_vsgls: object = None
     # MRP-ASG (001): (rectangle proxy, lit-by mask over scene.lights) of the proxies some light reaches.
     proxies: list = field(default_factory=list)
+    # Glossy VPLs (004, passes/vpl_culling.py VPLSet) when the scene needs them (light_paths.py); then
+    # `vsgls` holds no sharp reflector's specular flux (the VPLs carry it to diffuse receivers).
+    vpls: object = None
+    # With VPLs and MRP-ASG gated by receiver roughness: the VSGLs of every reflector, whose specular
+    # image lights the receivers MRP-ASG leaves (the first set no longer holds the proxies' light).
+    whole_vsgls: object = None
 
     @classmethod
     def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None) -> "SceneLights":
@@ -96,15 +109,23 @@ class SceneLights:
         scene_gpu = SceneGPU(scene)
         timings = {UPLOAD.name: time.perf_counter() - clock}
         proxies = scene_proxies(scene, settings, proxy_cache) if settings.glossy_reflectors else []
+        caustics = needs_glossy_vpls(scene, settings)
         sets = []
+        vpls = None
         try:
             clock = time.perf_counter()
-            # Some object hidden from diffuse or glossy rays, or proxies for MRP-ASG: one VSGL set per
-            # receiver lobe (light-paths.md: the proxies' specular light leaves the glossy set).
-            lobes = ("diffuse", "glossy") if scene.receiver_lobe_split or proxies else ("all",)
-            for lobe in lobes:
-                sets.append(render_scene_vsgls(scene_gpu, settings, lobe,
-                                               [proxy for proxy, _ in proxies] if lobe == "glossy" else ()))
+            # light-paths.md: the receivers' diffuse lobes take the sharp reflectors' specular flux from
+            # the VPLs, their glossy lobes the proxies' from MRP-ASG, so each lobe gets its own VSGL set
+            # when either runs (or when Blender's ray visibility hides some object from one ray type).
+            split = bool(scene.receiver_lobe_split or proxies or caustics)
+            plan = [("diffuse" if split else "all", (), settings.caustic_roughness if caustics else 0.0)]
+            if split:
+                plan.append(("glossy", [proxy for proxy, _ in proxies], 0.0))
+            whole = caustics and bool(proxies) and not scene.receiver_lobe_split
+            if whole:
+                plan.append(("all", (), 0.0))
+            for lobe, cut_proxies, sharp_alpha in plan:
+                sets.append(render_scene_vsgls(scene_gpu, settings, lobe, cut_proxies, sharp_alpha))
                 if sets[-1].generations:
                     _finish(sets[-1].generations[-1][2].table)
             timings[LIGHT_PASSES.name] = time.perf_counter() - clock
@@ -116,20 +137,24 @@ class SceneLights:
                     if table_set.isms:
                         _finish(table_set.isms[-1].texture)
             timings[ism.PASS.step.name] = time.perf_counter() - clock
+            clock = time.perf_counter()
+            if caustics:
+                vpls = vpl_culling.upload_vpls(vpl_culling.scene_vpls(scene_gpu, settings.rsm_size,
+                                                                      settings.caustic_roughness))
+            timings[VPL_EXTRACTION.name] = time.perf_counter() - clock
         except BaseException:
             for table_set in sets:
                 table_set.free()
             scene_gpu.free()
             raise
-        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies)
+        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies, vpls,
+                   sets[2] if whole else None)
 
     def free(self) -> None:
-        if self.vsgls is not None:
-            self.vsgls.free()
-            self.vsgls = None
-        if self.glossy_vsgls is not None:
-            self.glossy_vsgls.free()
-            self.glossy_vsgls = None
+        for name in ("vsgls", "glossy_vsgls", "whole_vsgls", "vpls"):
+            if getattr(self, name) is not None:
+                getattr(self, name).free()
+                setattr(self, name, None)
         if self.scene_gpu is not None:
             self.scene_gpu.free()
             self.scene_gpu = None
@@ -198,11 +223,17 @@ class FrameRenderer:
     def __init__(self):
         self._shading = vsgl_shading.VSGLShading()
         self._glossy_shading = None  # the second shading of receiver-lobe split scenes (GPU path)
+        self._whole_shading = None  # the shading of SceneLights.whole_vsgls
         self._mrp = mrp_asg.MRPASG()
+        self._vpls = vpl_culling.VPLCaustics()
 
     def free(self) -> None:
         self._shading.free()
         self._mrp.free()
+        self._vpls.free()
+        if self._whole_shading is not None:
+            self._whole_shading.free()
+            self._whole_shading = None
         if self._glossy_shading is not None:
             self._glossy_shading.free()
             self._glossy_shading = None
@@ -243,7 +274,26 @@ class FrameRenderer:
                 vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, lights.glossy_vsgls.tables(), mode,
                                       shading=self._glossy_shading)
                 specular = self._glossy_shading.specular
-            lap(vsgl_shading.PASS.step, specular)
+            whole_specular = self._shading.specular
+            if lights.whole_vsgls is not None:
+                if self._whole_shading is None:
+                    self._whole_shading = vsgl_shading.VSGLShading()
+                vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, lights.whole_vsgls.tables(), mode,
+                                      shading=self._whole_shading)
+                whole_specular = self._whole_shading.specular
+            lap(vsgl_shading.PASS.step, whole_specular)
+            diffuse = self._shading.diffuse
+            caustics = None
+            vpls_per_pixel = 0.0
+            if lights.vpls is not None:
+                # The glossy VPLs' cell (light-paths.md): sharp reflectors' specular light on the
+                # receivers' diffuse lobes, added to the diffuse VSGLs, which leave it out.
+                vpls_per_pixel = self._vpls.render(inputs, lights.vpls, view_matrix, projection_matrix, settings,
+                                                   diffuse, count=timings is not None)
+                diffuse, caustics = self._vpls.diffuse, self._vpls.caustics
+                lap(vpl_culling.PASS.step, diffuse)
+            elif timings is not None:
+                timings[vpl_culling.PASS.step.name] = 0.0
             glossy_reflectors = None
             if lights.proxies:
                 # MRP-ASG's cell (light-paths.md): proxy-reflected light onto glossy receivers. Without
@@ -253,7 +303,7 @@ class FrameRenderer:
                 mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, lights.vsgls.views_by_light,
                                  lights.proxies, settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
                                  receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
-                specular = self._mrp.composite_specular(self._shading.specular, specular, gated)
+                specular = self._mrp.composite_specular(whole_specular, specular, gated)
                 glossy_reflectors = self._mrp.texture
                 lap(mrp_asg.PASS.step, specular)
             elif timings is not None:
@@ -264,14 +314,18 @@ class FrameRenderer:
                     item.free()
             raise
         textures = {"direct_diffuse": direct.textures["diffuse"], "direct_specular": direct.textures["glossy"],
-                    "indirect_diffuse": self._shading.diffuse, "indirect_specular": specular,
+                    "indirect_diffuse": diffuse, "indirect_specular": specular,
                     "position": gbuffer.textures["position"], "normal": gbuffer.textures["normal"]}
         if glossy_reflectors is not None:
             textures["indirect_glossy_reflectors"] = glossy_reflectors
-        glossy_count = lights.glossy_vsgls.vsgl_count if lights.glossy_vsgls is not None else 0
+        if caustics is not None:
+            textures["indirect_caustics"] = caustics
+        vsgl_count = sum(table_set.vsgl_count for table_set in (lights.vsgls, lights.glossy_vsgls, lights.whole_vsgls)
+                         if table_set is not None)
         counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in lights.vsgls.views_by_light.values()),
-                  "vsgls": lights.vsgls.vsgl_count + glossy_count,
-                  "triangles": int(len(scene.geometry.positions)), "proxies": len(lights.proxies)}
+                  "vsgls": vsgl_count, "triangles": int(len(scene.geometry.positions)),
+                  "vpls": lights.vpls.count if lights.vpls is not None else 0,
+                  "vpls_per_pixel": float(vpls_per_pixel or 0.0), "proxies": len(lights.proxies)}
         return ViewTextures(width, height, textures, counts, gbuffer, [direct, gbuffer])
 
     def guide(self, lights: SceneLights, width: int, height: int, view_matrix, projection_matrix):
@@ -313,8 +367,9 @@ class FrameRenderer:
             counts = dict(view.counts)
         finally:
             view.free()
-        glossy_reflectors = images.get("indirect_glossy_reflectors")
+        optional = {name: None if images.get(name) is None else _rgb(images[name])
+                    for name in ("indirect_glossy_reflectors", "indirect_caustics")}
         return FrameImages(_rgb(images["direct_diffuse"]), _rgb(images["direct_specular"]),
                            _rgb(images["indirect_diffuse"]), _rgb(images["indirect_specular"]),
                            np.clip(np.nan_to_num(GBUFFER.unpack_slots(images, ["coverage"])["coverage"]), 0.0, 1.0).astype(np.float32),
-                           timings, counts, None if glossy_reflectors is None else _rgb(glossy_reflectors))
+                           timings, counts, **optional)

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..layouts import GBUFFER, RSM, SHADING_INPUTS
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import read_texture, texture_from_array
@@ -78,6 +79,81 @@ def denoise(radiance, position, normal, radius: int, eye):
     shader.image("vpl_denoised", out)
     gpu.compute.dispatch(shader, math.ceil(radiance.width / 8), math.ceil(radiance.height / 8), 1)
     return out
+
+
+def _add_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("VEC4", "add_weights")],
+        samplers=[("FLOAT_2D", "add_a"), ("FLOAT_2D", "add_b")],
+        images=[("RGBA32F", "FLOAT_2D", "add_out")],
+        local_group_size=(8, 8, 1),
+    )
+
+
+def add_textures(a, b, weight_a: float, weight_b: float, out=None):
+    """``out`` (a new texture when None) = weight_a a + weight_b b in RGB, a's alpha
+    (glsl/vpl_culling/vpl_add.comp.glsl): the progressive mean and the diffuse composite, on the GPU."""
+    import gpu
+
+    if out is None:
+        out = gpu.types.GPUTexture((a.width, a.height), format="RGBA32F")
+    shader = PASS.shader("add")
+    shader.bind()
+    shader.uniform_float("add_weights", (float(weight_a), float(weight_b), 0.0, 0.0))
+    shader.uniform_sampler("add_a", a)
+    shader.uniform_sampler("add_b", b)
+    shader.image("add_out", out)
+    gpu.compute.dispatch(shader, math.ceil(a.width / 8), math.ceil(a.height / 8), 1)
+    return out
+
+
+#: Smallest GGX α a VPL's lobe takes: the range the spheroid bounds and the shading are tested on
+#: (tests/test_reference_vpl_culling.py); a mirror texel (α 1e-6) shines as an α 1e-3 lobe.
+VPL_ALPHA_MIN = 1e-3
+
+
+@dataclass
+class VPLSet:
+    """The glossy VPLs of a scene state on the GPU (view-independent, uploaded once): the record
+    table of :func:`vpl_table` and the count. ``free()`` drops the texture."""
+
+    table: object
+    count: int
+
+    def free(self) -> None:
+        self.table = None
+
+
+def upload_vpls(vpls) -> VPLSet:
+    return VPLSet(texture_from_array(vpl_table(vpls)), int(len(vpls["roughness"])))
+
+
+def scene_vpls(scene_gpu, rsm_size: int, caustic_roughness: float) -> dict:
+    """The glossy VPLs of every light (004 §3; reference.vpl_culling.glossy_vpls_from_rsm): each RSM
+    texel of a sharp reflector (GGX α < α_c, reference.principled.principled_alpha as the RSM's split
+    tests it) seen by diffuse rays, with its Φ Rs and ω_i towards the light. The RSM views are read
+    back and dropped; nothing is resampled, so the set is as stable as the RSM."""
+    from ..reference import rsm as rsm_ref
+    from ..reference import vpl_culling as reference
+    from ..reference.principled import principled_alpha
+    from .rsm import render_rsm_views
+
+    parts = []
+    for index, light in enumerate(scene_gpu.scene.lights):
+        for view in render_rsm_views(scene_gpu, index, rsm_size, "diffuse"):
+            arrays = view.to_numpy()
+            view.free()
+            alpha = principled_alpha(arrays.roughness)
+            vpls = reference.glossy_vpls_from_rsm(arrays.rsm.position, arrays.rsm.normal,
+                                                  rsm_ref.incoming_directions(light, arrays.rsm.position),
+                                                  arrays.rsm.flux_specular, np.ones_like(arrays.rsm.flux_specular),
+                                                  alpha, caustic_roughness)
+            vpls["roughness"] = np.maximum(vpls["roughness"], VPL_ALPHA_MIN)
+            parts.append(vpls)
+    keys = ("position", "normal", "incoming", "flux", "rs")
+    merged = {key: np.concatenate([part[key] for part in parts]) if parts else np.zeros((0, 3)) for key in keys}
+    merged["roughness"] = np.concatenate([part["roughness"] for part in parts]) if parts else np.zeros(0)
+    return merged
 
 
 def vpl_table(vpls) -> np.ndarray:
@@ -138,11 +214,12 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
 
     width, height = position.width, position.height
     tiles = (math.ceil(width / TILE), math.ceil(height / TILE))
-    count = len(vpls["roughness"])
+    vpl_set = vpls if isinstance(vpls, VPLSet) else upload_vpls(vpls)
+    count = vpl_set.count
     camera = np.zeros((8, 1, 4), np.float32)
     camera[:4, 0] = np.asarray(world_to_view, np.float64)
     camera[4:, 0] = np.linalg.inv(np.asarray(projection, np.float64))
-    table = texture_from_array(vpl_table(vpls))
+    table = vpl_set.table
     camera_texture = texture_from_array(camera)
     radiance = gpu.types.GPUTexture((width, height), format="RGBA32F")
     lists = gpu.types.GPUTexture((LIST_CAPACITY, tiles[0] * tiles[1]), format="R32UI")
@@ -181,13 +258,67 @@ def render_caustics(position, normal, albedo, vpls, world_to_view, projection, d
     return (total / max(int(samples), 1)).astype(np.float32)
 
 
+#: The VPLs' extraction from the RSM (read back, once per scene state: not a GPU pass; the renderer's
+#: SceneLights.build times it), and the count it is the source of.
+EXTRACTION = Step("vpl_extraction", "VPL Extraction", {"vpls": "VPLs"})
+
+
+class VPLCaustics:
+    """The pass in a frame (renderer.py): its caustics image and the indirect diffuse image with it
+    added, kept between views (the next view overwrites them)."""
+
+    def __init__(self):
+        self.caustics = None
+        self.diffuse = None
+
+    def free(self) -> None:
+        self.caustics = self.diffuse = None
+
+    def render(self, inputs, vpl_set: VPLSet, world_to_view, projection, settings, vsgl_diffuse,
+               count: bool = False) -> float | None:
+        """Cull and shade ``vpl_set`` for ``inputs`` (a vsgl_shading.ShadingGBuffer): the mean of
+        ``settings.vpl_samples`` draws (xi from the seed and the sample's number, the interleave
+        offset stepping with them), then the cross-bilateral filter, into ``self.caustics``; and
+        ``vsgl_diffuse`` + caustics into ``self.diffuse``, all on the GPU. ``count``: returns the VPLs
+        each pixel shaded after culling (tile lists read back, divided by N²), else None."""
+        from ..settings import interleave_factor
+
+        width, height = inputs.width, inputs.height
+        factor = interleave_factor(settings.vpl_interleave, width, height)
+        samples = max(int(settings.vpl_samples), 1)
+        total = None
+        listed = 0.0
+        for step in range(samples):
+            result = run(inputs.position, inputs.normal, inputs.diffuse_reflectance, vpl_set, world_to_view,
+                         projection, settings.delta, settings.seed, step, factor,
+                         (settings.seed * samples + step) % (factor * factor))
+            if count:
+                listed += float((result.read_counts() * _tile_pixels(width, height)).sum()) / (width * height)
+            total = (result.radiance if samples == 1 else
+                     add_textures(result.radiance, result.radiance, 1.0 / samples, 0.0) if total is None else
+                     add_textures(total, result.radiance, 1.0, 1.0 / samples))
+            result.free()
+        eye = np.linalg.inv(np.asarray(world_to_view, np.float64))[:3, 3]
+        self.caustics = denoise(total, inputs.position, inputs.normal, settings.vpl_filter_radius, eye)
+        self.diffuse = add_textures(vsgl_diffuse, self.caustics, 1.0, 1.0)
+        return listed / samples / (factor * factor) if count else None
+
+
+def _tile_pixels(width: int, height: int) -> np.ndarray:
+    """(tiles_y, tiles_x) pixels of each tile inside the image."""
+    columns = np.minimum(TILE, width - TILE * np.arange(math.ceil(width / TILE)))
+    rows = np.minimum(TILE, height - TILE * np.arange(math.ceil(height / TILE)))
+    return rows[:, None] * columns[None, :]
+
+
 PASS = GPUPass(
     name="vpl_culling",
     label="Caustics (VPL)",
-    step=Step("vpl_culling", "Caustics (VPL)", {"vpls": "VPLs", "vpls_per_pixel": "VPLs per Pixel"}),
+    step=Step("vpl_culling", "Caustics (VPL)", {"vpls_per_pixel": "VPLs per Pixel"}),
     shaders={"vpl_culling": ShaderSpec(_interface, {"compute": "vpl_culling/vpl_cull_shade.comp.glsl"}),
-             "denoise": ShaderSpec(_denoise_interface, {"compute": "vpl_culling/vpl_denoise.comp.glsl"})},
-    reads=(),
-    writes=(),
+             "denoise": ShaderSpec(_denoise_interface, {"compute": "vpl_culling/vpl_denoise.comp.glsl"}),
+             "add": ShaderSpec(_add_interface, {"compute": "vpl_culling/vpl_add.comp.glsl"})},
+    reads=(GBUFFER.name, SHADING_INPUTS.name, RSM.name),
+    writes=("indirect_caustics",),
     run=run,
 )
