@@ -197,8 +197,9 @@ INTERLEAVE_SUBIMAGE_PIXELS = 1920 * 1080 // 64
 
 
 def delta_from_log10(exponent: float) -> float:
-    """δ from the panel's log10 control, kept inside DELTA_RANGE against float rounding at its ends."""
-    return min(max(10.0 ** float(exponent), DELTA_RANGE[0]), DELTA_RANGE[1])
+    """δ from the panel's log10 control (a float32 property): six significant digits, so a δ the
+    command line set comes back as typed, kept inside DELTA_RANGE."""
+    return min(max(float(f"{10.0 ** float(exponent):.6g}"), DELTA_RANGE[0]), DELTA_RANGE[1])
 
 
 def interleave_factor(choice: str, width: int, height: int) -> int:
