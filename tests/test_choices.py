@@ -21,7 +21,8 @@ STORED = {
     "kernel": (KERNELS, ["MODIFIED", "ORIGINAL", "TWO_VSGL"]),
     "positional_distribution": (POSITIONS, ["PER_LOBE", "SHARED"]),
     "overlay_mode": (OVERLAY_DISPLAYS, ["INDIRECT", "ADDED", "INDIRECT_DIFFUSE", "INDIRECT_SPECULAR", "DIRECT",
-                                        "COMBINED"]),
+                                        "COMBINED", "INDIRECT_CAUSTICS"]),
+    "vpl_interleave": (settings.INTERLEAVE_CHOICES, ["AUTO", "N1", "N2", "N4", "N8"]),
     "reflector_mode": (REFLECTOR_MODES, ["ASG", "SG"]),
     "vsgl_proxy": (PROXY_OVERRIDES, ["AUTO", "ALWAYS", "NEVER"]),
 }

@@ -161,3 +161,26 @@ def test_extremes_stay_finite(extreme):
     sb.assert_finite_frame(frame, str(extreme))
     if extreme.get("rsm_size") != 1:
         assert frame.counts["vpls"] > 0 and frame.indirect_caustics.max() > 0.0
+
+
+@pytest.mark.gpu
+def test_a_band_differs_from_the_whole_image_only_within_the_filter_radius():
+    """The viewport and overlay render in bands of rows: the VPL image of a band equals the whole
+    image's rows (culling and ξ do not depend on the band), except that the cross-bilateral filter
+    sees only the band's rows, within its radius of the band's edge."""
+    from vsgl_addon.views import band_projection
+
+    description = _scene(panel_roughness=0.05)
+    view, projection = description.camera.view_matrix(), description.camera.projection_matrix()
+    settings = SETTINGS.overridden(vpl_filter_radius=4)
+    renderer = FrameRenderer()
+    lights = SceneLights.build(description, settings)
+    try:
+        whole = renderer.render_view(lights, settings, 48, 40, view, projection)
+        band = renderer.render_view(lights, settings, 48, 20, view, band_projection(projection, 0, 20, 40))
+    finally:
+        lights.free()
+        renderer.free()
+    inner = slice(0, 20 - settings.vpl_filter_radius)
+    assert whole.indirect_caustics[:20].max() > 0.0
+    np.testing.assert_allclose(band.indirect_caustics[inner], whole.indirect_caustics[inner], rtol=2e-3, atol=1e-6)

@@ -118,6 +118,9 @@ OVERLAY_DISPLAYS = Choices(
            "Only the direct light the VSGL renderer computes (with its shadow-map shadows)"),
     Choice("combined", "COMBINED", "Combined",
            "Direct plus indirect light: what an F12 render with the VSGL engine gives"),
+    Choice("indirect_caustics", "INDIRECT_CAUSTICS", "Indirect Caustics",
+           "Only the caustics the glossy VPLs render (sharp reflectors' light on matte surfaces, 004; part "
+           "of Indirect Diffuse); black where no lit sharp reflector exists"),
 )
 
 #: Which light a look-dev image holds (operators.py); the name is the renderer's FrameImages attribute.
@@ -157,6 +160,8 @@ VIEWPORT_PASSES = Choices(
            "Diffuse part of the indirect light (the Indirect Diffuse render pass)"),
     Choice("indirect_specular", "INDIRECT_SPECULAR", "Indirect Specular",
            "Glossy part of the indirect light (the Indirect Specular render pass)"),
+    Choice("indirect_caustics", "INDIRECT_CAUSTICS", "Indirect Caustics",
+           "The glossy VPLs' caustics alone (the Indirect Caustics render pass, part of Indirect Diffuse)"),
 )
 
 #: The VPL pass's interleaved sampling (004 §6): N x N sub-images, each shading every N²-th VPL
