@@ -139,8 +139,9 @@ class SceneLights:
             timings[ism.PASS.step.name] = time.perf_counter() - clock
             clock = time.perf_counter()
             if caustics:
-                vpls = vpl_culling.upload_vpls(vpl_culling.scene_vpls(scene_gpu, settings.rsm_size,
-                                                                      settings.caustic_roughness))
+                found = vpl_culling.scene_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness)
+                vpls = (vpl_culling.upload_visible_vpls(found, scene_gpu, settings, settings.rsm_size)
+                        if settings.visibility else vpl_culling.upload_vpls(found))
             timings[VPL_EXTRACTION.name] = time.perf_counter() - clock
         except BaseException:
             for table_set in sets:
