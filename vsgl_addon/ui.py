@@ -106,7 +106,7 @@ def _draw_statistics_block(layout, title: str, statistics: dict) -> None:
         for key, value in counts.items():
             row = column.split(factor=0.62)
             row.label(text=COUNT_LABELS.get(key, key))
-            row.label(text=f"{value}")
+            row.label(text=f"{value:.1f}" if isinstance(value, float) else f"{value}")
 
 
 def draw_statistics(layout) -> None:
