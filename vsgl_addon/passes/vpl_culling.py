@@ -144,7 +144,8 @@ def upload_vpls(vpls) -> VPLSet:
 #: no sharp reflector's specular flux, so a metal panel has no VSGL of its own there; and a map per
 #: VPL (tens of thousands) is too many. A block is a few centimetres of reflector at the suite's
 #: sizes, so its map's origin is near each VPL; benchmarks/vpl_visibility.py measures the error
-#: against ray-cast visibility.
+#: against ray-cast visibility (relative RMSE 1.23 against the unshadowed image's 1.97; blocks of 4,
+#: 8 and 32 texels measured 1.38, 1.40 and 1.68, origins 1 and 2 σ off the surface 1.43 and 1.71).
 CLUSTER_TEXELS = 16
 
 
