@@ -196,7 +196,7 @@ def test_vpl_light_is_shadowed():
     """With visibility on, the VPLs' clusters' shadow maps take the occluder's shadow out of the
     caustic (benchmarks/vpl_visibility.py measures it against ray casting: 17 % of the light); without
     an occluder they keep nearly all of it."""
-    settings = SETTINGS.overridden(ism_size=64, ism_points=4096, vpl_filter_radius=0)
+    settings = SETTINGS.overridden(ism_size=64, ism_points=4096, vpl_filter_radius=0, vpl_visibility=True)
     lit = {}
     for occluder in (False, True):
         description = _scene(occluder=occluder)

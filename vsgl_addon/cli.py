@@ -47,7 +47,8 @@ def _command_demo(arguments) -> int:
                                    rsm_size=None, seed=None, positional_distribution=None, visibility=None,
                                    ism_size=None, ism_points=None, frame=None, glossy_reflectors=None,
                                    disk_radius=None, caustic_roughness=None, reflector_mode=None, caustics=None,
-                                   delta=None, vpl_interleave=None, vpl_filter_radius=None, vpl_samples=None)
+                                   delta=None, vpl_interleave=None, vpl_filter_radius=None, vpl_samples=None,
+                                   vpl_visibility=None)
     print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
     return _command_render(arguments)
 
@@ -93,7 +94,9 @@ def _settings(scene, arguments):
             caustics=None if getattr(arguments, "caustics", None) is None else arguments.caustics == "on",
             delta=getattr(arguments, "delta", None), vpl_interleave=getattr(arguments, "vpl_interleave", None),
             vpl_filter_radius=getattr(arguments, "vpl_filter_radius", None),
-            vpl_samples=getattr(arguments, "vpl_samples", None))
+            vpl_samples=getattr(arguments, "vpl_samples", None),
+            vpl_visibility=(None if getattr(arguments, "vpl_visibility", None) is None
+                            else arguments.vpl_visibility == "on"))
     except SettingsError as error:
         raise UsageError(str(error)) from None
 
@@ -224,8 +227,8 @@ def _command_render(arguments) -> int:
         scene.vsgl.glossy_reflectors, scene.vsgl.disk_radius, scene.vsgl.caustic_roughness = (
             settings.glossy_reflectors, settings.disk_radius, settings.caustic_roughness)
         scene.vsgl.reflector_mode = REFLECTOR_MODES.named(settings.reflector_mode).identifier
-        scene.vsgl.caustics, scene.vsgl.vpl_filter_radius, scene.vsgl.vpl_samples = (
-            settings.caustics, settings.vpl_filter_radius, settings.vpl_samples)
+        scene.vsgl.caustics, scene.vsgl.vpl_filter_radius, scene.vsgl.vpl_samples, scene.vsgl.vpl_visibility = (
+            settings.caustics, settings.vpl_filter_radius, settings.vpl_samples, settings.vpl_visibility)
         scene.vsgl.delta_log10 = math.log10(settings.delta)
         scene.vsgl.vpl_interleave = INTERLEAVE_CHOICES.named(settings.vpl_interleave).identifier
         scene.render.engine = ENGINE_ID
@@ -295,6 +298,8 @@ def _caustics_flags(parser) -> None:
                         help="cross-bilateral filter radius in pixels, 0 to 16 (0: none; 004 uses 8)")
     parser.add_argument("--vpl-samples", type=_positive_int, metavar="S",
                         help="culling draws averaged per image (noise falls as 1/sqrt(S))")
+    parser.add_argument("--vpl-visibility", choices=("on", "off"),
+                        help="shadow the VPLs' light with one imperfect shadow map per VPL cluster (off by default)")
 
 
 def build_parser() -> argparse.ArgumentParser:

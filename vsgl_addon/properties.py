@@ -230,6 +230,15 @@ class VSGLSceneSettings(PropertyGroup):
         min=VPL_SAMPLES_RANGE[0],
         max=VPL_SAMPLES_RANGE[1],
     )
+    vpl_visibility: BoolProperty(
+        name="VPL Shadows",
+        description=(
+            "Shadow the VPLs' light (with VSGL Visibility on): one imperfect shadow map per cluster of "
+            "VPLs. Removes light an occluder blocks, but a large mirror-like floor shadows what stands on "
+            "it (its maps sit just above it), so it is off by default; costs one small map per cluster"
+        ),
+        default=False,
+    )
     seed: IntProperty(
         name="Seed",
         description=(

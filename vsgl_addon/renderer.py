@@ -141,7 +141,7 @@ class SceneLights:
             if caustics:
                 found = vpl_culling.scene_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness)
                 vpls = (vpl_culling.upload_visible_vpls(found, scene_gpu, settings, settings.rsm_size)
-                        if settings.visibility else vpl_culling.upload_vpls(found))
+                        if settings.visibility and settings.vpl_visibility else vpl_culling.upload_vpls(found))
             timings[VPL_EXTRACTION.name] = time.perf_counter() - clock
         except BaseException:
             for table_set in sets:
