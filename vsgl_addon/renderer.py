@@ -132,8 +132,14 @@ class SceneLights:
             clock = time.perf_counter()
             if settings.visibility:
                 first_map = 0  # each set's maps draw other point sets
-                for table_set in sets:
-                    first_map = build_visibility(scene_gpu, table_set, settings, first_map)
+                starts = []
+                for index, table_set in enumerate(sets):
+                    # The whole set differs from the glossy one only by the proxies' specular flux: its
+                    # maps draw the same point sets, so MRP-ASG serving no receiver gives the image of
+                    # MRP-ASG off exactly.
+                    start = starts[1] if index == 2 else first_map
+                    starts.append(start)
+                    first_map = max(first_map, build_visibility(scene_gpu, table_set, settings, start))
                     if table_set.isms:
                         _finish(table_set.isms[-1].texture)
             timings[ism.PASS.step.name] = time.perf_counter() - clock
