@@ -71,6 +71,11 @@ QUICK_SCENES = ("occluder", "cornell_box")
 # The README's before/after image of VSGL visibility (full runs only).
 BEFORE_AFTER = "occluder"
 BEFORE_AFTER_IMAGE = REPO / "docs" / "images" / "visibility-before-after.png"
+# The README's image of the glossy VPL pass (004): its caustic scene with the pass off, on, and Cycles.
+CAUSTICS_SCENE = "caustic_panel"
+CAUSTICS_IMAGE = REPO / "docs" / "images" / "caustics-off-on.png"
+# The caustic region: Cycles' brightest 2 % of covered pixels (luminance of the RGB mean).
+CAUSTIC_FRACTION = 0.02
 # The truth's values above this percentile (covered pixels, RGB) are the "extreme highlights".
 ROBUST_PERCENTILE = 99.5
 
@@ -131,6 +136,28 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
                 "mean_ratio": both["mean_ratio"], "rel": both["rel"], "rel_robust": both["rel_robust"],
                 "frame_seconds": float(sum(frame.timings.values())), "ism_seconds": float(frame.timings.get("ism", 0.0)),
                 "shading_seconds": float(frame.timings.get("vsgl_shading", 0.0))}
+        # The glossy VPL pass (004) the other way from the saved settings: does any scene get worse?
+        caustics = {}
+        frames = {settings.caustics: frame}
+        frames[not settings.caustics] = renderer.render(
+            description, settings.overridden(caustics=not settings.caustics), width, height)
+        mask = Errors(truth, frame.coverage).mask
+        luminance = truth["indirect"][mask].astype(np.float64).mean(axis=-1)
+        region = np.zeros_like(mask)
+        region[mask] = luminance >= np.quantile(luminance, 1.0 - CAUSTIC_FRACTION)
+        truth_region = float(truth["indirect"][region].astype(np.float64).mean())
+        for on, shown in frames.items():
+            check = Errors(truth, shown.coverage)
+            both = check(shown.indirect_diffuse, shown.indirect_specular)
+            ours = (shown.indirect_diffuse + shown.indirect_specular).astype(np.float64)
+            both.update(robust_errors(truth, check.mask, ours))
+            images["caustics_on" if on else "caustics_off"] = ours
+            caustics["on" if on else "off"] = {
+                "mean_ratio": both["mean_ratio"], "rel": both["rel"], "rel_robust": both["rel_robust"],
+                "caustic_region_ratio": float(ours[region].mean()) / truth_region,
+                "vpls": int(shown.counts.get("vpls", 0)), "vpls_per_pixel": float(shown.counts.get("vpls_per_pixel", 0.0)),
+                "vpl_seconds": float(shown.timings.get("vpl_culling", 0.0) + shown.timings.get("vpl_extraction", 0.0)),
+                "frame_seconds": float(sum(shown.timings.values()))}
     finally:
         renderer.free()
     errors = Errors(truth, frame.coverage)
@@ -147,6 +174,7 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
         "scene": name, "blend": str(path.relative_to(REPO)), "purpose": about,
         "settings": str(settings), "settings_values": settings, "frame_seconds": float(sum(frame.timings.values())), "timings": frame.timings,
         "counts": frame.counts, "covered_pixels": int(errors.mask.sum()), "visibility": visibility,
+        "caustics": caustics,
         "mean_truth": errors.mean, "mean_ours": float(ours[errors.mask].mean()),
         "truth_samples_per_seed": int(truth["samples_per_seed"]),
         "truth_seconds": float(np.sum(truth["seconds_per_seed"])),
@@ -200,6 +228,19 @@ def markdown(rows: list[dict], renderer: str, quick: bool, run_seconds: float) -
                      f"{on['rel']:.3f} | {off['rel_robust']:.3f} | {on['rel_robust']:.3f} | "
                      f"{off['frame_seconds'] * 1e3:.0f} | {on['frame_seconds'] * 1e3:.0f} | {on['ism_seconds'] * 1e3:.0f} | "
                      f"{off['shading_seconds'] * 1e3:.0f} | {on['shading_seconds'] * 1e3:.0f} |")
+    lines += ["", "**Caustics (glossy VPLs, 004)** off against on (`--caustics` of the render command), same "
+              "settings otherwise; the pass runs only where a lit sharp reflector exists (VPLs > 0). Caustic "
+              f"region: Cycles' brightest {100 * CAUSTIC_FRACTION:g} % of covered pixels, its mean ours / Cycles. "
+              "VPL ms: extraction + culling and shading.", "",
+              "| scene | VPLs | VPLs per pixel | mean off | mean on | rel RMSE off | rel RMSE on | robust off | "
+              "robust on | caustic region off | caustic region on | VPL ms | frame off | frame on |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        off, on = r["caustics"]["off"], r["caustics"]["on"]
+        lines.append(f"| {r['scene']} | {on['vpls']} | {on['vpls_per_pixel']:.0f} | {off['mean_ratio']:.3f} | "
+                     f"{on['mean_ratio']:.3f} | {off['rel']:.3f} | {on['rel']:.3f} | {off['rel_robust']:.3f} | "
+                     f"{on['rel_robust']:.3f} | {off['caustic_region_ratio']:.3f} | {on['caustic_region_ratio']:.3f} | "
+                     f"{on['vpl_seconds'] * 1e3:.0f} | {off['frame_seconds'] * 1e3:.0f} | {on['frame_seconds'] * 1e3:.0f} |")
     lines += ["", "Where the error is (the material with the largest share of the noise-corrected squared "
               "error: its share, its relative RMSE and mean ratio ours / Cycles, its share of Cycles' light):", ""]
     for r in rows:
@@ -273,6 +314,12 @@ def main(argv=None) -> int:
         shown = images[BEFORE_AFTER]
         before_after(shown["truth"], shown["off"], shown["on"], image,
                      f"{BEFORE_AFTER}: indirect light only, {width}x{height}, {_short(chosen_settings[BEFORE_AFTER])}")
+    if CAUSTICS_SCENE in images and not args.quick:
+        shown = images[CAUSTICS_SCENE]
+        caustics_image = CAUSTICS_IMAGE if results.resolve() == RESULTS_DIR.resolve() else results / CAUSTICS_IMAGE.name
+        before_after(shown["truth"], shown["caustics_off"], shown["caustics_on"], caustics_image,
+                     f"{CAUSTICS_SCENE}: indirect light only, {width}x{height}, {_short(chosen_settings[CAUSTICS_SCENE])}",
+                     labels=("Caustics (VPL) off: VSGLs", "Caustics (VPL) on"))
     plot(rows, results / f"validation_suite{suffix}.png")
     text = markdown(rows, renderer, args.quick, time.perf_counter() - started)
     if extra:

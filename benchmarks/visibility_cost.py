@@ -42,7 +42,8 @@ def measure(path: Path, counts, repeats: int = 3, rsm_size: int = 128) -> list[d
 
     bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
     description = extract_scene(bpy.context.evaluated_depsgraph_get())
-    base = VSGLSettings.from_properties(bpy.context.scene.vsgl).overridden(rsm_size=rsm_size)
+    # VSGL visibility's cost alone: without the glossy VPL pass the demo's sharp floor calls for.
+    base = VSGLSettings.from_properties(bpy.context.scene.vsgl).overridden(rsm_size=rsm_size, caustics=False)
     rows = []
     renderer = FrameRenderer()
     try:

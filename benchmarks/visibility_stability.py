@@ -97,7 +97,7 @@ def markdown(result: dict) -> str:
 def measure(frames: int = 12, memory: bool = True) -> dict:
     from vsgl_addon.settings import VSGLSettings
 
-    settings = VSGLSettings(vsgl_count=256, rsm_size=128, visibility=True)
+    settings = VSGLSettings(vsgl_count=256, rsm_size=128, visibility=True, caustics=False)
     result = {"settings": str(settings), "static_max_difference": static_difference(settings)}
     log(f"static: largest difference of two frames {result['static_max_difference']:.3g}")
     result["turning"] = turning(settings, frames)

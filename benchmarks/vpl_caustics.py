@@ -1,6 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Glossy VPLs with stochastic light culling (004) on the suite's caustic_panel scene, against its
-cached Cycles truth (not a test; the pass is not yet part of FrameRenderer, so this composes it here).
+cached Cycles truth (not a test). It composes the pass by hand, unshadowed, to isolate the culling:
+δ's time and error against brute force (the renderer's frame with the pass, visibility and the
+filter is measured by benchmarks/validation_suite.py).
 
     .venv/bin/python benchmarks/vpl_caustics.py [--deltas 1e-5 1e-4 1e-3 1e-2] [--samples S]
 

@@ -304,7 +304,8 @@ def world_matrix(obj: bpy.types.Object) -> Matrix:
     return Matrix.LocRotScale(Vector(obj.location), Euler(obj.rotation_euler).to_quaternion(), Vector(obj.scale))
 
 
-FRAME_IMAGES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "coverage")
+FRAME_IMAGES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "coverage",
+                "indirect_glossy_reflectors", "indirect_caustics")
 
 
 def render_frame(scene, settings, width: int, height: int):

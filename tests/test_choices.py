@@ -7,6 +7,7 @@ they are in every saved file (demo.blend included); labels and descriptions may 
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from vsgl_addon import settings
@@ -20,7 +21,8 @@ STORED = {
     "kernel": (KERNELS, ["MODIFIED", "ORIGINAL", "TWO_VSGL"]),
     "positional_distribution": (POSITIONS, ["PER_LOBE", "SHARED"]),
     "overlay_mode": (OVERLAY_DISPLAYS, ["INDIRECT", "ADDED", "INDIRECT_DIFFUSE", "INDIRECT_SPECULAR", "DIRECT",
-                                        "COMBINED"]),
+                                        "COMBINED", "INDIRECT_CAUSTICS"]),
+    "vpl_interleave": (settings.INTERLEAVE_CHOICES, ["AUTO", "N1", "N2", "N4", "N8"]),
     "reflector_mode": (REFLECTOR_MODES, ["ASG", "SG"]),
     "vsgl_proxy": (PROXY_OVERRIDES, ["AUTO", "ALWAYS", "NEVER"]),
 }
@@ -102,3 +104,40 @@ def test_glossy_reflector_flags_and_settings():
         arguments = build_parser().parse_args(["render", "scene.blend", "--out", "out.exr", *bad])
         with pytest.raises(UsageError):
             _settings(scene, arguments)
+
+
+@pytest.mark.parametrize("command", ["render", "vsgl"])
+def test_caustics_flags_and_settings(command):
+    """The glossy VPL pass's settings: flags on both commands, δ at both ends of its range, the
+    interleave table, the panel's log10 control read back as typed."""
+    from vsgl_addon.cli import _settings
+    from vsgl_addon.settings import DELTA_RANGE, INTERLEAVE_CHOICES, delta_from_log10, interleave_factor
+
+    ext = ".exr" if command == "render" else ".npz"
+    stored = dict(vsgl_count=64, k=1.0, kernel="MODIFIED", rsm_size=64, seed=0, positional_distribution="PER_LOBE",
+                  delta_log10=np.float32(np.log10(0.0035)), vpl_interleave="N4")
+    scene = type("Scene", (), {"vsgl": type("Props", (), stored)})
+    defaults = VSGLSettings()
+    assert (defaults.caustics, defaults.delta, defaults.vpl_interleave, defaults.vpl_filter_radius,
+            defaults.vpl_samples, defaults.vpl_visibility) == (True, 1e-3, "auto", 8, 1, False)
+    from_scene = VSGLSettings.from_properties(scene.vsgl)
+    assert from_scene.delta == 0.0035 and from_scene.vpl_interleave == "4"
+    arguments = build_parser().parse_args([command, "scene.blend", "--out", "out" + ext, "--caustics", "off",
+                                           "--delta", "1e-6", "--vpl-interleave", "8", "--vpl-filter-radius", "0",
+                                           "--vpl-samples", "3", "--vpl-visibility", "on"])
+    result = _settings(scene, arguments)
+    assert (result.caustics, result.delta, result.vpl_interleave, result.vpl_filter_radius, result.vpl_samples,
+            result.vpl_visibility) == (False, 1e-6, "8", 0, 3, True)
+    for low, high in (DELTA_RANGE,):
+        assert delta_from_log10(np.float32(np.log10(low))) == low and delta_from_log10(np.float32(np.log10(high))) == high
+    for bad in (["--delta", "0"], ["--delta", "0.2"], ["--delta", "nan"], ["--vpl-filter-radius", "17"],
+                ["--vpl-samples", "0"]):
+        arguments = build_parser().parse_args([command, "scene.blend", "--out", "out" + ext, *bad])
+        with pytest.raises(UsageError):
+            _settings(scene, arguments)
+    with pytest.raises(UsageError):
+        build_parser().parse_args([command, "scene.blend", "--out", "out" + ext, "--vpl-interleave", "3"])
+    assert INTERLEAVE_CHOICES.names == ("auto", "1", "2", "4", "8")
+    # 004 §6: N = 8 at 1080p; the suite's 240 x 180 shades every VPL in every pixel.
+    assert interleave_factor("auto", 1920, 1080) == 8 and interleave_factor("auto", 240, 180) == 1
+    assert interleave_factor("auto", 960, 540) == 4 and interleave_factor("2", 1920, 1080) == 2

@@ -16,7 +16,7 @@ from vsgl_addon.passes.contract import GPUPass, ShaderSpec, Step
 
 def test_every_pass_module_declares_its_pass_once():
     modules = [passes.rsm, passes.vsgl_generation, passes.ism, passes.gbuffer, passes.direct_light,
-               passes.shading_inputs, passes.vsgl_shading, passes.mrp_asg]
+               passes.shading_inputs, passes.vsgl_shading, passes.vpl_culling, passes.mrp_asg]
     assert [module.PASS for module in modules] == list(passes.PASSES)
     assert len({gpu_pass.name for gpu_pass in passes.PASSES}) == len(passes.PASSES)
     for gpu_pass in passes.PASSES:
@@ -35,10 +35,11 @@ def test_reads_come_from_the_scene_or_an_earlier_pass_and_layout_names_are_decla
 
 def test_timing_steps_and_labels_come_from_passes():
     assert [step.name for step in passes.STEPS] == [
-        "scene_extraction", "upload", "rsm_and_vsgl_generation", "ism", "gbuffer", "direct_light",
-        "vsgl_shading", "mrp_asg", "read_back"]
+        "scene_extraction", "upload", "rsm_and_vsgl_generation", "ism", "vpl_extraction", "gbuffer",
+        "direct_light", "vsgl_shading", "vpl_culling", "mrp_asg", "read_back"]
     assert passes.TIMING_LABELS == {step.name: step.label for step in passes.STEPS}
-    assert set(passes.COUNT_LABELS) == {"lights", "rsm_views", "vsgls", "triangles", "proxies"}
+    assert set(passes.COUNT_LABELS) == {"lights", "rsm_views", "vsgls", "triangles", "proxies", "vpls",
+                                        "vpls_per_pixel"}
 
 
 def test_a_new_pass_brings_its_own_step_and_labels(monkeypatch):

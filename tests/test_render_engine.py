@@ -21,7 +21,8 @@ from vsgl_addon.scene import extract_scene
 from vsgl_addon.settings import VSGLSettings
 
 REPO = Path(__file__).resolve().parents[1]
-LAYERS = ("Combined", "Direct", "Indirect", "Indirect Diffuse", "Indirect Specular", "Indirect Glossy Reflectors")
+LAYERS = ("Combined", "Direct", "Indirect", "Indirect Diffuse", "Indirect Specular", "Indirect Glossy Reflectors",
+          "Indirect Caustics")
 
 
 def _run(*arguments, timeout=300):
@@ -64,6 +65,9 @@ def test_render_command_writes_every_layer_and_they_add_up(rendered):
     # MRP-ASG's pass is a part of Indirect Specular.
     reflectors = layers["Indirect Glossy Reflectors"]
     assert reflectors.max() > 0.0 and np.all(reflectors <= layers["Indirect Specular"] + 1e-6)
+    # The glossy VPLs' pass (the polished floor's light on the walls) is a part of Indirect Diffuse.
+    caustics = layers["Indirect Caustics"]
+    assert caustics.max() > 0.0 and np.all(caustics <= layers["Indirect Diffuse"] + 1e-6)
     # The red floor bounces red light: the indirect light is redder than white.
     mean = layers["Indirect"].reshape(-1, 3).mean(axis=0)
     assert mean[0] > 2 * mean[1], mean
@@ -74,9 +78,14 @@ def test_render_report_has_timings_counts_parameters_and_renderer(rendered):
     _, report, result = rendered
     data = json.loads(report.read_text())
     assert {"rsm_and_vsgl_generation", "gbuffer", "direct_light", "vsgl_shading"} <= set(data["timings"])
-    # The demo's glossy red floor is a rectangle proxy: MRP-ASG's VSGL split doubles the VSGL sets.
+    # The demo's glossy red floor is a rectangle proxy and a sharp reflector: the diffuse receivers' set
+    # leaves its specular flux to the VPLs, the glossy one to MRP-ASG, a third keeps it for the
+    # receivers MRP-ASG leaves (light-paths.md): three VSGL sets.
     assert data["counts"]["proxies"] >= 1 and "mrp_asg" in data["timings"]
-    assert data["counts"]["vsgls"] == 2 * 64 and data["counts"]["lights"] == 1
+    assert data["counts"]["vsgls"] == 3 * 64 and data["counts"]["lights"] == 1
+    assert data["counts"]["vpls"] > 0 and data["counts"]["vpls_per_pixel"] > 0.0 and "vpl_culling" in data["timings"]
+    assert data["settings"]["caustics"] is True and data["settings"]["delta"] == 0.001
+    assert data["count_labels"]["vpls_per_pixel"] == "VPLs per Pixel"
     assert data["settings"]["vsgl_count"] == 64 and data["settings"]["kernel"] == "modified"
     assert data["settings"]["positional_distribution"] == "per-lobe"
     assert data["resolution"] == [96, 72] and "llvmpipe" in data["gpu_renderer"]

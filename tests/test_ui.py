@@ -136,7 +136,8 @@ def test_pass_sections_name_real_properties_so_new_ones_slot_in(registered):
     names = [name for _heading, names in ui.PASS_SECTIONS for name in names]
     assert set(names) == {"rsm_size", "vsgl_count", "k", "kernel", "positional_distribution", "seed", "visibility",
                           "ism_size", "ism_points", "glossy_reflectors", "disk_radius", "caustic_roughness",
-                          "reflector_mode"}
+                          "reflector_mode", "caustics", "delta_log10", "vpl_interleave", "vpl_filter_radius",
+                          "vpl_samples", "vpl_visibility"}
     for name in names:
         assert name in registered.vsgl.bl_rna.properties
 

@@ -6,13 +6,14 @@ Bad arguments or inputs end with one clear line on stderr and exit code 2, never
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 import tomllib
 from pathlib import Path
 
 from .gpu_context import GPUContextError
-from .settings import KERNELS, POSITIONS, REFLECTOR_MODES
+from .settings import DELTA_RANGE, INTERLEAVE_CHOICES, KERNELS, POSITIONS, REFLECTOR_MODES
 
 MANIFEST = Path(__file__).resolve().parent.parent / "blender_manifest.toml"
 
@@ -45,7 +46,9 @@ def _command_demo(arguments) -> int:
                                    resolution=arguments.resolution, vsgl_count=None, k=None, kernel=None,
                                    rsm_size=None, seed=None, positional_distribution=None, visibility=None,
                                    ism_size=None, ism_points=None, frame=None, glossy_reflectors=None,
-                                   disk_radius=None, caustic_roughness=None, reflector_mode=None)
+                                   disk_radius=None, caustic_roughness=None, reflector_mode=None, caustics=None,
+                                   delta=None, vpl_interleave=None, vpl_filter_radius=None, vpl_samples=None,
+                                   vpl_visibility=None)
     print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
     return _command_render(arguments)
 
@@ -87,7 +90,13 @@ def _settings(scene, arguments):
                                else arguments.glossy_reflectors == "on"),
             disk_radius=getattr(arguments, "disk_radius", None),
             caustic_roughness=getattr(arguments, "caustic_roughness", None),
-            reflector_mode=getattr(arguments, "reflector_mode", None))
+            reflector_mode=getattr(arguments, "reflector_mode", None),
+            caustics=None if getattr(arguments, "caustics", None) is None else arguments.caustics == "on",
+            delta=getattr(arguments, "delta", None), vpl_interleave=getattr(arguments, "vpl_interleave", None),
+            vpl_filter_radius=getattr(arguments, "vpl_filter_radius", None),
+            vpl_samples=getattr(arguments, "vpl_samples", None),
+            vpl_visibility=(None if getattr(arguments, "vpl_visibility", None) is None
+                            else arguments.vpl_visibility == "on"))
     except SettingsError as error:
         raise UsageError(str(error)) from None
 
@@ -107,6 +116,7 @@ def _command_vsgl(arguments) -> int:
 
     from . import register, unregister
     from .gpu_context import ensure_gpu_context
+    from .light_paths import needs_glossy_vpls
     from .pipeline import generate_scene_vsgls
     from .scene import extract_scene
 
@@ -119,6 +129,8 @@ def _command_vsgl(arguments) -> int:
         started = time.perf_counter()
         description = extract_scene(bpy.context.evaluated_depsgraph_get())
         table = generate_scene_vsgls(description, settings)
+        if needs_glossy_vpls(description, settings):
+            table.update(_glossy_vpls(description, settings))
         seconds = time.perf_counter() - started
     finally:
         unregister()
@@ -127,9 +139,28 @@ def _command_vsgl(arguments) -> int:
         print(line, file=sys.stderr)
     print(f"{out}: {len(table['light_index'])} VSGLs from {len(table['rsm_size'])} lights "
           f"({settings.kernel} kernel, N = {settings.vsgl_count}, K = {settings.k:g}, "
-          f"RSM {settings.rsm_size}², seed {settings.seed}, {settings.positional_distribution} positions) "
-          f"in {seconds:.2f} s")
+          f"RSM {settings.rsm_size}², seed {settings.seed}, {settings.positional_distribution} positions)"
+          + (f", {len(table['vpl_roughness'])} glossy VPLs (delta {settings.delta:g})" if "vpl_roughness" in table
+             else "") + f" in {seconds:.2f} s")
     return 0
+
+
+def _glossy_vpls(description, settings) -> dict:
+    """The glossy VPLs of the scene (passes/vpl_culling.py scene_vpls) as export rows ``vpl_<field>``,
+    with the culling parameters they would be rendered with."""
+    import numpy as np
+
+    from .passes.rsm import SceneGPU
+    from .passes.vpl_culling import scene_vpls
+
+    scene_gpu = SceneGPU(description)
+    try:
+        vpls = scene_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness)
+    finally:
+        scene_gpu.free()
+    rows = {f"vpl_{name}": value for name, value in vpls.items()}
+    rows.update(delta=np.float64(settings.delta), caustic_roughness=np.float64(settings.caustic_roughness))
+    return rows
 
 
 def _resolution(text):
@@ -196,6 +227,10 @@ def _command_render(arguments) -> int:
         scene.vsgl.glossy_reflectors, scene.vsgl.disk_radius, scene.vsgl.caustic_roughness = (
             settings.glossy_reflectors, settings.disk_radius, settings.caustic_roughness)
         scene.vsgl.reflector_mode = REFLECTOR_MODES.named(settings.reflector_mode).identifier
+        scene.vsgl.caustics, scene.vsgl.vpl_filter_radius, scene.vsgl.vpl_samples, scene.vsgl.vpl_visibility = (
+            settings.caustics, settings.vpl_filter_radius, settings.vpl_samples, settings.vpl_visibility)
+        scene.vsgl.delta_log10 = math.log10(settings.delta)
+        scene.vsgl.vpl_interleave = INTERLEAVE_CHOICES.named(settings.vpl_interleave).identifier
         scene.render.engine = ENGINE_ID
         if arguments.resolution:
             scene.render.resolution_x, scene.render.resolution_y = arguments.resolution
@@ -248,6 +283,25 @@ def _float(text):
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
 
 
+def _caustics_flags(parser) -> None:
+    """The glossy VPL pass's flags (004), shared by the render and vsgl commands."""
+    parser.add_argument("--caustics", choices=("on", "off"),
+                        help="caustics of sharp glossy reflectors on matte surfaces from glossy VPLs (004; on by "
+                             "default, run only where such a lit reflector exists)")
+    parser.add_argument("--delta", type=_float, metavar="D",
+                        help=f"acceptance threshold of stochastic light culling (004 Eq. 2), {DELTA_RANGE[0]:g} to "
+                             f"{DELTA_RANGE[1]:g} (default 0.001): larger is faster and noisier")
+    parser.add_argument("--vpl-interleave", choices=INTERLEAVE_CHOICES.names,
+                        help="interleaved sampling N x N (004 §6; auto: by resolution, 8 at 1080p): larger is "
+                             "faster and noisier")
+    parser.add_argument("--vpl-filter-radius", type=_positive_int, metavar="R",
+                        help="cross-bilateral filter radius in pixels, 0 to 16 (0: none; 004 uses 8)")
+    parser.add_argument("--vpl-samples", type=_positive_int, metavar="S",
+                        help="culling draws averaged per image (noise falls as 1/sqrt(S))")
+    parser.add_argument("--vpl-visibility", choices=("on", "off"),
+                        help="shadow the VPLs' light with one imperfect shadow map per VPL cluster (off by default)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="python -m vsgl_addon", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -276,12 +330,14 @@ def build_parser() -> argparse.ArgumentParser:
     vsgl.add_argument("--visibility", choices=("on", "off"), help="VSGL visibility from imperfect shadow maps")
     vsgl.add_argument("--ism-size", type=_positive_int, metavar="S", help="imperfect shadow map side, a power of two")
     vsgl.add_argument("--ism-points", type=_positive_int, metavar="P", help="scene points per shadow map")
+    _caustics_flags(vsgl)
     vsgl.set_defaults(run=_command_vsgl)
 
     render = commands.add_parser(
         "render", help="render a .blend's frame with the VSGL engine to a multilayer EXR (+ PNG preview)",
         description="Render SCENE.blend with the VSGL engine: a multilayer EXR with Combined, Direct, Indirect, "
-                    "Indirect Diffuse, Indirect Specular and Indirect Glossy Reflectors (linear, Blender's units) and a PNG preview beside "
+                    "Indirect Diffuse, Indirect Specular, Indirect Glossy Reflectors and Indirect Caustics (linear, Blender's units) "
+                    "and a PNG preview beside "
                     "it. Parameters default to the scene's own (scene.vsgl); flags override them for this run.")
     render.add_argument("scene", metavar="SCENE.blend")
     render.add_argument("--out", required=True, metavar="OUT.exr")
@@ -304,6 +360,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="GGX alpha below which a planar reflector becomes a rectangle proxy (alpha_c)")
     render.add_argument("--reflector-mode", choices=REFLECTOR_MODES.names,
                         help="asg (001 Eq. 11, default) or sg (the faster Eq. 37)")
+    _caustics_flags(render)
     render.add_argument("--frame", type=int, metavar="F")
     render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")
     render.set_defaults(run=_command_render)

@@ -4,7 +4,8 @@
 It turns the evaluated depsgraph into the plain scene description, hands it to the frame renderer
 (renderer.py: the GPU passes) and writes what comes back into Blender's render result: Combined
 (direct + one-bounce indirect, alpha = coverage) and the passes Direct, Indirect, Indirect Diffuse,
-Indirect Specular and Indirect Glossy Reflectors (the part of Indirect Specular MRP-ASG renders),
+Indirect Specular, Indirect Glossy Reflectors (the part of Indirect Specular MRP-ASG renders) and
+Indirect Caustics (the part of Indirect Diffuse the glossy VPLs render),
 all linear and scene-referred in Blender's units, so the compositor,
 multilayer EXR and Blender's colour management treat them like Cycles' passes.
 """
@@ -30,6 +31,8 @@ RENDER_PASSES = {
     "Indirect Specular": "indirect_specular",
     # The part of Indirect Specular that MRP-ASG renders (light of sharp planar reflectors, 001).
     "Indirect Glossy Reflectors": "indirect_glossy_reflectors",
+    # The part of Indirect Diffuse the glossy VPLs render (sharp reflectors' caustics, 004).
+    "Indirect Caustics": "indirect_caustics",
 }
 
 #: Timings and counts of the last frame rendered in this process (read by the render command's

@@ -305,7 +305,7 @@ RSM_VIEW = TextureLayout(
         "world_to_local_row0", "world_to_local_row1", "world_to_local_row2",
         "light_position", "light_axis")) + (
         Slot("light_params", (("light_params", 4),)),
-        Slot("light_color", (("light_color", 3),)),
+        Slot("light_color", (("light_color", 3), ("sharp_alpha", 1))),
         Slot("light_links", (("light_factors", 2), ("light_index", 1), ("light_links_rows", 1))),
     ),
     define_prefix="RSM_VIEW_ROW",

@@ -38,7 +38,7 @@ STEP_BUDGET = 0.06
 LIGHTS, COARSE, REFINED = "lights", "coarse", "refined"
 #: The cached images of a view (the overlay shader's samplers) and the FrameImages array of each.
 IMAGE_ARRAYS = {"indirect_diffuse": "indirect_diffuse", "indirect_specular": "indirect_specular",
-                "direct_light": "direct"}
+                "direct_light": "direct", "indirect_caustics": "indirect_caustics"}
 
 
 def overlay_size(region_size, scale: float, level: str) -> tuple[int, int]:
@@ -79,7 +79,7 @@ class _Refinement:
     request: ViewRequest
     scene_version: int
     size: tuple[int, int]
-    arrays: dict  # "indirect_diffuse", "indirect_specular", "direct": (h, w, 3); "coverage": (h, w)
+    arrays: dict  # "indirect_diffuse", "indirect_specular", "direct", "indirect_caustics": (h, w, 3); "coverage": (h, w)
     rows_done: int = 0
     bands: int = 0
     seconds: float = 0.0
@@ -310,7 +310,8 @@ class OverlayCache:
             self._refining.pop(key, None)
             images, seconds, timings = self._render(request, width, height, request.projection_matrix)
             arrays = {"indirect_diffuse": images.indirect_diffuse, "indirect_specular": images.indirect_specular,
-                      "direct": images.direct, "coverage": images.coverage}
+                      "direct": images.direct, "indirect_caustics": images.indirect_caustics,
+                      "coverage": images.coverage}
             self._store(key, request, COARSE, (width, height), arrays, seconds, timings, images.counts)
             return
         self._refine_band(key, request, width, height)
@@ -324,6 +325,7 @@ class OverlayCache:
                 "indirect_diffuse": np.zeros((height, width, 3), np.float32),
                 "indirect_specular": np.zeros((height, width, 3), np.float32),
                 "direct": np.zeros((height, width, 3), np.float32),
+                "indirect_caustics": np.zeros((height, width, 3), np.float32),
                 "coverage": np.zeros((height, width), np.float32)})
             self._refining[key] = job
         rows = height
@@ -336,6 +338,7 @@ class OverlayCache:
         job.arrays["indirect_diffuse"][first:end] = images.indirect_diffuse
         job.arrays["indirect_specular"][first:end] = images.indirect_specular
         job.arrays["direct"][first:end] = images.direct
+        job.arrays["indirect_caustics"][first:end] = images.indirect_caustics
         job.arrays["coverage"][first:end] = images.coverage
         job.rows_done, job.bands = end, job.bands + 1
         job.seconds += seconds

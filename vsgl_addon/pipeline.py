@@ -116,21 +116,22 @@ class SceneVSGLs:
 
 
 def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lobe: str = "all",
-                       proxies=()) -> SceneVSGLs:
+                       proxies=(), sharp_alpha: float = 0.0) -> SceneVSGLs:
     """RSM views of every light of the uploaded scene, then their VSGLs (tables stay on the GPU).
 
     ``receiver_lobe`` (scene_description.RECEIVER_LOBES): the VSGLs of every reflector ("all"), or
     only of those seen by diffuse or by glossy rays, for a scene where some object is hidden from one
     ray type (Blender's ray visibility): the receivers' two lobes then see different reflectors.
     ``proxies`` (with "glossy"): the rectangle proxies whose specular flux MRP-ASG carries to the
-    receivers' glossy lobes instead (light-paths.md; passes/rsm.py).
+    receivers' glossy lobes instead (light-paths.md; passes/rsm.py). ``sharp_alpha`` > 0: no texel
+    with GGX α below it keeps specular flux, which the glossy VPLs carry to diffuse receivers.
     """
     light_count = len(scene_gpu.scene.lights)
     result = SceneVSGLs({}, [], np.zeros((light_count, 3)), settings.rsm_size)
     two_vsgl = settings.kernel == "two-vsgl"
     try:
         for light_index in range(light_count):
-            views = render_rsm_views(scene_gpu, light_index, settings.rsm_size, receiver_lobe, proxies)
+            views = render_rsm_views(scene_gpu, light_index, settings.rsm_size, receiver_lobe, proxies, sharp_alpha)
             result.views_by_light[light_index] = views
             generations = [VSGLGeneration() for _ in views]
             totals = []

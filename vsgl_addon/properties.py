@@ -6,14 +6,16 @@ Gaussian lights" (CVM 2016); 003 = the Square Enix spherical Gaussian talk (2015
 See /work/shared/reference/formulas.md, sections 4-5.
 """
 
+import math
+
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 from bpy.types import PropertyGroup
 
 from . import overlay
-from .settings import (CAUSTIC_ROUGHNESS_RANGE, DISK_RADIUS_RANGE, ISM_POINTS_RANGE, ISM_SIZE_RANGE, K_RANGE,
-                       KERNELS, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES, REFLECTOR_MODES, RSM_SIZE_RANGE,
-                       VIEWPORT_PASSES, VSGL_COUNT_RANGE)
+from .settings import (CAUSTIC_ROUGHNESS_RANGE, DELTA_RANGE, DISK_RADIUS_RANGE, INTERLEAVE_CHOICES, ISM_POINTS_RANGE,
+                       ISM_SIZE_RANGE, K_RANGE, KERNELS, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES, REFLECTOR_MODES,
+                       RSM_SIZE_RANGE, VIEWPORT_PASSES, VPL_FILTER_RADIUS_RANGE, VPL_SAMPLES_RANGE, VSGL_COUNT_RANGE)
 
 
 def enum_items(choices) -> tuple[tuple[str, str, str, int], ...]:
@@ -153,10 +155,11 @@ class VSGLSceneSettings(PropertyGroup):
     caustic_roughness: FloatProperty(
         name="Sharp Below",
         description=(
-            "Caustic roughness alpha_c: a planar region whose GGX alpha (roughness squared) is below it "
-            "counts as a sharp glossy reflector and becomes a rectangle proxy (per object: Object "
-            "Properties > VSGL Glossy Reflector). Higher turns rougher surfaces into proxies too, where "
-            "MRP-ASG's fit is less accurate"
+            "Caustic roughness alpha_c: a surface whose GGX alpha (roughness squared) is below it counts "
+            "as a sharp glossy reflector. Its planar regions become rectangle proxies (per object: Object "
+            "Properties > VSGL Glossy Reflector), and its light on matte surfaces is rendered by the "
+            "glossy VPLs (Caustics). Higher hands rougher surfaces to them too, where MRP-ASG's fit is "
+            "less accurate and the VPLs cost more"
         ),
         default=0.1,
         min=CAUSTIC_ROUGHNESS_RANGE[0],
@@ -168,6 +171,73 @@ class VSGLSceneSettings(PropertyGroup):
         description="How a receiver is shaded with a proxy's reflected light",
         items=enum_items(REFLECTOR_MODES),
         default="ASG",
+    )
+    # --- glossy VPLs (004, stochastic light culling) ---
+    caustics: BoolProperty(
+        name="Caustics",
+        description=(
+            "Render the light sharp glossy reflectors (GGX alpha below Sharp Below) throw onto matte "
+            "surfaces with glossy VPLs and stochastic light culling (004): every reflective shadow map "
+            "texel of such a reflector is a VPL, so the caustic stays small and sharp instead of the "
+            "VSGLs' blurred blob. Runs only where such a lit reflector exists; elsewhere it costs nothing"
+        ),
+        default=True,
+    )
+    # δ spans five decades (004 §3.1), so the control is its base-10 logarithm: a slider's step is
+    # then the same factor anywhere in the range.
+    delta_log10: FloatProperty(
+        name="Delta (log10)",
+        description=(
+            "Base-10 logarithm of the acceptance threshold delta of stochastic light culling (004 Eq. 2; "
+            "-3 is 004's 0.001): a VPL lights a pixel with probability min(I / (delta l^2), 1), its light "
+            "divided by that probability (unbiased). Larger delta: shorter light ranges, fewer VPLs per "
+            "pixel, faster but noisier. Smaller: slower, less noise"
+        ),
+        default=-3.0,
+        min=math.log10(DELTA_RANGE[0]),
+        max=math.log10(DELTA_RANGE[1]),
+        precision=2,
+    )
+    vpl_interleave: EnumProperty(
+        name="Interleave",
+        description=(
+            "Interleaved sampling N x N (004 section 6): each pixel of an N x N block shades a different "
+            "N^2-th of the culled VPLs, so shading costs 1/N^2; the filter removes the pattern. Larger: "
+            "faster, noisier"
+        ),
+        items=enum_items(INTERLEAVE_CHOICES),
+        default="AUTO",
+    )
+    vpl_filter_radius: IntProperty(
+        name="Filter Radius",
+        description=(
+            "Radius in pixels of the cross-bilateral filter (guided by depth and normal) that removes "
+            "the interleaving pattern and the culling noise (004 uses 8). Larger: smoother, blurs the "
+            "caustic's edge more; 0: no filter"
+        ),
+        default=8,
+        min=VPL_FILTER_RADIUS_RANGE[0],
+        max=VPL_FILTER_RADIUS_RANGE[1],
+        subtype="PIXEL",
+    )
+    vpl_samples: IntProperty(
+        name="VPL Samples",
+        description=(
+            "Independent culling draws averaged per image: noise falls as 1 / sqrt(S) towards the "
+            "unbiased result, time grows with S. Raise it for final renders"
+        ),
+        default=1,
+        min=VPL_SAMPLES_RANGE[0],
+        max=VPL_SAMPLES_RANGE[1],
+    )
+    vpl_visibility: BoolProperty(
+        name="VPL Shadows",
+        description=(
+            "Shadow the VPLs' light (with VSGL Visibility on): one imperfect shadow map per cluster of "
+            "VPLs. Removes light an occluder blocks, but a large mirror-like floor shadows what stands on "
+            "it (its maps sit just above it), so it is off by default; costs one small map per cluster"
+        ),
+        default=False,
     )
     seed: IntProperty(
         name="Seed",

@@ -19,9 +19,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .layouts import GBUFFER
-from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg, shading_inputs, vsgl_shading
+from .light_paths import needs_glossy_vpls
+from .passes import (READ_BACK, UPLOAD, VPL_EXTRACTION, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg,
+                     shading_inputs, vpl_culling, vsgl_shading)
 from .passes.contract import LIGHT_PASSES
-from .passes.gpu_util import finish
+from .passes.gpu_util import finish, read_texture
 from .passes.rsm import SceneGPU
 from .pipeline import build_visibility, render_scene_vsgls
 from .proxies import ProxyCache, lit_proxies
@@ -43,10 +45,15 @@ class FrameImages:
     # The part of indirect_specular MRP-ASG carries (light reflected by a rectangle proxy onto
     # glossy receivers, 001); None: zeros.
     indirect_glossy_reflectors: np.ndarray | None = None
+    # The part of indirect_diffuse the glossy VPLs carry (sharp reflectors' light on diffuse
+    # receivers, 004); None: zeros.
+    indirect_caustics: np.ndarray | None = None
 
     def __post_init__(self):
         if self.indirect_glossy_reflectors is None:
             self.indirect_glossy_reflectors = np.zeros_like(self.indirect_specular)
+        if self.indirect_caustics is None:
+            self.indirect_caustics = np.zeros_like(self.indirect_diffuse)
 
     @property
     def direct(self) -> np.ndarray:
@@ -89,6 +96,12 @@ class SceneLights:
     glossy_vsgls: object = None
     # MRP-ASG (001): (rectangle proxy, lit-by mask over scene.lights) of the proxies some light reaches.
     proxies: list = field(default_factory=list)
+    # Glossy VPLs (004, passes/vpl_culling.py VPLSet) when the scene needs them (light_paths.py); then
+    # `vsgls` holds no sharp reflector's specular flux (the VPLs carry it to diffuse receivers).
+    vpls: object = None
+    # With VPLs and MRP-ASG gated by receiver roughness: the VSGLs of every reflector, whose specular
+    # image lights the receivers MRP-ASG leaves (the first set no longer holds the proxies' light).
+    whole_vsgls: object = None
 
     @classmethod
     def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None) -> "SceneLights":
@@ -96,40 +109,59 @@ class SceneLights:
         scene_gpu = SceneGPU(scene)
         timings = {UPLOAD.name: time.perf_counter() - clock}
         proxies = scene_proxies(scene, settings, proxy_cache) if settings.glossy_reflectors else []
+        caustics = needs_glossy_vpls(scene, settings)
         sets = []
+        vpls = None
         try:
             clock = time.perf_counter()
-            # Some object hidden from diffuse or glossy rays, or proxies for MRP-ASG: one VSGL set per
-            # receiver lobe (light-paths.md: the proxies' specular light leaves the glossy set).
-            lobes = ("diffuse", "glossy") if scene.receiver_lobe_split or proxies else ("all",)
-            for lobe in lobes:
-                sets.append(render_scene_vsgls(scene_gpu, settings, lobe,
-                                               [proxy for proxy, _ in proxies] if lobe == "glossy" else ()))
+            # light-paths.md: the receivers' diffuse lobes take the sharp reflectors' specular flux from
+            # the VPLs, their glossy lobes the proxies' from MRP-ASG, so each lobe gets its own VSGL set
+            # when either runs (or when Blender's ray visibility hides some object from one ray type).
+            split = bool(scene.receiver_lobe_split or proxies or caustics)
+            plan = [("diffuse" if split else "all", (), settings.caustic_roughness if caustics else 0.0)]
+            if split:
+                plan.append(("glossy", [proxy for proxy, _ in proxies], 0.0))
+            whole = caustics and bool(proxies) and not scene.receiver_lobe_split
+            if whole:
+                plan.append(("all", (), 0.0))
+            for lobe, cut_proxies, sharp_alpha in plan:
+                sets.append(render_scene_vsgls(scene_gpu, settings, lobe, cut_proxies, sharp_alpha))
                 if sets[-1].generations:
                     _finish(sets[-1].generations[-1][2].table)
             timings[LIGHT_PASSES.name] = time.perf_counter() - clock
             clock = time.perf_counter()
             if settings.visibility:
                 first_map = 0  # each set's maps draw other point sets
-                for table_set in sets:
-                    first_map = build_visibility(scene_gpu, table_set, settings, first_map)
+                starts = []
+                for index, table_set in enumerate(sets):
+                    # The whole set differs from the glossy one only by the proxies' specular flux: its
+                    # maps draw the same point sets, so MRP-ASG serving no receiver gives the image of
+                    # MRP-ASG off exactly.
+                    start = starts[1] if index == 2 else first_map
+                    starts.append(start)
+                    first_map = max(first_map, build_visibility(scene_gpu, table_set, settings, start))
                     if table_set.isms:
                         _finish(table_set.isms[-1].texture)
             timings[ism.PASS.step.name] = time.perf_counter() - clock
+            clock = time.perf_counter()
+            if caustics:
+                found = vpl_culling.scene_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness)
+                vpls = (vpl_culling.upload_visible_vpls(found, scene_gpu, settings, settings.rsm_size)
+                        if settings.visibility and settings.vpl_visibility else vpl_culling.upload_vpls(found))
+            timings[VPL_EXTRACTION.name] = time.perf_counter() - clock
         except BaseException:
             for table_set in sets:
                 table_set.free()
             scene_gpu.free()
             raise
-        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies)
+        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies, vpls,
+                   sets[2] if whole else None)
 
     def free(self) -> None:
-        if self.vsgls is not None:
-            self.vsgls.free()
-            self.vsgls = None
-        if self.glossy_vsgls is not None:
-            self.glossy_vsgls.free()
-            self.glossy_vsgls = None
+        for name in ("vsgls", "glossy_vsgls", "whole_vsgls", "vpls"):
+            if getattr(self, name) is not None:
+                getattr(self, name).free()
+                setattr(self, name, None)
         if self.scene_gpu is not None:
             self.scene_gpu.free()
             self.scene_gpu = None
@@ -198,25 +230,45 @@ class FrameRenderer:
     def __init__(self):
         self._shading = vsgl_shading.VSGLShading()
         self._glossy_shading = None  # the second shading of receiver-lobe split scenes (GPU path)
+        self._whole_shading = None  # the shading of SceneLights.whole_vsgls
         self._mrp = mrp_asg.MRPASG()
+        self._vpls = vpl_culling.VPLCaustics()
 
     def free(self) -> None:
         self._shading.free()
         self._mrp.free()
+        self._vpls.free()
+        if self._whole_shading is not None:
+            self._whole_shading.free()
+            self._whole_shading = None
         if self._glossy_shading is not None:
             self._glossy_shading.free()
             self._glossy_shading = None
 
     def render_view_textures(self, lights: SceneLights, settings: VSGLSettings, width: int, height: int,
-                             view_matrix, projection_matrix) -> ViewTextures:
-        """The passes of render_view, with nothing read back: the images stay textures (the
-        viewport draws them). No wait for the GPU either: the caller finishes what it times."""
+                             view_matrix, projection_matrix, timings: dict | None = None) -> ViewTextures:
+        """One view's passes, with nothing read back: the images stay textures (the viewport draws
+        them, render_view reads them). Without ``timings`` no wait for the GPU either (the caller
+        finishes what it times); with it, each pass is finished and its seconds stored under its step."""
         scene = lights.scene
+        clock = time.perf_counter()
+
+        def lap(step, texture):
+            nonlocal clock
+            if timings is None:
+                return
+            _finish(texture)
+            now = time.perf_counter()
+            timings[step.name] = now - clock
+            clock = now
+
         gbuffer = direct = None
         try:
             gbuffer = gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
+            lap(gbuffer_pass.PASS.step, gbuffer.textures["position"])
             direct = direct_light.PASS.run(gbuffer, scene.lights, lights.vsgls.views_by_light,
                                            scene_gpu=lights.scene_gpu)
+            lap(direct_light.PASS.step, direct.textures["diffuse"])
             inputs = shading_inputs.PASS.run(gbuffer)
             mode = diffuse_mode_for_kernel(settings.kernel)
             vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, lights.vsgls.tables(), mode, shading=self._shading)
@@ -229,24 +281,58 @@ class FrameRenderer:
                 vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, lights.glossy_vsgls.tables(), mode,
                                       shading=self._glossy_shading)
                 specular = self._glossy_shading.specular
+            whole_specular = self._shading.specular
+            if lights.whole_vsgls is not None:
+                if self._whole_shading is None:
+                    self._whole_shading = vsgl_shading.VSGLShading()
+                vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, lights.whole_vsgls.tables(), mode,
+                                      shading=self._whole_shading)
+                whole_specular = self._whole_shading.specular
+            lap(vsgl_shading.PASS.step, whole_specular)
+            diffuse = self._shading.diffuse
+            caustics = None
+            vpls_per_pixel = 0.0
+            if lights.vpls is not None:
+                # The glossy VPLs' cell (light-paths.md): sharp reflectors' specular light on the
+                # receivers' diffuse lobes, added to the diffuse VSGLs, which leave it out.
+                vpls_per_pixel = self._vpls.render(inputs, lights.vpls, view_matrix, projection_matrix, settings,
+                                                   diffuse, count=timings is not None)
+                diffuse, caustics = self._vpls.diffuse, self._vpls.caustics
+                lap(vpl_culling.PASS.step, diffuse)
+            elif timings is not None:
+                timings[vpl_culling.PASS.step.name] = 0.0
+            glossy_reflectors = None
             if lights.proxies:
-                # MRP-ASG's cell, composed as render_view composes it, on the GPU.
+                # MRP-ASG's cell (light-paths.md): proxy-reflected light onto glossy receivers. Without
+                # Blender's ray-visibility split the first set is every reflector's light, so a
+                # receiver outside MRP-ASG's range takes the proxies' light from it instead.
                 gated = not scene.receiver_lobe_split
                 mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, lights.vsgls.views_by_light,
                                  lights.proxies, settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
                                  receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
-                specular = self._mrp.composite_specular(self._shading.specular, specular, gated)
+                specular = self._mrp.composite_specular(whole_specular, specular, gated)
+                glossy_reflectors = self._mrp.texture
+                lap(mrp_asg.PASS.step, specular)
+            elif timings is not None:
+                timings[mrp_asg.PASS.step.name] = 0.0
         except BaseException:
             for item in (direct, gbuffer):
                 if item is not None:
                     item.free()
             raise
         textures = {"direct_diffuse": direct.textures["diffuse"], "direct_specular": direct.textures["glossy"],
-                    "indirect_diffuse": self._shading.diffuse, "indirect_specular": specular,
+                    "indirect_diffuse": diffuse, "indirect_specular": specular,
                     "position": gbuffer.textures["position"], "normal": gbuffer.textures["normal"]}
-        glossy_count = lights.glossy_vsgls.vsgl_count if lights.glossy_vsgls is not None else 0
-        counts = {"lights": len(scene.lights), "vsgls": lights.vsgls.vsgl_count + glossy_count,
-                  "triangles": int(len(scene.geometry.positions)), "proxies": len(lights.proxies)}
+        if glossy_reflectors is not None:
+            textures["indirect_glossy_reflectors"] = glossy_reflectors
+        if caustics is not None:
+            textures["indirect_caustics"] = caustics
+        vsgl_count = sum(table_set.vsgl_count for table_set in (lights.vsgls, lights.glossy_vsgls, lights.whole_vsgls)
+                         if table_set is not None)
+        counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in lights.vsgls.views_by_light.values()),
+                  "vsgls": vsgl_count, "triangles": int(len(scene.geometry.positions)),
+                  "vpls": lights.vpls.count if lights.vpls is not None else 0,
+                  "vpls_per_pixel": float(vpls_per_pixel or 0.0), "proxies": len(lights.proxies)}
         return ViewTextures(width, height, textures, counts, gbuffer, [direct, gbuffer])
 
     def guide(self, lights: SceneLights, width: int, height: int, view_matrix, projection_matrix):
@@ -276,75 +362,21 @@ class FrameRenderer:
 
     def render_view(self, lights: SceneLights, settings: VSGLSettings, width: int, height: int,
                     view_matrix, projection_matrix) -> FrameImages:
-        """One view of already built `lights`: G-buffer, direct light, VSGL shading, read-back.
+        """One view of already built `lights`: render_view_textures, each pass timed, then read back.
         `settings` must be the ones `lights` was built with (the kernel picks the diffuse mode)."""
-        scene = lights.scene
         timings: dict[str, float] = dict(lights.timings)
-        clock = time.perf_counter()
-
-        def lap(name):
-            nonlocal clock
-            now = time.perf_counter()
-            timings[name] = now - clock
-            clock = now
-
-        vsgls = lights.vsgls
-        gbuffer = direct = None
+        view = self.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix, timings)
         try:
-            gbuffer = gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, projection_matrix, (width, height))
-            _finish(gbuffer.textures["position"])
-            lap(gbuffer_pass.PASS.step.name)
-            direct = direct_light.PASS.run(gbuffer, scene.lights, vsgls.views_by_light, scene_gpu=lights.scene_gpu)
-            _finish(direct.textures["diffuse"])
-            lap(direct_light.PASS.step.name)
-            inputs = shading_inputs.PASS.run(gbuffer)
-            mode = diffuse_mode_for_kernel(settings.kernel)
-            vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, vsgls.tables(), mode, shading=self._shading)
-            _finish(self._shading.diffuse)
-            glossy = lights.glossy_vsgls
-            if glossy is not None:
-                # The receivers' specular lobes see only the reflectors glossy rays see: a second
-                # shading of the same pixels, after the first one's diffuse image is read.
-                indirect_diffuse, whole_specular = self._shading.read()
-                vsgl_shading.PASS.run(inputs, gbuffer.camera_vector, glossy.tables(), mode, shading=self._shading)
-                _finish(self._shading.diffuse)
-            lap(vsgl_shading.PASS.step.name)
-            if glossy is not None:
-                _, indirect_specular = self._shading.read()
-            else:
-                indirect_diffuse, indirect_specular = self._shading.read()
-            glossy_reflectors = served = None
-            # Without Blender's ray-visibility split the first set is every reflector's light, so a
-            # receiver outside MRP-ASG's range can take the proxies' light from it instead.
-            gated = bool(lights.proxies) and not scene.receiver_lobe_split
-            if lights.proxies:
-                # MRP-ASG's cell (light-paths.md): proxy-reflected light onto glossy receivers.
-                mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, vsgls.views_by_light, lights.proxies,
-                                 settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
-                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
-                _finish(self._mrp.texture)
-            lap(mrp_asg.PASS.step.name)
-            if lights.proxies:
-                image = self._mrp.read()
-                glossy_reflectors = _rgb(image)
-                served = image[..., 3] > 0.0
-                if gated:
-                    indirect_specular = np.where(served[..., None], indirect_specular, whole_specular)
-            direct_diffuse, direct_specular = direct.to_numpy()
-            coverage = GBUFFER.unpack_slots(gbuffer.to_numpy(), ["coverage"])["coverage"]
-            lap(READ_BACK.name)
-            glossy_count = lights.glossy_vsgls.vsgl_count if lights.glossy_vsgls is not None else 0
-            counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in vsgls.views_by_light.values()),
-                      "vsgls": vsgls.vsgl_count + glossy_count, "triangles": int(len(scene.geometry.positions)),
-                      "proxies": len(lights.proxies)}
+            clock = time.perf_counter()
+            images = {name: read_texture(texture, width, height) for name, texture in view.textures.items()
+                      if name != "normal"}
+            timings[READ_BACK.name] = time.perf_counter() - clock
+            counts = dict(view.counts)
         finally:
-            if direct is not None:
-                direct.free()
-            if gbuffer is not None:
-                gbuffer.free()
-        indirect_specular = _rgb(indirect_specular)
-        if glossy_reflectors is not None:
-            indirect_specular = indirect_specular + glossy_reflectors
-        return FrameImages(_rgb(direct_diffuse), _rgb(direct_specular), _rgb(indirect_diffuse),
-                           indirect_specular, np.clip(np.nan_to_num(coverage), 0.0, 1.0).astype(np.float32),
-                           timings, counts, glossy_reflectors)
+            view.free()
+        optional = {name: None if images.get(name) is None else _rgb(images[name])
+                    for name in ("indirect_glossy_reflectors", "indirect_caustics")}
+        return FrameImages(_rgb(images["direct_diffuse"]), _rgb(images["direct_specular"]),
+                           _rgb(images["indirect_diffuse"]), _rgb(images["indirect_specular"]),
+                           np.clip(np.nan_to_num(GBUFFER.unpack_slots(images, ["coverage"])["coverage"]), 0.0, 1.0).astype(np.float32),
+                           timings, counts, **optional)

@@ -26,6 +26,8 @@ PASS_SECTIONS = (
     ("VSGL Generation", ("kernel", "vsgl_count", "k", "positional_distribution", "seed")),
     ("VSGL Visibility", ("visibility", "ism_size", "ism_points")),
     ("Glossy Reflectors (MRP-ASG)", ("glossy_reflectors", "disk_radius", "caustic_roughness", "reflector_mode")),
+    ("Caustics (VPL)", ("caustics", "delta_log10", "vpl_interleave", "vpl_filter_radius", "vpl_samples",
+                        "vpl_visibility")),
 )
 OVERLAY_PROPERTIES = ("overlay_mode", "overlay_resolution_scale", "overlay_intensity")
 #: Statistics labels come from the passes' declarations (vsgl_addon.passes.STEPS), so a new pass
@@ -105,7 +107,7 @@ def _draw_statistics_block(layout, title: str, statistics: dict) -> None:
         for key, value in counts.items():
             row = column.split(factor=0.62)
             row.label(text=COUNT_LABELS.get(key, key))
-            row.label(text=f"{value}")
+            row.label(text=f"{value:.1f}" if isinstance(value, float) else f"{value}")
 
 
 def draw_statistics(layout) -> None:

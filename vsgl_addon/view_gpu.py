@@ -25,22 +25,24 @@ from .settings import VIEWPORT_PASSES
 from .shaders import ShaderInterface
 
 #: The accumulation images of a view (RGBA32F; rgb radiance sum, a coverage sum).
-IMAGES = ("direct", "indirect_diffuse", "indirect_specular")
+IMAGES = ("direct", "indirect_diffuse", "indirect_specular", "indirect_caustics")
 #: Joint bilateral range parameters: positions compared in low-resolution texel footprints, and the
 #: power of the normals' cosine (reference/joint_bilateral.py has the same defaults).
 SIGMA_POSITION = 1.0
 NORMAL_POWER = 8.0
 
 _OUTPUTS = [("VEC4", f"out_{name}") for name in IMAGES]
+#: The view render's textures the resolve reads (renderer.ViewTextures; indirect_caustics only when
+#: the glossy VPL pass ran, else a black texel).
+LOW_IMAGES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "indirect_caustics",
+              "position", "normal")
 
 
 def _resolve_interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("FLOAT", "projection_11"), ("FLOAT", "sigma_position"),
                         ("FLOAT", "normal_power"), ("FLOAT", "weight")],
-        samplers=[("FLOAT_2D", f"low_{name}") for name in ("direct_diffuse", "direct_specular",
-                                                           "indirect_diffuse", "indirect_specular",
-                                                           "position", "normal")]
+        samplers=[("FLOAT_2D", f"low_{name}") for name in LOW_IMAGES]
         + [("FLOAT_2D", "guide_position"), ("FLOAT_2D", "guide_normal")],
         vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")], fragment_outputs=_OUTPUTS)
 
@@ -80,6 +82,18 @@ VIEW = GPUPass(
     writes=("view_accumulation",),
     run=_resolve,
 )
+
+
+def _black():
+    """One black RGBA32F texel: a view render without a pass's image (its upsampling is black)."""
+    def make():
+        import gpu
+
+        texture = gpu.types.GPUTexture((1, 1), format="RGBA32F")
+        texture.clear(format="FLOAT", value=(0.0, 0.0, 0.0, 0.0))
+        return texture
+
+    return VIEW.resource("black", make)
 
 
 def _batch():
@@ -150,9 +164,9 @@ def resolve(view, guide_position, guide_normal, camera, projection_11: float, ta
         program.uniform_float("sigma_position", SIGMA_POSITION)
         program.uniform_float("normal_power", NORMAL_POWER)
         program.uniform_float("weight", float(weight))
-        for name in ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular",
-                     "position", "normal"):
-            program.uniform_sampler(f"low_{name}", view.textures[name])
+        for name in LOW_IMAGES:
+            texture = view.textures.get(name)
+            program.uniform_sampler(f"low_{name}", texture if texture is not None else _black())
         program.uniform_sampler("guide_position", guide_position)
         program.uniform_sampler("guide_normal", guide_normal)
 

@@ -41,8 +41,9 @@ def memory_child(size: int, n: int, rsm_size: int, visibility: int = 0) -> int:
     rss_before = _status_kb("VmRSS")
     renderer = FrameRenderer()
     start = time.perf_counter()
-    images = renderer.render(description, VSGLSettings(vsgl_count=n, rsm_size=rsm_size, visibility=bool(visibility)),
-                             size, size)
+    # The VSGLs' memory: without the glossy VPL pass (its per-tile lists and VPL table come on top).
+    images = renderer.render(description, VSGLSettings(vsgl_count=n, rsm_size=rsm_size, visibility=bool(visibility),
+                                                       caustics=False), size, size)
     seconds = time.perf_counter() - start
     raw_d, raw_s = renderer._shading.read()  # the raw outputs, before the renderer's nan_to_num
     finite = bool(np.all(np.isfinite(raw_d)) and np.all(np.isfinite(raw_s)))

@@ -18,7 +18,9 @@ def fixed_passes(scene, description, width, height) -> tuple[float, float, objec
     from vsgl_addon.settings import VSGLSettings
 
     frame_renderer = FrameRenderer()
-    demo_settings = VSGLSettings.from_properties(scene.vsgl)
+    # The VSGLs' trade-off: without the glossy VPL pass (the demo's floor is a sharp reflector), whose
+    # own figures are the validation suite's and benchmarks/vpl_caustics.py's.
+    demo_settings = VSGLSettings.from_properties(scene.vsgl).overridden(caustics=False)
     for _ in range(2):
         frame = frame_renderer.render(description, demo_settings, width, height)
     frame_renderer.free()

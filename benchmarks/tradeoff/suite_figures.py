@@ -44,9 +44,10 @@ def _display(image: np.ndarray, white: float) -> np.ndarray:
     return np.rint(srgb * 255.0).astype(np.uint8)
 
 
-def before_after(truth: np.ndarray, off: np.ndarray, on: np.ndarray, path: Path, title: str) -> None:
-    """Cycles | ours without visibility | ours with visibility, indirect light only, one exposure
-    (the truth's 99th percentile is white); rows bottom-up as the passes give them."""
+def before_after(truth: np.ndarray, off: np.ndarray, on: np.ndarray, path: Path, title: str,
+                 labels=("VSGL visibility off", "VSGL visibility on")) -> None:
+    """Cycles | ours with a technique off | with it on (default: VSGL visibility), indirect light only,
+    one exposure (the truth's 99th percentile is white); rows bottom-up as the passes give them."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -54,8 +55,7 @@ def before_after(truth: np.ndarray, off: np.ndarray, on: np.ndarray, path: Path,
 
     white = float(np.percentile(truth, 99.0))
     fig, axes = plt.subplots(1, 3, figsize=(10.5, 3.1))
-    for axis, image, label in zip(axes, (truth, off, on), ("Cycles (max bounces 1)", "VSGL visibility off",
-                                                           "VSGL visibility on")):
+    for axis, image, label in zip(axes, (truth, off, on), ("Cycles (max bounces 1)", *labels)):
         axis.imshow(_display(image[::-1], white))
         axis.set_title(label, fontsize=10)
         axis.axis("off")

@@ -2,8 +2,9 @@
 //
 // Inputs (all RGBA32F, the overlay's own resolution, row 0 at the bottom, alpha = coverage):
 //   indirect_diffuse, indirect_specular, direct_light   linear radiance, Blender's units
+//   indirect_caustics                                   the glossy VPLs' part of indirect_diffuse
 // `mode` (settings.OVERLAY_DISPLAYS order): 0 indirect only, 1 indirect added to the viewport,
-// 2 indirect diffuse, 3 indirect specular, 4 direct, 5 direct + indirect.
+// 2 indirect diffuse, 3 indirect specular, 4 direct, 5 direct + indirect, 6 indirect caustics.
 // `scale` = intensity x 2^exposure; the view transform is Blender's "Standard" one (scale, then
 // the look's gamma); the framebuffer's sRGB encoding (or ours, `encode_srgb`) makes it display-referred.
 // Sampled bilinearly by hand (texelFetch) so a coarse image shows smooth, not blocky, whatever the
@@ -49,6 +50,9 @@ void main()
   }
   else if (mode == 5) {
     radiance = direct.rgb + diffuse.rgb + specular.rgb;
+  }
+  else if (mode == 6) {
+    radiance = fetch_bilinear(indirect_caustics, uv).rgb;
   }
   else {
     radiance = diffuse.rgb + specular.rgb;

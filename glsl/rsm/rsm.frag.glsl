@@ -23,7 +23,8 @@
 // view -> world and of mat3 world -> light local (inverse of the light's 3x3 world matrix, scale
 // included), light_position, light_axis (unit, where the light points), light_params (the light
 // parameters of lib/light_emission.glsl), light_color, light_factors (Blender's diffuse and
-// specular factors of the light), light_index and light_links_rows (lib/light_links.glsl).
+// specular factors of the light), light_index and light_links_rows (lib/light_links.glsl), and
+// sharp_alpha (0, or the caustic roughness alpha_c whose texels' specular flux the VPLs carry).
 //
 // rsm_mode.x selects what one draw covers, for shadow linking: 0 every object, 1 the objects that
 // block the light (they write depth: the shadow map holds only them), 2 the others (depth tested,
@@ -181,6 +182,12 @@ void main()
   r.flux_white = flux_white;
   r.flux_specular = flux * terms.specular_albedo * view.light_factors.y;
   if (rsm_mode.y == 2 && rsm_on_proxy(world_position, geometric, roughness)) {
+    r.flux_specular = vec3(0.0);
+  }
+  // view.sharp_alpha > 0 (the diffuse receivers' VSGLs with the glossy VPL pass on): a sharp
+  // reflector's texel (GGX alpha below it, the VPLs' own test) keeps no specular flux, which its
+  // VPL carries to diffuse receivers instead (light-paths.md); its diffuse flux stays.
+  if (terms.alpha < view.sharp_alpha) {
     r.flux_specular = vec3(0.0);
   }
   r.texel_measure = texel_measure;

@@ -1,3 +1,4 @@
+// @require lib/ism.glsl
 // @require lib/vpl_culling.glsl
 //
 // Tiled stochastic light culling and shading of glossy VPLs (004 section 5; twin:
@@ -18,7 +19,10 @@
 // VPLs i with i % N^2 = its sub-image ((x % N) + N (y % N) + offset) % N^2, weighted N^2: each
 // sub-image sees a different subset, and the mean over the N^2 offsets is the full estimate.
 // Table rows per VPL (record k of VPL i at texel (i % W, 4 (i / W) + k)): position + roughness,
-// normal + scalar flux, incoming, Phi Rs.
+// normal + scalar flux, incoming, Phi Rs + the VPL's shadow map.
+// VPL_VISIBILITY 1: each VPL's light on a pixel is weighted by its cluster's imperfect shadow map
+// (lib/ism.glsl, bilinear PCF; vsgl_addon/passes/vpl_culling.py VPL clusters): ism_params = (map side,
+// tiles per atlas row), vpl_map_origins texel m = map m's origin.
 
 // Slack of the plane test: a spheroid touching the tile within float32 rounding stays listed.
 const float VPL_PLANE_SLACK = 1e-4;
@@ -162,7 +166,14 @@ void main()
                                              intensity, l2);
         float p = acceptance_probability(intensity, l2, delta);
         if (p > vpl_xi(j, seed, frame)) {
-          radiance += vpl_record(j, 3).rgb * (geometry / p);
+          vec4 r3 = vpl_record(j, 3);
+#if VPL_VISIBILITY
+          int map = int(r3.w + 0.5);
+          vec3 origin = texelFetch(vpl_map_origins, ivec2(map, 0), 0).xyz;
+          ivec2 map_tile = ivec2(map % ism_params.y, map / ism_params.y) * ism_params.x;
+          geometry *= ism_pcf_bilinear(ism_atlas, map_tile, ism_params.x, origin, receiver, receiver_normal);
+#endif
+          radiance += r3.rgb * (geometry / p);
         }
       }
     }

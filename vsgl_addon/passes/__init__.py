@@ -9,6 +9,7 @@ touches ``bpy.context``; its float64 twin lives in ``vsgl_addon.reference``.
 * :mod:`.direct_light`: direct light with RSM-depth shadows.
 * :mod:`.shading_inputs`: the G-buffer's Principled inputs -> Rd and F0 for VSGL shading.
 * :mod:`.vsgl_shading`: indirect light from VSGLs (000 app. C).
+* :mod:`.vpl_culling`: glossy VPLs with stochastic light culling, caustics on diffuse receivers (004).
 * :mod:`.mrp_asg`: glossy interreflection from rectangle proxies (001).
 
 Each pass module declares its contract once, as ``PASS`` (:class:`.contract.GPUPass`: shaders,
@@ -24,18 +25,20 @@ matrices for uniforms). The texture layouts passes hand each other: :mod:`vsgl_a
 
 import atexit
 
-from . import direct_light, gbuffer, ism, mrp_asg, rsm, shading_inputs, vsgl_generation, vsgl_shading
+from . import direct_light, gbuffer, ism, mrp_asg, rsm, shading_inputs, vpl_culling, vsgl_generation, vsgl_shading
 from .contract import GPUPass, Step
 
 #: Every GPU pass, in the order a frame runs them.
 PASSES: tuple[GPUPass, ...] = (rsm.PASS, vsgl_generation.PASS, ism.PASS, gbuffer.PASS, direct_light.PASS,
-                               shading_inputs.PASS, vsgl_shading.PASS, mrp_asg.PASS)
+                               shading_inputs.PASS, vsgl_shading.PASS, vpl_culling.PASS, mrp_asg.PASS)
 
 #: Steps of a frame that are not GPU passes. Scene extraction is the Blender-facing caller's (the
 #: engine and the overlay time it); upload and read-back are the renderer's.
 SCENE_EXTRACTION = Step("scene_extraction", "Scene Extraction")
 UPLOAD = Step("upload", "Upload", {"lights": "Lights", "triangles": "Triangles"})
 READ_BACK = Step("read_back", "Read Back")
+#: The glossy VPLs read from the RSM once per scene state, after the light passes and their maps.
+VPL_EXTRACTION = vpl_culling.EXTRACTION
 
 
 def _steps() -> tuple[Step, ...]:
@@ -43,6 +46,8 @@ def _steps() -> tuple[Step, ...]:
     for gpu_pass in PASSES:
         if gpu_pass.step not in steps:
             steps.append(gpu_pass.step)
+        if gpu_pass is ism.PASS:
+            steps.append(VPL_EXTRACTION)
     return tuple(steps + [READ_BACK])
 
 

@@ -178,7 +178,8 @@ class RSMView:
         self.textures.clear()
 
 
-def _view_constants(light, spec: RSMViewSpec, light_index: int = 0, links_rows: int = 0) -> np.ndarray:
+def _view_constants(light, spec: RSMViewSpec, light_index: int = 0, links_rows: int = 0,
+                    sharp_alpha: float = 0.0) -> np.ndarray:
     """(rows, 1, 4) float32: the per-view constants of glsl/rsm/rsm.frag.glsl (layouts.RSM_VIEW)."""
     view_to_world = spec.view_to_world[:3, :3]
     world_to_local = np.linalg.inv(np.asarray(light.matrix_world, np.float64)[:3, :3])
@@ -189,6 +190,7 @@ def _view_constants(light, spec: RSMViewSpec, light_index: int = 0, links_rows: 
                   light_axis=(axis / np.linalg.norm(axis))[None],
                   light_params=np.asarray(light_params(light), np.float64)[None],
                   light_color=np.asarray(light.color, np.float64)[None],
+                  sharp_alpha=np.array([sharp_alpha], np.float64),
                   light_factors=np.array([[light.diffuse_factor, light.specular_factor]], np.float64),
                   light_index=np.array([light_index], np.float64),
                   light_links_rows=np.array([links_rows], np.float64))
@@ -200,7 +202,7 @@ DRAW_ALL, DRAW_BLOCKERS, DRAW_NON_BLOCKERS = 0, 1, 2
 
 
 def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int, textures: dict,
-            receiver_lobe: str = "all", proxies=()):
+            receiver_lobe: str = "all", proxies=(), sharp_alpha: float = 0.0):
     import gpu
 
     from ..proxies import proxy_table_array
@@ -209,7 +211,8 @@ def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int,
     program = shader()
     targets = [textures[name] for name in RSM_LAYOUT.slot_names]
     framebuffer = gpu.types.GPUFrameBuffer(depth_slot=textures["depth"], color_slots=targets)
-    constants = texture_from_array(_view_constants(light, spec, light_index, light_links_rows(scene_gpu.scene)))
+    constants = texture_from_array(_view_constants(light, spec, light_index, light_links_rows(scene_gpu.scene),
+                                                   sharp_alpha))
     proxy_table = texture_from_array(proxy_table_array(proxies))
     # Shadow linking and objects that cast no shadow: the blockers first, writing depth (the shadow
     # map direct light reads), then the rest depth-tested only, so they reflect light without
@@ -239,7 +242,7 @@ def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int,
 
 
 def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: str = "all",
-                     proxies=()) -> list[RSMView]:
+                     proxies=(), sharp_alpha: float = 0.0) -> list[RSMView]:
     """Render the RSM views of ``scene.lights[light_index]`` at ``size`` x ``size`` texels.
 
     ``scene`` is a :class:`SceneGPU` (reuse it for every light) or a SceneDescription (uploaded for
@@ -248,7 +251,9 @@ def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: st
     (scene_description.RECEIVER_LOBES) keeps only the flux of reflectors seen by diffuse or by
     glossy rays; with ``receiver_lobe="glossy"``, texels on one of ``proxies``
     (:class:`~vsgl_addon.proxies.RectangleProxy`) keep no specular flux: MRP-ASG carries that light
-    to the receivers' glossy lobes (light-paths.md).
+    to the receivers' glossy lobes (light-paths.md). ``sharp_alpha`` > 0: texels whose GGX α
+    (principled_alpha) is below it keep no specular flux either, the glossy VPLs (passes/vpl_culling.py)
+    carry it to the receivers' diffuse lobes (the diffuse receivers' VSGLs with the VPL pass on).
     """
     import gpu
 
@@ -263,7 +268,8 @@ def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: st
             continue
         textures = {name: gpu.types.GPUTexture((size, size), format="RGBA32F") for name in RSM_LAYOUT.slot_names}
         textures["depth"] = gpu.types.GPUTexture((size, size), format="DEPTH_COMPONENT32F")
-        framebuffer, constants = _render(scene_gpu, light_index, spec, size, textures, receiver_lobe, proxies)
+        framebuffer, constants = _render(scene_gpu, light_index, spec, size, textures, receiver_lobe, proxies,
+                                         sharp_alpha)
         views.append(RSMView(light_index, light, spec, size, textures, framebuffer, constants))
     return views
 

@@ -1,0 +1,208 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The glossy VPL pass (004) in the renderer: it runs only where a lit sharp reflector exists
+(light_paths.needs_glossy_vpls, which costs nothing elsewhere: no VPLs, no extra VSGL set), the RSM
+split of light-paths.md (the diffuse receivers' VSGLs lose exactly the sharp texels' specular flux,
+which the VPLs carry, so no caustic is counted twice), the caustic scene's frame against its cached
+Cycles truth, and the extremes (δ at both ends, a one-texel RSM)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import scene_builders as sb
+from vsgl_addon import light_paths
+from vsgl_addon.passes import rsm, vpl_culling
+from vsgl_addon.passes.scene_gpu import SceneGPU
+from vsgl_addon.reference.principled import principled_alpha
+from vsgl_addon.renderer import FrameRenderer, SceneLights
+from vsgl_addon.scene import extract_scene
+from vsgl_addon.settings import VSGLSettings
+
+REPO = Path(__file__).resolve().parents[1]
+SETTINGS = VSGLSettings(vsgl_count=16, rsm_size=32, ism_points=1024, ism_size=16)
+
+
+def _scene(panel_roughness=0.2, panel_diffuse_visible=True, wall_roughness=0.8, aim=(0.0, 0.0, 0.0),
+           occluder=False):
+    """A spot on a small metal panel (α = roughness²) in front of a matte wall, a matte floor; the
+    occluder stands in the panel's mirror path (benchmarks/vpl_visibility.py's scene)."""
+    scene = sb.reset()
+    sb.plane("Floor", size=6.0, material=sb.principled("Floor", base_color=(0.3, 0.3, 0.3), roughness=0.8),
+             location=(0.0, 0.0, -0.5))
+    sb.plane("Wall", size=6.0, material=sb.principled("Wall", base_color=(0.8, 0.8, 0.8), roughness=wall_roughness),
+             location=(0.0, 2.0, 1.0), rotation=(np.radians(90.0), 0.0, 0.0))
+    panel = sb.plane("Panel", size=1.0, material=sb.principled("Steel", base_color=(0.6, 0.6, 0.6),
+                                                               roughness=panel_roughness, metallic=1.0),
+                     rotation=(np.radians(-30.0), 0.0, 0.0))
+    panel.visible_diffuse = panel_diffuse_visible
+    if occluder:
+        sb.box("Occluder", size=(0.35, 0.1, 0.3), location=(0.2, 1.0, -0.2),
+               material=sb.principled("Occluder", base_color=(0.5, 0.5, 0.5), roughness=0.8))
+    sb.spot_light(power=1500.0, location=(0.0, -2.0, 2.0), look_at_point=aim, spot_size=0.5)
+    sb.camera(location=(2.5, -3.5, 1.5), look_at_point=(0.0, 1.0, 0.5))
+    return extract_scene(sb.depsgraph(scene))
+
+
+def test_the_pass_is_needed_only_for_a_lit_sharp_reflector():
+    settings = VSGLSettings()
+    assert light_paths.needs_glossy_vpls(_scene(), settings)
+    assert not light_paths.needs_glossy_vpls(_scene(), settings.overridden(caustics=False))
+    assert not light_paths.needs_glossy_vpls(_scene(panel_roughness=0.5), settings)  # α 0.25 ≥ α_c 0.1
+    assert light_paths.needs_glossy_vpls(_scene(panel_roughness=0.5), settings.overridden(caustic_roughness=0.3))
+    assert not light_paths.needs_glossy_vpls(_scene(panel_diffuse_visible=False), settings)
+    # The spot aimed away from the panel (its cone misses it): nothing to render.
+    assert not light_paths.needs_glossy_vpls(_scene(aim=(0.0, -2.0, 5.0)), settings)
+
+
+@pytest.mark.gpu
+def test_no_sharp_reflector_runs_nothing(monkeypatch):
+    """Rough panel: no VPLs, no extra VSGL set, and the VPL pass is never called."""
+    description = _scene(panel_roughness=0.6)
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("the VPL pass ran")
+
+    monkeypatch.setattr(vpl_culling, "run", forbidden)
+    lights = SceneLights.build(description, SETTINGS)
+    try:
+        assert lights.vpls is None and lights.glossy_vsgls is None and lights.whole_vsgls is None
+    finally:
+        lights.free()
+    frame = sb.render_frame(description, SETTINGS, 32, 24)
+    assert frame.counts["vpls"] == 0 and frame.timings["vpl_culling"] == 0.0
+    assert np.all(frame.indirect_caustics == 0.0)
+
+
+@pytest.mark.gpu
+def test_rsm_split_gives_the_sharp_specular_flux_to_the_vpls_alone():
+    """light-paths.md: per texel, the diffuse receivers' RSM (sharp_alpha = α_c) keeps every diffuse
+    flux and every non-sharp specular flux; the sharp texels' specular flux is exactly the VPLs'. The
+    cells sum to the whole RSM, so shading (linear in the flux) counts each path once."""
+    description = _scene()
+    alpha_c = SETTINGS.caustic_roughness
+    scene_gpu = SceneGPU(description)
+    try:
+        parts = {}
+        for name, cut in (("whole", 0.0), ("cut", alpha_c)):
+            views = rsm.render_rsm_views(scene_gpu, 0, 32, "diffuse", (), cut)
+            parts[name] = [view.to_numpy() for view in views]
+            for view in views:
+                view.free()
+        vpls = vpl_culling.scene_vpls(scene_gpu, 32, alpha_c)
+    finally:
+        scene_gpu.free()
+    vpl_flux = np.zeros(3)
+    whole_specular = cut_specular = 0.0
+    for whole, cut in zip(parts["whole"], parts["cut"]):
+        sharp = principled_alpha(whole.roughness) < alpha_c
+        assert (sharp & whole.coverage).sum() > 20 and (~sharp & whole.coverage).sum() > 20
+        np.testing.assert_array_equal(cut.rsm.flux_diffuse, whole.rsm.flux_diffuse)
+        assert np.all(cut.rsm.flux_specular[sharp] == 0.0)
+        np.testing.assert_array_equal(cut.rsm.flux_specular[~sharp], whole.rsm.flux_specular[~sharp])
+        vpl_flux += whole.rsm.flux_specular[sharp].reshape(-1, 3).sum(axis=0)
+        whole_specular += whole.rsm.flux_specular.sum()
+        cut_specular += cut.rsm.flux_specular.sum()
+    np.testing.assert_allclose(vpls["flux"].sum(axis=0), vpl_flux, rtol=1e-9)
+    assert cut_specular + vpl_flux.sum() == pytest.approx(whole_specular, rel=1e-6)
+    assert vpl_flux.sum() > 0.5 * whole_specular  # the panel holds most of the specular flux
+    assert np.all(vpls["roughness"] >= vpl_culling.VPL_ALPHA_MIN)
+
+
+@pytest.mark.gpu
+def test_caustic_scene_frame_gets_the_caustic_once():
+    """caustic_panel (the suite's scene and its cached Cycles truth): with the pass on, the caustic
+    region's mean (Cycles' brightest 2 %) comes within 20 % of Cycles' and the whole image's error
+    falls below the VSGLs'; off, the Indirect Caustics pass is black. Unshadowed VPLs here: the
+    scene has no occluder between panel and wall."""
+    import bpy
+
+    from vsgl_addon import register, unregister
+
+    register()
+    try:
+        bpy.ops.wm.open_mainfile(filepath=str(REPO / "benchmarks" / "scenes" / "caustic_panel.blend"), load_ui=False)
+        settings = VSGLSettings.from_properties(bpy.context.scene.vsgl).overridden(vsgl_count=128)
+        description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    finally:
+        unregister()
+    # The cached truth stores Cycles' rows top-down; the passes' row 0 is the bottom.
+    truth = {key: value[::-1] for key, value in np.load(REPO / "benchmarks" / "reference"
+                                                          / "caustic_panel_indirect_240x180.npz").items()
+             if key in ("diffuse_a", "diffuse_b", "glossy_a", "glossy_b", "alpha")}
+    target = (truth["diffuse_a"].astype(np.float64) + truth["diffuse_b"] + truth["glossy_a"] + truth["glossy_b"]) / 2
+    renderer = FrameRenderer()
+    try:
+        on = renderer.render(description, settings, 240, 180)
+        off = renderer.render(description, settings.overridden(caustics=False), 240, 180)
+    finally:
+        renderer.free()
+    sb.assert_finite_frame(on, "caustics on")
+    mask = (on.coverage > 0.5) & (truth["alpha"] > 0.5)
+    luminance = target[mask].mean(axis=-1)
+    region = np.zeros_like(mask)
+    region[mask] = luminance >= np.quantile(luminance, 0.98)
+    assert on.counts["vpls"] > 1000 and on.counts["vpls_per_pixel"] > 0.0 and on.timings["vpl_culling"] > 0.0
+    assert np.all(off.indirect_caustics == 0.0) and off.counts["vpls"] == 0
+    assert on.indirect_caustics[region].mean() > 0.5 * on.indirect_diffuse[region].mean()
+    assert np.all(on.indirect_diffuse >= on.indirect_caustics - 1e-6)
+    ratio = on.indirect[region].mean() / target[region].mean()
+    assert 0.8 <= ratio <= 1.2, ratio
+
+    def rel(image):
+        return np.sqrt(np.mean((image[mask] - target[mask]) ** 2)) / target[mask].mean()
+
+    assert rel(on.indirect) < rel(off.indirect)
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("extreme", [dict(delta=1e-6), dict(delta=1e-1, vpl_interleave="8", vpl_samples=2),
+                                     dict(rsm_size=1), dict(vpl_filter_radius=0, vpl_interleave="2")])
+def test_extremes_stay_finite(extreme):
+    description = _scene(panel_roughness=0.05)
+    frame = sb.render_frame(description, SETTINGS.overridden(**extreme), 40, 30)
+    sb.assert_finite_frame(frame, str(extreme))
+    if extreme.get("rsm_size") != 1:
+        assert frame.counts["vpls"] > 0 and frame.indirect_caustics.max() > 0.0
+
+
+@pytest.mark.gpu
+def test_a_band_differs_from_the_whole_image_only_within_the_filter_radius():
+    """The viewport and overlay render in bands of rows: the VPL image of a band equals the whole
+    image's rows (culling and ξ do not depend on the band), except that the cross-bilateral filter
+    sees only the band's rows, within its radius of the band's edge."""
+    from vsgl_addon.views import band_projection
+
+    description = _scene(panel_roughness=0.05)
+    view, projection = description.camera.view_matrix(), description.camera.projection_matrix()
+    settings = SETTINGS.overridden(vpl_filter_radius=4)
+    renderer = FrameRenderer()
+    lights = SceneLights.build(description, settings)
+    try:
+        whole = renderer.render_view(lights, settings, 48, 40, view, projection)
+        band = renderer.render_view(lights, settings, 48, 20, view, band_projection(projection, 0, 20, 40))
+    finally:
+        lights.free()
+        renderer.free()
+    inner = slice(0, 20 - settings.vpl_filter_radius)
+    assert whole.indirect_caustics[:20].max() > 0.0
+    np.testing.assert_allclose(band.indirect_caustics[inner], whole.indirect_caustics[inner], rtol=2e-3, atol=1e-6)
+
+
+@pytest.mark.gpu
+def test_vpl_light_is_shadowed():
+    """With visibility on, the VPLs' clusters' shadow maps take the occluder's shadow out of the
+    caustic (benchmarks/vpl_visibility.py measures it against ray casting: 17 % of the light); without
+    an occluder they keep nearly all of it."""
+    settings = SETTINGS.overridden(ism_size=64, ism_points=4096, vpl_filter_radius=0, vpl_visibility=True)
+    lit = {}
+    for occluder in (False, True):
+        description = _scene(occluder=occluder)
+        for visibility in (False, True):
+            frame = sb.render_frame(description, settings.overridden(visibility=visibility), 64, 48)
+            sb.assert_finite_frame(frame)
+            lit[occluder, visibility] = float(frame.indirect_caustics.sum())
+    assert lit[False, True] > 0.85 * lit[False, False]
+    assert lit[True, True] < 0.93 * lit[True, False]
