@@ -11,11 +11,11 @@ Through the scene's camera, in the 3D viewport of the default layout:
    to the first coarse image, the time of each refinement step and of the whole convergence. On the
    first move every step's average image is also read back (outside the steps' timing), to find the
    work time after which it is within 10 % / 5 % relative RMSE of the converged image.
-2. The overlay (today's path) over Solid shading, "Combined", at the same resolution scale, as the
-   baseline in the same session: the same moves, the time from the change to its first coarse image
-   and to its refined image (polled every 10 ms), its update steps, its final image's error against
-   the converged Rendered one, and the CPU round trips (bytes read back and uploaded) per update of
-   both paths.
+2. The overlay over Solid shading, "Combined", at the same resolution scale and samples, in the same
+   session: it draws through the same view pipeline (overlay.py on view_pipeline.ViewportSet), so
+   the same moves must give the same step times, its converged image must equal the Rendered one,
+   and neither path may read images back or upload them per update (the CPU round trips, bytes read
+   back and uploaded, are counted for both).
 """
 
 import importlib
@@ -99,19 +99,17 @@ def rendered_converged():
     return pipeline is not None and pipeline.converged(SAMPLES)
 
 
-def overlay_refined():
-    overlay = addon("overlay")
+def overlay_pipeline():
     _area, _region, space = viewport()
-    key = space.region_3d.as_pointer()
-    if overlay.cache.error:
-        raise RuntimeError(overlay.cache.error)
-    return overlay.cache.is_current(key) and overlay.cache.views[key].level == overlay.REFINED
+    views = addon("overlay").views
+    if views.error:
+        raise RuntimeError(views.error)
+    return views.pipelines.get(space.region_3d.as_pointer())
 
 
-def overlay_coarse():
-    overlay = addon("overlay")
-    _area, _region, space = viewport()
-    return overlay.cache.is_current(space.region_3d.as_pointer())
+def overlay_converged():
+    pipeline = overlay_pipeline()
+    return pipeline is not None and pipeline.converged(SAMPLES)
 
 
 def move_light(sign):
@@ -169,53 +167,40 @@ def tick_generator():
                               "relative_rmse": rmse(image, converged_image)})
             record["error_curve"] = curve
         result["rendered"].append(record)
-    # --- the overlay over Solid shading, the baseline ---
+    # --- the overlay over Solid shading: the same view pipeline ---
     space.shading.type = "SOLID"
     scene.vsgl.overlay_mode = "COMBINED"
     scene.vsgl.overlay_resolution_scale = SCALE
     scene.vsgl.show_overlay = True
     area.tag_redraw()
     started = time.perf_counter()
-    while not overlay_refined():
+    while not overlay_converged():
         if time.perf_counter() - started > TIMEOUT:
-            raise RuntimeError("no refined overlay")
+            raise RuntimeError("no converged overlay")
         yield POLL
-    cache = addon("overlay").cache
     for repeat in range(REPEATS):
-        first_update = cache.updates
+        pipeline = overlay_pipeline()
+        first_index = pipeline.steps
         trips = round_trips()
         change = time.perf_counter()
         move_light(1 if repeat % 2 == 0 else -1)
         area.tag_redraw()
-        coarse_wall = None
-        while True:
-            if coarse_wall is None and cache.updates > first_update and overlay_coarse():
-                coarse_wall = time.perf_counter() - change
-            if cache.updates > first_update and overlay_refined():
-                break
+        while not (pipeline.steps > first_index and overlay_converged()):
             if time.perf_counter() - change > TIMEOUT:
-                raise RuntimeError("no refined overlay after a change")
+                raise RuntimeError("no converged overlay after a change")
             yield POLL
         done = time.perf_counter()
         after = round_trips()
-        updates = [dict(u) for u in cache.history if u["index"] >= first_update]
+        entries = [dict(e) for e in pipeline.history if e["index"] >= first_index]
         result["overlay"].append({
-            "repeat": repeat, "first_image_wall": coarse_wall, "refined_wall": done - change,
-            "updates": [{"level": u["level"], "seconds": u["seconds"], "size": u.get("size")} for u in updates],
+            "repeat": repeat, "first_image_wall": entries[0]["ended"] - change, "refined_wall": done - change,
+            "updates": [{"level": e.get("level"), "work": e["work"], "seconds": e["seconds"], "size": e.get("size")}
+                        for e in entries],
             "round_trips": {k: after[k] - trips[k] for k in after}})
     if converged_image is not None:
-        key = space.region_3d.as_pointer()
-        view = cache.views[key]
-        read = addon("passes.gpu_util").read_texture
-        width, height = view.size
-        low = sum(read(view.textures[name], width, height)[..., :3]
-                  for name in ("direct_light", "indirect_diffuse", "indirect_specular"))
-        full_h, full_w = converged_image.shape[:2]
-        ys = np.minimum(((np.arange(full_h) + 0.5) * height / full_h).astype(int), height - 1)
-        xs = np.minimum(((np.arange(full_w) + 0.5) * width / full_w).astype(int), width - 1)
         # Moves alternate +, -, +, ...: after the Rendered repeats and the overlay's, the light is
         # where it was for the first Rendered repeat, whose converged image this is.
-        result["overlay_final_relative_rmse_nearest"] = rmse(low[ys][:, xs], converged_image)
+        result["overlay_final_relative_rmse_nearest"] = rmse(average_image(overlay_pipeline()), converged_image)
     scene.vsgl.show_overlay = False
 
 

@@ -32,6 +32,9 @@ MODULE = "bl_ext.user_default.vsgl"
 SAMPLES = {"back_wall_low": (-2.2, 2.99, 1.4), "left_wall_low": (-2.99, 0.6, 0.5),
            "back_wall_high": (-2.0, 2.99, 5.0)}
 result = {"shots": {}, "timings": {}, "errors": [], "log": []}
+# Full-resolution samples the overlay accumulates before a screenshot (a whole viewport's sample
+# takes seconds on llvmpipe).
+SAMPLES_PER_VIEW = 1
 
 
 def log(text):
@@ -85,15 +88,28 @@ def redraw_everything():
             area.tag_redraw()
 
 
-def refined_and_drawn():
-    """The overlay's images of the viewport are refined for the current view and scene state."""
-    overlay = overlay_module()
-    cache = overlay.cache
+def settings_module():
+    import importlib
+
+    return importlib.import_module(MODULE + ".vsgl_addon.settings")
+
+
+def viewport_pipeline():
     _window, _area, _region, space = viewport()
-    key = space.region_3d.as_pointer()
-    if cache.error:
-        raise RuntimeError(cache.error)
-    return cache.is_current(key) and cache.views[key].level == overlay.REFINED
+    return overlay_module().views.pipelines.get(space.region_3d.as_pointer())
+
+
+def refined_and_drawn():
+    """The overlay's view pipeline of the viewport has all its samples for the current view,
+    scene state and settings."""
+    views = overlay_module().views
+    if views.error:
+        raise RuntimeError(views.error)
+    pipeline = viewport_pipeline()
+    if pipeline is None or pipeline.step_args is None or not pipeline.has_image:
+        return False
+    current = settings_module().VSGLSettings.from_properties(bpy.context.scene.vsgl)
+    return pipeline.lights_settings == current and pipeline.pending(*pipeline.step_args) is None
 
 
 def setup():
@@ -124,6 +140,7 @@ def vsgl_tab():
 
 def overlay_on():
     bpy.context.scene.vsgl.overlay_mode = "INDIRECT"
+    bpy.context.scene.vsgl.viewport_samples = SAMPLES_PER_VIEW
     bpy.context.scene.vsgl.show_overlay = True
 
 
@@ -143,8 +160,7 @@ def restore_vsgls():
 
 def orbit():
     """A view-only change: must not rerun the light passes."""
-    cache = overlay_module().cache
-    result["lights_version_before_orbit"] = cache.lights_version
+    result["scene_version_before_orbit"] = overlay_module().views.scene_version
     import math
 
     from mathutils import Quaternion
@@ -159,19 +175,16 @@ def orbit():
 
 
 def after_orbit():
-    cache = overlay_module().cache
-    result["lights_version_after_orbit"] = cache.lights_version
+    result["scene_version_after_orbit"] = overlay_module().views.scene_version
 
 
 def move_light():
-    cache = overlay_module().cache
-    result["lights_version_before_move"] = cache.lights_version
+    result["scene_version_before_move"] = overlay_module().views.scene_version
     bpy.data.objects["Spot"].location.x += 0.3
 
 
 def after_move():
-    cache = overlay_module().cache
-    result["lights_version_after_move"] = cache.lights_version
+    result["scene_version_after_move"] = overlay_module().views.scene_version
 
 
 def overlay_off():
@@ -179,7 +192,7 @@ def overlay_off():
 
 
 def resources_after_off():
-    result["gpu_resources_after_off"] = overlay_module().cache.gpu_resource_count()
+    result["gpu_resources_after_off"] = overlay_module().views.gpu_resource_count()
 
 
 def render_properties_and_preview():
@@ -250,9 +263,9 @@ def tick():
                 _check_timeout("no viewport drawn")
                 return POLL
             state["phase"] = "act"
-        cache = overlay_module().cache
+        pipeline = viewport_pipeline()
         if state["phase"] == "act":
-            state.update(first_update=cache.updates)
+            state.update(first_update=pipeline.steps if pipeline is not None else 0)
             if action is not None:
                 action()
                 log(f"did {action.__name__}")
@@ -268,7 +281,8 @@ def tick():
                 return POLL
             if label:
                 result["timings"][label] = {
-                    "updates": [dict(entry) for entry in cache.history if entry["index"] >= state["first_update"]],
+                    "updates": [{key: value for key, value in entry.items() if key != "traceback"}
+                                for entry in viewport_pipeline().history if entry["index"] >= state["first_update"]],
                     "until_refined_seconds": time.perf_counter() - state["since"]}
             start_redraw()
             return POLL

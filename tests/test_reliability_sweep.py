@@ -66,42 +66,41 @@ def test_generated_scene_renders_through_the_engine(seed, tmp_path):
 @pytest.mark.gpu
 @pytest.mark.parametrize("seed", SEEDS[1::3])
 def test_generated_scene_through_the_overlay_update_path(seed):
-    """The viewport overlay's cache on the same scenes: light passes, coarse image, refined bands;
-    every image it uploads is finite, nothing fails, and freeing it leaves no GPU resource."""
-    from vsgl_addon import passes
-    from vsgl_addon.overlay_cache import REFINE_DELAY, GPUBackend, OverlayCache
+    """The viewport overlay's view pipeline on the same scenes: light passes, coarse image,
+    full-resolution samples; every accumulated image is finite, nothing fails, and freeing it
+    leaves no GPU resource."""
+    from vsgl_addon import passes, view_gpu
+    from vsgl_addon.passes.gpu_util import read_texture
+    from vsgl_addon.view_pipeline import LIGHTS, SAMPLE, ViewportSet
 
     generated = scene_generator.build(seed)
     scene = bpy.context.scene
     sb.depsgraph(scene)
     before = scene_generator.rna_dump()
-    uploaded = []
-
-    class RecordingBackend(GPUBackend):
-        def texture(self, rgba):
-            uploaded.append(np.array(rgba))
-            return super().texture(rgba)
-
+    accumulated = []
     with scene_generator.GPUResourceTracker() as tracker:
         description = extract_scene(sb.depsgraph(scene))
         camera = description.camera
-        cache = OverlayCache(backend=RecordingBackend())
+        views = ViewportSet()
         try:
-            cache.request_view(1, camera.view_matrix(), camera.projection_matrix(), (40, 30), now=0.0)
+            views.request_view(1, camera.view_matrix(), camera.projection_matrix(), (40, 30))
+            views.set_step_args(_settings(seed), 0.5, 2)
             done = []
-            for now in (0.0, REFINE_DELAY + 1.0):
-                for _ in range(64):
-                    work = cache.step(lambda: description, _settings(seed), 0.5, now=now)
-                    if work is None:
-                        break
-                    done.append(work)
-            assert cache.error is None, f"{cache.error} in {generated}"
-            assert done[:2] == ["lights", "coarse"] and "refined" in done, done
+            for _ in range(64):
+                pipeline = views.step(lambda: description)
+                if pipeline is None:
+                    break
+                done.append(pipeline.statistics["work"])
+            assert views.error is None, f"{views.error} in {generated}"
+            assert done[0] == LIGHTS and SAMPLE in done and views.pipelines[1].samples == 2, done
+            target = views.pipelines[1].target
+            accumulated = [read_texture(target.textures[name], *target.size) for name in view_gpu.IMAGES]
         finally:
-            cache.free()
-        assert cache.gpu_resource_count() == 0
-        del cache
+            views.free()
+        assert views.gpu_resource_count() == 0
+        del views
+        view_gpu.free_shaders()
         passes.free_all_shaders()
-    assert uploaded and all(np.all(np.isfinite(image)) for image in uploaded), str(generated)
+    assert accumulated and all(np.all(np.isfinite(image)) for image in accumulated), str(generated)
     assert tracker.alive() == [], f"GPU resources alive after the overlay of {generated}"
     assert scene_generator.dump_differences(before, scene_generator.rna_dump()) == []

@@ -56,13 +56,13 @@ class RecordingLayout:
 def registered():
     vsgl_addon.unregister()
     # Module state the panels draw from: a render or overlay of an earlier test (of any file) filled it.
-    overlay.cache.free()
+    overlay.views.free()
     engine.last_frame_statistics.clear()
     bpy.ops.wm.open_mainfile(filepath=str(REPO / "demo.blend"), load_ui=False)
     vsgl_addon.register()
     yield bpy.context.scene
     vsgl_addon.unregister()
-    overlay.cache.free()
+    overlay.views.free()
     engine.last_frame_statistics.clear()
     bpy.ops.wm.read_factory_settings(use_empty=True)
 
@@ -147,12 +147,14 @@ def test_statistics_and_warnings_are_shown(registered):
     assert "Turn on the overlay or render to see timings" in draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
     engine.last_frame_statistics.update(timings={"gbuffer": 0.012, "vsgl_shading": 0.5}, counts={"vsgls": 256},
                                         resolution=[96, 72], warnings=["VSGL: skipped lights: Sun"])
-    overlay.cache.statistics = {"level": "refined", "seconds": 0.2, "size": (80, 60), "counts": {"lights": 1},
-                                "timings": {"vsgl_shading": 0.15}, "light_timings": {"rsm_and_vsgl_generation": 0.05}}
-    overlay.cache.error = "ShaderCompileError: broken"
+    pipeline = overlay.views.pipeline(1)  # a viewport's pipeline whose last step was a coarse image
+    pipeline.statistics = {"work": "lights", "level": "coarse", "seconds": 0.2, "size": (80, 60),
+                           "light_seconds": 0.05, "view_seconds": 0.15, "counts": {"lights": 1}}
+    overlay.views.last = pipeline
+    overlay.views.settings_error = "ShaderCompileError: broken"
     labels = draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
-    for text in ("VSGL Shading", "500.0 ms", "150.0 ms", "RSM + VSGL Generation", "50.0 ms", "VSGLs", "256",
-                 "Last render 96×72", "Overlay: view, refined 80×60", "Overlay: light passes"):
+    for text in ("VSGL Shading", "500.0 ms", "150.0 ms", "Light passes", "50.0 ms", "VSGLs", "256",
+                 "Last render 96×72", "Overlay: last step (coarse 80×60)", "Last step", "200.0 ms"):
         assert text in labels, text
     top = draw(ui.VIEW3D_PT_vsgl, scene)["labels"]
     assert "Overlay stopped: ShaderCompileError: broken" in top and "VSGL: skipped lights: Sun" in top

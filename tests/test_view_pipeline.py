@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from vsgl_addon.settings import VSGLSettings
-from vsgl_addon.view_pipeline import COARSE, LIGHTS, SAMPLE, STEP_BUDGET, ViewPipeline, view_size
+from vsgl_addon.view_pipeline import (COARSE, LIGHTS, SAMPLE, STEP_BUDGET, OverlayLook, ViewPipeline, ViewportSet,
+                                      view_size)
 
 REGION = (200, 100)
 SETTINGS = VSGLSettings(vsgl_count=16, rsm_size=32, seed=5)
@@ -98,8 +99,8 @@ class FakeBackend:
     def finish(self, target):
         pass
 
-    def display(self, target, weight, view_pass):
-        self.displayed.append((target.image * weight, view_pass))
+    def display(self, target, weight, view_pass, look=None):
+        self.displayed.append((target.image * weight, view_pass, look))
 
 
 @pytest.fixture
@@ -135,8 +136,8 @@ def test_light_passes_and_coarse_image_in_the_first_step(pipeline):
     assert pipeline.statistics["level"] == COARSE and pipeline.has_image and pipeline.samples == 0
     assert pipeline.backend.renders == [view_size(REGION, 0.25)]
     assert pipeline.draw("combined")
-    image, view_pass = pipeline.backend.displayed[-1]
-    assert view_pass == "combined" and image.shape == (REGION[1], REGION[0])
+    image, view_pass, look = pipeline.backend.displayed[-1]
+    assert view_pass == "combined" and look is None and image.shape == (REGION[1], REGION[0])
     assert "coarse 50×25, upsampled" in pipeline.status_text()
 
 
@@ -235,3 +236,84 @@ def test_a_fixed_cost_per_band_does_not_shrink_the_bands_to_a_row(pipeline, monk
     bands = [e["rows"][1] - e["rows"][0] for e in pipeline.history if e.get("rows") and e["rows"][1] > e["rows"][0]]
     assert np.median(bands[2:]) >= 50, bands
     assert max(seconds for _, seconds in done[3:]) <= STEP_BUDGET * 1.3, done
+
+
+# --- the overlay's viewports (ViewportSet): one pipeline each, light passes shared ---------------
+
+@pytest.fixture
+def viewports():
+    Thing.alive = 0
+    clock = Clock()
+    backend = FakeBackend(clock)
+    views = ViewportSet(lambda: backend, clock)
+    yield views, backend
+    views.free()
+    assert views.gpu_resource_count() == 0
+    assert Thing.alive == 0, "a fake GPU object was not freed"
+
+
+def run_set(views, samples=2, limit=400):
+    views.set_step_args(SETTINGS, 0.25, samples)
+    stepped = []
+    for _ in range(limit):
+        pipeline = views.step(describe)
+        if pipeline is None:
+            return stepped
+        stepped.append(pipeline)
+    raise AssertionError(f"still busy after {limit} steps")
+
+
+def test_viewports_share_their_light_passes_and_refine_in_turn(viewports):
+    views, backend = viewports
+    for key in (1, 2):
+        views.request_view(key, np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+    stepped = run_set(views, samples=2)
+    # Two seeds (the coarse image's and one more sample's), each built once for both viewports.
+    assert backend.light_builds == [SETTINGS.seed, SETTINGS.seed + 1]
+    assert all(views.pipelines[key].samples == 2 for key in (1, 2))
+    # Round robin: neither viewport waits for the other to converge.
+    first_half = stepped[: len(stepped) // 2]
+    assert views.pipelines[1] in first_half and views.pipelines[2] in first_half
+    assert not views.busy()
+    # Drawing one viewport with the overlay's look passes it to the backend.
+    look = OverlayLook(2.0, 1.0, True, False)
+    assert views.draw(2, "indirect", look) and backend.displayed[-1][1:] == ("indirect", look)
+    assert not views.draw(3, "indirect", look)  # a viewport with no pipeline draws nothing
+
+
+def test_a_scene_change_rebuilds_once_and_describes_once_for_every_viewport(viewports):
+    views, backend = viewports
+    described = []
+
+    def counting_describe():
+        described.append(1)
+        return describe()
+
+    for key in (1, 2, 3):
+        views.request_view(key, np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+    views.set_step_args(SETTINGS, 0.25, 1)
+    while views.step(counting_describe) is not None:
+        pass
+    assert len(backend.light_builds) == 1 and len(described) == 1
+    views.mark_scene_dirty()
+    while views.step(counting_describe) is not None:
+        pass
+    assert len(backend.light_builds) == 2 and len(described) == 2
+    # The first state's light passes were freed when the last viewport let go of them.
+    assert views.gpu_resource_count() == sum(p.gpu_resource_count() for p in views.pipelines.values()) + 1
+
+
+def test_closed_viewports_are_freed_and_a_settings_error_stops_every_viewport(viewports):
+    views, backend = viewports
+    for key in (1, 2):
+        views.request_view(key, np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+    run_set(views, samples=1)
+    views.retain({2})
+    assert set(views.pipelines) == {2}
+    views.settings_error = "K must be a finite number"
+    views.mark_scene_dirty()
+    assert views.step(describe) is None and not views.busy() and views.error.startswith("K must")
+    views.settings_error = None
+    assert views.step(describe) is views.pipelines[2]
+    views.forget(2)
+    assert views.gpu_resource_count() == 0 and Thing.alive == 0

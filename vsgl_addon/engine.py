@@ -185,16 +185,13 @@ def refine_timer() -> float:
     and coarse image after a change, else a band of a sample), and a redraw when its image changed.
     Working here rather than in view_draw spares a redraw of the whole viewport per band."""
     from .overlay import describe_context_scene
-    from .view_pipeline import COARSE
+    from .view_pipeline import COARSE, step_next
 
-    busy = [p for p in list(live_pipelines)
-            if getattr(p, "step_args", None) is not None and p.pending(*p.step_args) is not None]
-    if not busy:
+    samples = {id(p): p.samples for p in list(live_pipelines)}
+    pipeline = step_next(live_pipelines, describe_context_scene)
+    if pipeline is None:
         return IDLE_INTERVAL
-    pipeline = min(busy, key=lambda p: p.steps)  # round robin over the viewports
-    samples = pipeline.samples
-    pipeline.step(describe_context_scene, *pipeline.step_args)
-    if pipeline.samples != samples or pipeline.error or pipeline.statistics.get("level") == COARSE:
+    if pipeline.samples != samples.get(id(pipeline)) or pipeline.error or pipeline.statistics.get("level") == COARSE:
         _tag_rendered_viewports()
     return BUSY_INTERVAL
 

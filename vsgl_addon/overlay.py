@@ -1,35 +1,38 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The live viewport overlay of the VSGL light: the Blender glue (state and scheduling: overlay_cache.py).
+"""The live viewport overlay of the VSGL light over another engine's viewport (EEVEE, Workbench,
+Cycles): the Blender glue of the view pipeline that Rendered shading uses (view_pipeline.py), so the
+overlay's images are the same GPU-resident, progressive ones, with no copy of its own.
 
 Three parts, each doing one kind of work:
 
 * the **draw callback** (``SpaceView3D.draw_handler_add``, every 3D viewport, POST_PIXEL) only
-  records the viewport's view and projection and draws the cached images of that viewport with a
-  shader compiled beforehand: no pass, no upload, no compilation;
+  records the viewport's view and projection and draws its pipeline's accumulated images with the
+  display shader (glsl/view/display.frag.glsl, compiled beforehand): no pass, no upload, no compilation;
 * the **depsgraph handler** (``depsgraph_update_post``, ``frame_change_post``) only marks the scene
   dirty when something that changes the light changed (an object moved, a mesh, light, material,
-  world or image changed, a VSGL parameter changed); selection and overlay display settings do not;
-* the **timer** reads the scene's settings and hands them to :meth:`OverlayCache.step`, which does
-  one unit of work per call (light passes, a coarse view, a band of a refined view).
+  world or image changed); selection and overlay display settings do not, and a VSGL parameter
+  change is caught by the pipelines (their settings are compared);
+* the **timer** hands the scene's settings to the pipelines and does one step of one of them
+  (light passes and a coarse image after a change, else a band of a full-resolution sample).
 
-One :class:`~vsgl_addon.overlay_cache.OverlayCache` per process holds all state and GPU resources.
+One :class:`~vsgl_addon.view_pipeline.ViewportSet` per process holds all state and GPU resources.
 It is freed when the overlay is switched off, a file is loaded (``load_pre``) or the add-on is
-unregistered.
+unregistered; a closed viewport's pipeline is freed by the timer.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .overlay_cache import COARSE, REFINED, OverlayCache
 from .settings import OVERLAY_DISPLAYS, VSGLSettings
+from .view_pipeline import COARSE, OverlayLook, ViewportSet
 
 #: Timer intervals (seconds): work pending, idle with the overlay on, overlay off.
 BUSY_INTERVAL = 0.02
 IDLE_INTERVAL = 0.1
 OFF_INTERVAL = 0.5
 
-cache = OverlayCache()
+views = ViewportSet()
 _draw_handle = None
 # Updates of these ID types change the light; an Object update only when it moved or changed.
 _LIGHT_ID_TYPES = {"MESH", "LIGHT", "MATERIAL", "WORLD", "IMAGE", "NODETREE", "CURVE", "CURVES", "METABALL",
@@ -54,8 +57,17 @@ def _display(settings):
     return next((choice for choice in OVERLAY_DISPLAYS if choice.identifier == settings.overlay_mode), None)
 
 
+def view_pass_and_look(display_name: str, scale: float, gamma: float) -> tuple[str, OverlayLook]:
+    """The view pipeline's pass (settings.VIEWPORT_PASSES name) and how it is laid over the
+    viewport, for OVERLAY_DISPLAYS option `display_name`: "added" is the indirect light added onto
+    the viewport; every other option is the Rendered mode's pass of the same name, over it."""
+    added = display_name == "added"
+    # The viewport's framebuffer encodes linear values to sRGB itself (checked in Blender 5.2).
+    return ("indirect" if added else display_name or "indirect"), OverlayLook(scale, gamma, added, False)
+
+
 def draw_callback() -> None:
-    """SpaceView3D POST_PIXEL callback: record this viewport's view, draw its cached images."""
+    """SpaceView3D POST_PIXEL callback: record this viewport's view, draw its pipeline's images."""
     import bpy
 
     context = bpy.context
@@ -68,28 +80,29 @@ def draw_callback() -> None:
         return
     if space is not None and not space.overlay.show_overlays:
         return  # the viewport's own "Show Overlays" hides ours too
+    if space is not None and space.shading.type == "RENDERED" and context.engine == "VSGL":
+        return  # Rendered shading of our engine already shows this light
     key = rv3d.as_pointer()
-    cache.request_view(key, _matrix(rv3d.view_matrix), _matrix(rv3d.window_matrix), (region.width, region.height))
-    scale, gamma = _view_transform(scene)
-    # The viewport's framebuffer encodes linear values to sRGB itself (checked in Blender 5.2).
+    views.request_view(key, _matrix(rv3d.view_matrix), _matrix(rv3d.window_matrix), (region.width, region.height))
     display = _display(settings)
-    cache.draw(key, display.name if display else "", scale, gamma, encode_srgb=False)
+    view_pass, look = view_pass_and_look(display.name if display else "", *_view_transform(scene))
+    views.draw(key, view_pass, look)
     _draw_label(key, settings)
 
 
 def _draw_label(key: int, settings) -> None:
-    """One line at the viewport's bottom left: what the overlay shows and how fresh it is."""
+    """One line at the viewport's bottom left: what the overlay shows and how far it refined."""
     import blf
 
     display = _display(settings)
     mode = display.label if display else ""
-    view = cache.views.get(key)
-    if cache.error:
+    pipeline = views.pipelines.get(key)
+    if views.error:
         state = "stopped: see the VSGL tab"
-    elif view is None:
+    elif pipeline is None or not pipeline.has_image:
         state = "computing…"
     else:
-        state = f"{view.level} {view.size[0]}×{view.size[1]}" + ("" if cache.is_current(key) else ", updating…")
+        state = pipeline.status_text(int(settings.viewport_samples)).removeprefix("VSGL ")
     font = 0
     blf.size(font, 12.0)
     blf.color(font, 1.0, 1.0, 1.0, 0.9)
@@ -112,9 +125,9 @@ def _tag_redraw() -> None:
 def on_overlay_toggled(enabled: bool) -> None:
     """show_overlay changed: on -> start updating; off -> free everything."""
     if enabled:
-        cache.mark_scene_dirty()
+        views.mark_scene_dirty()
     else:
-        cache.free()
+        views.free()
     _tag_redraw()
 
 
@@ -145,8 +158,8 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     if settings is None or not settings.show_overlay:
         return
     if _light_changed(depsgraph):
-        cache.mark_scene_dirty()
-    # A VSGL parameter change is caught by the timer (settings compared); an overlay display
+        views.mark_scene_dirty()
+    # A VSGL parameter change is caught by the pipelines (settings compared); an overlay display
     # change needs only a redraw, which Blender does for a property change anyway.
 
 
@@ -154,13 +167,13 @@ def on_depsgraph_update(scene, depsgraph) -> None:
 def on_frame_change(scene, depsgraph=None) -> None:
     settings = getattr(scene, "vsgl", None)
     if settings is not None and settings.show_overlay:
-        cache.mark_scene_dirty()
+        views.mark_scene_dirty()
 
 
 @_persistent
 def on_load_pre(*_args) -> None:
     """Another file is loading: nothing of this one's may stay on the GPU."""
-    cache.free()
+    views.free()
 
 
 def _open_viewport_keys() -> set[int]:
@@ -187,28 +200,30 @@ def describe_context_scene():
 
 
 def timer() -> float:
-    """bpy.app.timers callback: one unit of overlay work, then the delay until the next call."""
+    """bpy.app.timers callback: one step of one viewport's overlay, then the delay until the next call."""
     import bpy
 
     scene = getattr(bpy.context, "scene", None)
     settings = getattr(scene, "vsgl", None) if scene is not None else None
     if settings is None or not settings.show_overlay:
-        if cache.gpu_resource_count():
-            cache.free()
+        if views.gpu_resource_count() or views.pipelines:
+            views.free()
         return OFF_INTERVAL
     try:
         pass_settings = VSGLSettings.from_properties(settings)
     except ValueError as error:
-        cache.error = str(error)
+        views.settings_error = str(error)
         return OFF_INTERVAL
+    views.settings_error = None
     if not bpy.app.background:
-        cache.retain_views(_open_viewport_keys())
-    done = cache.step(describe_context_scene, pass_settings, float(settings.overlay_resolution_scale))
-    if done in (COARSE, REFINED) or cache.error:
+        views.retain(_open_viewport_keys())
+    views.set_step_args(pass_settings, float(settings.overlay_resolution_scale), int(settings.viewport_samples))
+    samples = {id(p): p.samples for p in views.pipelines.values()}
+    stepped = views.step(describe_context_scene)
+    if stepped is not None and (stepped.error or stepped.statistics.get("level") == COARSE
+                                or stepped.samples != samples.get(id(stepped))):
         _tag_redraw()
-    if done is not None or cache.pending(float(settings.overlay_resolution_scale)) is not None:
-        return BUSY_INTERVAL
-    return IDLE_INTERVAL
+    return BUSY_INTERVAL if stepped is not None or views.busy() else IDLE_INTERVAL
 
 
 def install() -> None:
@@ -228,7 +243,7 @@ def uninstall() -> None:
     if _draw_handle is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_draw_handle, "WINDOW")
         _draw_handle = None
-    cache.free()
+    views.free()
     _tag_redraw()
 
 

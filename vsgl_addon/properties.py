@@ -272,10 +272,11 @@ class VSGLSceneSettings(PropertyGroup):
     overlay_resolution_scale: FloatProperty(
         name="Resolution",
         description=(
-            "Overlay resolution as a fraction of the viewport's pixels, for the refined image "
-            "(the coarse image uses a quarter of it per side). Shading time grows with the "
-            "square of this: 0.5 costs 4 times 0.25. Lower keeps the viewport responsive on slow "
-            "GPUs; higher shows sharper glossy reflections"
+            "Resolution of the overlay's first, coarse image after a change, as a fraction of the "
+            "viewport's pixels per side; it is upsampled to the viewport guided by its depth and "
+            "normals, so edges stay sharp, and later samples are at full resolution. Its shading "
+            "time grows with the square of this: 0.5 costs 4 times 0.25. Lower answers a change "
+            "sooner; higher shows a sharper first image"
         ),
         default=0.25,
         min=0.02,
@@ -315,8 +316,9 @@ class VSGLSceneSettings(PropertyGroup):
     viewport_samples: IntProperty(
         name="Viewport Samples",
         description=(
-            "Full-resolution samples averaged in Rendered shading while nothing changes, each with a "
-            "new rotation of the VSGL lattice; the image converges to the techniques' expected value"
+            "Full-resolution samples averaged in Rendered shading and in the overlay while nothing "
+            "changes, each with a new rotation of the VSGL lattice; the image converges to the "
+            "techniques' expected value. More samples: a smoother image, longer refinement"
         ),
         default=16,
         min=1,

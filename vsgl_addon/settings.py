@@ -67,7 +67,7 @@ class Choices(tuple):
 
     def number(self, name: str) -> int:
         """The option's position: its enum item number in the .blend (properties.enum_items), and
-        for OVERLAY_DISPLAYS the overlay shader's `mode`."""
+        for VIEWPORT_PASSES the display shader's `mode` (glsl/view/display.frag.glsl)."""
         return self.names.index(name)
 
 
@@ -101,8 +101,8 @@ POSITIONS = Choices(
            "one surface's bounce light towards the other"),
 )
 
-#: What the viewport overlay shows; the position is the overlay shader's `mode`
-#: (glsl/overlay/overlay.frag.glsl). "added" is blended onto the viewport instead of over it.
+#: What the viewport overlay shows: the VIEWPORT_PASSES option of the same name, laid over the
+#: viewport by coverage (overlay.view_pass_and_look); "added" is the indirect light added onto it.
 OVERLAY_DISPLAYS = Choices(
     Choice("indirect", "INDIRECT", "Indirect Only",
            "One-bounce indirect light (diffuse + specular) alone, over black where there is geometry: "

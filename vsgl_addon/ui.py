@@ -33,15 +33,18 @@ OVERLAY_PROPERTIES = ("overlay_mode", "overlay_resolution_scale", "overlay_inten
 #: Statistics labels come from the passes' declarations (vsgl_addon.passes.STEPS), so a new pass
 #: brings its own.
 TIMING_LABELS = passes.TIMING_LABELS
+#: The overlay's step times (ViewPipeline statistics), beside the passes' own.
+OVERLAY_TIMING_LABELS = {"overlay_step": "Last step", "overlay_light_passes": "Light passes",
+                         "overlay_view": "View passes (coarse image)"}
 COUNT_LABELS = passes.COUNT_LABELS
 
 
 def warnings() -> list[str]:
     """Every warning the panels show: overlay failure, extraction warnings, last render's."""
     lines = []
-    if overlay.cache.error:
-        lines.append(f"Overlay stopped: {overlay.cache.error}")
-    lines.extend(overlay.cache.warnings)
+    if overlay.views.error:
+        lines.append(f"Overlay stopped: {overlay.views.error}")
+    lines.extend(overlay.views.warnings)
     for line in engine.last_frame_statistics.get("warnings", ()):
         if line not in lines:
             lines.append(line)
@@ -76,15 +79,13 @@ def draw_overlay_settings(layout, settings) -> None:
     column.active = settings.show_overlay
     for name in OVERLAY_PROPERTIES:
         column.prop(settings, name)
-    state = overlay.cache.statistics
+    column.prop(settings, "viewport_samples")
+    last = overlay.views.last
     if settings.show_overlay:
-        if overlay.cache.error:
+        if overlay.views.error:
             column.label(text="Stopped (see warnings)", icon="ERROR")
-        elif state.get("size"):
-            width, height = state["size"]
-            steps = f" in {state['bands']} steps" if state.get("bands", 1) > 1 else ""
-            column.label(text=f"Last update: {state['level']} {width}×{height}", icon="TIME")
-            column.label(text=f"{state['seconds'] * 1000:.0f} ms{steps}", icon="BLANK1")
+        elif last is not None and last.has_image:
+            column.label(text=last.status_text(int(settings.viewport_samples)).removeprefix("VSGL "), icon="TIME")
         else:
             column.label(text="Updating…", icon="TIME")
 
@@ -99,7 +100,7 @@ def _draw_statistics_block(layout, title: str, statistics: dict) -> None:
     column = box.column(align=True)
     for key, seconds in timings.items():
         row = column.split(factor=0.62)
-        row.label(text=TIMING_LABELS.get(key, key))
+        row.label(text=TIMING_LABELS.get(key) or OVERLAY_TIMING_LABELS.get(key, key))
         row.label(text=f"{seconds * 1000:.1f} ms")
     counts = statistics.get("counts", {})
     if counts:
@@ -110,13 +111,26 @@ def _draw_statistics_block(layout, title: str, statistics: dict) -> None:
             row.label(text=f"{value:.1f}" if isinstance(value, float) else f"{value}")
 
 
+def overlay_statistics() -> dict:
+    """The overlay's last step as a statistics block: its time per stage and its counts."""
+    state = overlay.views.statistics
+    if not state:
+        return {}
+    timings = {"overlay_step": state.get("seconds", 0.0)}
+    if state.get("light_seconds") is not None:
+        timings["overlay_light_passes"] = state["light_seconds"]
+    if state.get("view_seconds") is not None:
+        timings["overlay_view"] = state["view_seconds"]
+    return {"timings": timings, "counts": dict(state.get("counts", {}))}
+
+
 def draw_statistics(layout) -> None:
-    state = overlay.cache.statistics
+    state = overlay.views.statistics
     if state:
-        _draw_statistics_block(layout, "Overlay: light passes", {"timings": state.get("light_timings", {})})
+        level = state.get("level", state.get("work", ""))
         size = state.get("size")
-        if size:
-            _draw_statistics_block(layout, f"Overlay: view, {state['level']} {size[0]}×{size[1]}", state)
+        what = f"{level} {size[0]}×{size[1]}" if size else f"{level}, sample {state.get('samples', 0)}"
+        _draw_statistics_block(layout, f"Overlay: last step ({what})", overlay_statistics())
     render = engine.last_frame_statistics
     if render:
         width, height = render.get("resolution", (0, 0))

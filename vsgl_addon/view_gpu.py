@@ -55,7 +55,8 @@ def _accumulate_interface() -> ShaderInterface:
 
 
 def _display_interface() -> ShaderInterface:
-    return ShaderInterface(push_constants=[("INT", "mode"), ("FLOAT", "weight")],
+    return ShaderInterface(push_constants=[("INT", "mode"), ("FLOAT", "weight"), ("INT", "composition"),
+                                           ("FLOAT", "scale"), ("FLOAT", "gamma"), ("INT", "encode_srgb")],
                            samplers=[("FLOAT_2D", f"accum_{name}") for name in IMAGES],
                            vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")],
                            fragment_outputs=[("VEC4", "color")])
@@ -183,19 +184,31 @@ def accumulate(source: ViewTarget, target: ViewTarget, weight: float = 1.0, add:
     _draw_into(target, None, "ADDITIVE" if add else "NONE", "accumulate", set_inputs)
 
 
-def display(target: ViewTarget, weight: float, view_pass: str) -> None:
-    """Draw `target` × weight into the bound framebuffer as VIEWPORT_PASSES option `view_pass`."""
+#: The display shader's `composition`: opaque (Rendered shading), over the viewport by coverage,
+#: added onto it (the overlay's two ways).
+OPAQUE, OVER, ADDED = 0, 1, 2
+
+
+def display(target: ViewTarget, weight: float, view_pass: str, look=None) -> None:
+    """Draw `target` × weight into the bound framebuffer as VIEWPORT_PASSES option `view_pass`:
+    opaque and linear (Rendered shading: Blender's colour management follows), or, with `look`
+    (view_pipeline.OverlayLook), as the overlay lays it over another engine's viewport."""
     import gpu
 
     mode = VIEWPORT_PASSES.number(view_pass) if view_pass in VIEWPORT_PASSES.names else 0
+    composition = OPAQUE if look is None else (ADDED if look.added else OVER)
     program = VIEW.shader("display")
     batch = _batch()
     saved = gpu.state.blend_get()
     try:
-        gpu.state.blend_set("NONE")
+        gpu.state.blend_set({OPAQUE: "NONE", OVER: "ALPHA", ADDED: "ADDITIVE_PREMULT"}[composition])
         program.bind()
         program.uniform_int("mode", mode)
         program.uniform_float("weight", float(weight))
+        program.uniform_int("composition", composition)
+        program.uniform_float("scale", float(look.scale) if look is not None else 1.0)
+        program.uniform_float("gamma", float(look.gamma) if look is not None else 1.0)
+        program.uniform_int("encode_srgb", int(bool(look.encode_srgb)) if look is not None else 0)
         for name in IMAGES:
             program.uniform_sampler(f"accum_{name}", target.textures[name])
         batch.draw(program)
@@ -244,8 +257,8 @@ class GPUViewBackend:
     def finish(self, target) -> None:
         target.finish()
 
-    def display(self, target, weight, view_pass) -> None:
-        display(target, weight, view_pass)
+    def display(self, target, weight, view_pass, look=None) -> None:
+        display(target, weight, view_pass, look)
 
 
 def free_shaders() -> None:

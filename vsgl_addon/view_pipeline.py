@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """A viewport's progressive, GPU-resident view of the VSGL light, without Blender's bpy (the glue is
-engine.py's view_update / view_draw).
+engine.py's view_update / view_draw for Rendered shading, overlay.py for the overlay over other
+engines' viewports: both draw through this one pipeline).
 
 :class:`ViewPipeline` does one unit of work per :meth:`ViewPipeline.step`, each sized to about
 STEP_BUDGET seconds, so the interface stays responsive:
@@ -19,6 +20,9 @@ STEP_BUDGET seconds, so the interface stays responsive:
 Moving anything restarts from a coarse image. The images never leave the GPU: the backend
 (view_gpu.GPUViewBackend) resolves every render into the viewport's accumulation textures and draws
 their average; tests replace it with a fake one, and the clock with a fake clock.
+
+:class:`ViewportSet` holds the overlay's pipelines, one per 3D viewport; :func:`step_next` steps the
+pipeline whose turn it is, for the overlay's timer and the engine's alike.
 """
 
 from __future__ import annotations
@@ -29,7 +33,8 @@ from collections import deque
 
 import numpy as np
 
-from .overlay_cache import ViewRequest, same_view
+from dataclasses import dataclass
+
 from .settings import VSGLSettings
 from .views import band_projection
 
@@ -38,6 +43,33 @@ STEP_BUDGET = 0.06
 #: Samples averaged before the viewport stops refining (the property viewport_samples overrides it).
 DEFAULT_SAMPLES = 16
 LIGHTS, COARSE, SAMPLE = "lights", "coarse", "sample"
+
+
+@dataclass
+class ViewRequest:
+    """What a viewport last drew with: its view, projection and region size."""
+
+    view_matrix: np.ndarray
+    projection_matrix: np.ndarray
+    region_size: tuple[int, int]
+
+
+def same_view(a: ViewRequest, b: ViewRequest) -> bool:
+    return (a.region_size == b.region_size and np.array_equal(a.view_matrix, b.view_matrix)
+            and np.array_equal(a.projection_matrix, b.projection_matrix))
+
+
+@dataclass(frozen=True)
+class OverlayLook:
+    """How the overlay lays a view over another engine's viewport (the Rendered mode draws with
+    None: opaque, linear, Blender's colour management after). `scale` = intensity × 2^exposure and
+    `gamma` are the Standard view transform's; `added`: blended onto the viewport (ONE, ONE) instead
+    of over it by coverage; `encode_srgb`: for framebuffers that do not encode to sRGB themselves."""
+
+    scale: float = 1.0
+    gamma: float = 1.0
+    added: bool = False
+    encode_srgb: bool = False
 
 
 def view_size(region_size, scale: float) -> tuple[int, int]:
@@ -246,7 +278,10 @@ class ViewPipeline:
         remaining = max(self.step_budget - (self.clock() - started), self.step_budget / 4)
         fixed = self._band_fixed_seconds or 0.0
         rows = height if not self._seconds_per_pixel else int((remaining - fixed) / (self._seconds_per_pixel * width))
-        rows = max(rows, height // 64)
+        # At least one row, so a sample always progresses; not more, so that a wide viewport on a
+        # slow GPU (a 1311-pixel row costs about 13 ms on llvmpipe) still keeps each step near the
+        # budget: a floor of height / 64 rows made steps of 150-800 ms there.
+        rows = max(rows, 1)
         first = self._rows_done
         end = min(height, first + max(1, rows))
         clock = self.clock()
@@ -283,11 +318,12 @@ class ViewPipeline:
         self._seconds_per_pixel = max(float(np.mean((y - fixed) / x)), 1e-12)
 
     # --- drawing (view_draw) ------------------------------------------------------------------
-    def draw(self, view_pass: str) -> bool:
-        """Draw the average of the accumulated images into the bound framebuffer; False if none."""
+    def draw(self, view_pass: str, look: OverlayLook | None = None) -> bool:
+        """Draw the average of the accumulated images into the bound framebuffer (as the overlay
+        lays it over a viewport with `look`); False if there is none."""
         if not self.has_image or self.target is None:
             return False
-        self.backend.display(self.target, 1.0 / max(self.samples, 1), view_pass)
+        self.backend.display(self.target, 1.0 / max(self.samples, 1), view_pass, look)
         return True
 
     def status_text(self, max_samples: int = DEFAULT_SAMPLES) -> str:
@@ -337,3 +373,166 @@ class ViewPipeline:
         """GPU objects held (0 after free()): light passes, renderer, accumulation targets."""
         return ((self.lights is not None) + (self.renderer is not None)
                 + sum(getattr(self, name) is not None for name in ("target", "sample_target")))
+
+
+def step_next(pipelines, describe_scene) -> ViewPipeline | None:
+    """One step of the pipeline whose turn it is among those with work (their `step_args` set by
+    the glue: settings, scale, samples): round robin by steps done, so several viewports refine
+    together. Returns the pipeline stepped, or None when none had work."""
+    busy = [p for p in list(pipelines)
+            if getattr(p, "step_args", None) is not None and p.pending(*p.step_args) is not None]
+    if not busy:
+        return None
+    pipeline = min(busy, key=lambda p: p.steps)
+    pipeline.step(describe_scene, *pipeline.step_args)
+    return pipeline
+
+
+class _SharedLight:
+    """A SceneLights several viewports use: freed when the last of them lets go."""
+
+    def __init__(self, lights, release):
+        self._lights, self._release, self._freed = lights, release, False
+
+    def __getattr__(self, name):
+        return getattr(self._lights, name)
+
+    def free(self) -> None:
+        if not self._freed:
+            self._freed = True
+            self._release()
+
+
+class _SharedLightsBackend:
+    """A pipeline's backend whose light passes are shared by every viewport of a ViewportSet: the
+    same scene state and settings (seed included) are built once, whatever the viewport count."""
+
+    def __init__(self, viewports: "ViewportSet", backend):
+        self._viewports, self._backend = viewports, backend
+
+    def __getattr__(self, name):
+        return getattr(self._backend, name)
+
+    def scene_lights(self, description, settings):
+        return self._viewports._acquire_lights(self._backend, description, settings)
+
+
+class ViewportSet:
+    """The overlay's view pipelines, one per 3D viewport (keyed by its region data's pointer), with
+    the state the panels show. The viewports share their light passes (RSMs, VSGL tables) and the
+    scene description; a viewport that closed is freed by :meth:`retain`."""
+
+    def __init__(self, backend_factory=None, clock=time.perf_counter, step_budget: float | None = None):
+        self._backend_factory = backend_factory
+        self.step_budget = STEP_BUDGET if step_budget is None else step_budget
+        self._backend = None
+        self.clock = clock
+        self.pipelines: dict[int, ViewPipeline] = {}
+        self.last: ViewPipeline | None = None  # the pipeline stepped last (the panels' statistics)
+        self.settings_error: str | None = None  # settings the passes refuse: no step until fixed
+        self.scene_version = 0
+        self._description = None  # (scene_version, SceneDescription)
+        self._lights: dict = {}  # (scene_version, settings) -> [SceneLights, users]
+
+    def pipeline(self, key: int) -> ViewPipeline:
+        pipeline = self.pipelines.get(key)
+        if pipeline is None:
+            if self._backend is None:
+                if self._backend_factory is not None:
+                    self._backend = self._backend_factory()
+                else:
+                    from .view_gpu import GPUViewBackend
+
+                    self._backend = GPUViewBackend()
+            pipeline = self.pipelines[key] = ViewPipeline(_SharedLightsBackend(self, self._backend), self.clock,
+                                                             self.step_budget)
+        return pipeline
+
+    def _acquire_lights(self, backend, description, settings: VSGLSettings):
+        key = (self.scene_version, settings)
+        entry = self._lights.get(key)
+        if entry is None:
+            entry = self._lights[key] = [backend.scene_lights(description, settings), 0]
+        entry[1] += 1
+
+        def release():
+            entry[1] -= 1
+            if entry[1] == 0:
+                entry[0].free()
+                if self._lights.get(key) is entry:
+                    del self._lights[key]
+
+        return _SharedLight(entry[0], release)
+
+    def _describe(self, describe_scene):
+        """The scene description of the current scene state, extracted once for every viewport."""
+        if self._description is None or self._description[0] != self.scene_version:
+            self._description = (self.scene_version, describe_scene())
+        return self._description[1]
+
+    def request_view(self, key: int, view_matrix, projection_matrix, region_size) -> bool:
+        return self.pipeline(key).request_view(view_matrix, projection_matrix, region_size)
+
+    def set_step_args(self, settings: VSGLSettings, scale: float, samples: int) -> None:
+        for pipeline in self.pipelines.values():
+            pipeline.step_args = (settings, scale, samples)
+
+    def mark_scene_dirty(self) -> None:
+        self.scene_version += 1
+        self._description = None
+        for pipeline in self.pipelines.values():
+            pipeline.mark_scene_dirty()
+
+    def retain(self, keys) -> None:
+        """Free the pipelines of viewports not in `keys` (closed, or no longer 3D viewports)."""
+        for key in [k for k in self.pipelines if k not in set(keys)]:
+            self.forget(key)
+
+    def forget(self, key: int) -> None:
+        pipeline = self.pipelines.pop(key, None)
+        if pipeline is not None:
+            pipeline.free()
+            if self.last is pipeline:
+                self.last = None
+
+    def step(self, describe_scene) -> ViewPipeline | None:
+        if self.settings_error:
+            return None
+        stepped = step_next(self.pipelines.values(), lambda: self._describe(describe_scene))
+        if stepped is not None:
+            self.last = stepped
+        return stepped
+
+    def busy(self) -> bool:
+        return not self.settings_error and any(p.step_args is not None and p.pending(*p.step_args) is not None
+                   for p in self.pipelines.values())
+
+    @property
+    def error(self) -> str | None:
+        """The settings' error (the glue sets `settings_error`), else the first failed pipeline's."""
+        return self.settings_error or next((p.error for p in self.pipelines.values() if p.error), None)
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        return self.last.warnings if self.last is not None else ()
+
+    @property
+    def statistics(self) -> dict:
+        return self.last.statistics if self.last is not None else {}
+
+    def draw(self, key: int, view_pass: str, look: OverlayLook) -> bool:
+        pipeline = self.pipelines.get(key)
+        return pipeline is not None and pipeline.draw(view_pass, look)
+
+    def free(self) -> None:
+        for key in list(self.pipelines):
+            self.forget(key)
+        for lights, _ in list(self._lights.values()):
+            lights.free()  # none is left once every pipeline let go; this is the safety net
+        self._lights.clear()
+        self._description = None
+        self.last = None
+
+    def gpu_resource_count(self) -> int:
+        """GPU objects held (0 after free()): every pipeline's, and the shared light passes."""
+        return sum(p.gpu_resource_count() for p in self.pipelines.values()) + len(self._lights)
