@@ -175,6 +175,11 @@ def test_draw_shows_the_red_bounce_and_follows_mode_and_intensity(demo):
         _, combined = draw_to_array(cache, 7, "combined")
         np.testing.assert_allclose(combined[..., :3], direct[..., :3] + indirect[..., :3], rtol=1e-4, atol=1e-5)
         assert direct[covered][:, :3].max() > indirect[covered][:, :3].max()  # the spot's own light
+        # MRP-ASG's part alone: the light of demo's floor proxy, a non-empty part of the specular.
+        _, reflectors = draw_to_array(cache, 7, "indirect_glossy_reflectors")
+        assert reflectors[covered][:, :3].max() > 0.0
+        assert np.all(reflectors[..., :3] <= specular[..., :3] + 1e-5)
+        assert cache.statistics["proxies"] and cache.statistics["proxies"][0]["lit_by"]
         assert not draw_to_array(cache, 99)[0]  # a viewport with no images yet draws nothing
     finally:
         cache.free()

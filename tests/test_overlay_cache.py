@@ -67,7 +67,8 @@ class FakeRenderer(FakeGPUObject):
         value = np.float32(len(calls))
         rgb = np.full((height, width, 3), value, np.float32)
         return SimpleNamespace(indirect_diffuse=rgb, indirect_specular=2 * rgb, direct=3 * rgb,
-                               coverage=np.ones((height, width), np.float32),
+                               indirect_glossy_reflectors=0.5 * rgb, coverage=np.ones((height, width), np.float32),
+                               proxies=[{"object": "Floor", "lit_by": ["Spot"]}],
                                timings={**lights.timings, "gbuffer": seconds / 2, "vsgl_shading": seconds / 2},
                                counts={"vsgls": settings.vsgl_count})
 
@@ -162,8 +163,10 @@ def test_dirty_scene_light_passes_then_coarse_then_refined_bands_after_the_delay
         np.testing.assert_array_equal(view.textures["indirect_diffuse"][first:end, :, :3], number)
         np.testing.assert_array_equal(view.textures["indirect_specular"][first:end, :, :3], 2 * number)
         np.testing.assert_array_equal(view.textures["direct_light"][first:end, :, :3], 3 * number)
+        np.testing.assert_array_equal(view.textures["glossy_reflectors"][first:end, :, :3], 0.5 * number)
     np.testing.assert_array_equal(view.textures["direct_light"][..., 3], 1.0)
     statistics = cache.statistics
+    assert statistics["proxies"] == [{"object": "Floor", "lit_by": ["Spot"]}]  # the statistics panel's list
     assert statistics["level"] == REFINED and statistics["bands"] == len(bands)
     assert statistics["max_step_seconds"] == pytest.approx(SECONDS_PER_PIXEL * 80 * 7)
     assert statistics["seconds"] == pytest.approx(SECONDS_PER_PIXEL * 80 * 60)
@@ -245,8 +248,8 @@ def test_free_releases_every_gpu_resource_it_counts():
     cache.request_view(1, VIEW, PROJECTION, REGION)
     cache.request_view(2, VIEW, PROJECTION, REGION)
     run(cache)
-    # 3 textures per view, the light passes, the renderer, the draw shader and its triangle.
-    assert cache.gpu_resource_count() == 2 * 3 + 1 + 1 + 2
+    # 4 textures per view, the light passes, the renderer, the draw shader and its triangle.
+    assert cache.gpu_resource_count() == 2 * 4 + 1 + 1 + 2
     assert len(backend.live) == 2  # lights and renderer
     cache.free()
     assert cache.gpu_resource_count() == 0 and not backend.live
@@ -280,7 +283,7 @@ def test_draw_hands_the_display_choice_to_the_program():
     run(cache)
     assert cache.draw(1, "added", 2.0, gamma=1.5)
     textures, display, scale, gamma, encode_srgb = cache._program.draws[-1]
-    assert set(textures) == {"indirect_diffuse", "indirect_specular", "direct_light"}
+    assert set(textures) == {"indirect_diffuse", "indirect_specular", "direct_light", "glossy_reflectors"}
     assert (display, scale, gamma, encode_srgb) == ("added", 2.0, 1.5, False)
     assert not cache.draw(2, "added", 1.0)  # a viewport without images
 

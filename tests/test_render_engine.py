@@ -76,6 +76,11 @@ def test_render_report_has_timings_counts_parameters_and_renderer(rendered):
     assert {"rsm_and_vsgl_generation", "gbuffer", "direct_light", "vsgl_shading"} <= set(data["timings"])
     # The demo's glossy red floor is a rectangle proxy: MRP-ASG's VSGL split doubles the VSGL sets.
     assert data["counts"]["proxies"] >= 1 and "mrp_asg" in data["timings"]
+    # ... and the report lists it: object, size, its material's roughness, the lights reaching it.
+    assert len(data["proxies"]) == data["counts"]["proxies"]
+    floor = data["proxies"][0]
+    assert floor["object"] and len(floor["lit_by"]) == data["counts"]["lights"] == 1 and floor["lit_by"][0]
+    assert min(floor["size"]) > 0.5 and 0.0 <= floor["roughness"] < 1.0 and floor["alpha"] < 0.1
     assert data["counts"]["vsgls"] == 2 * 64 and data["counts"]["lights"] == 1
     assert data["settings"]["vsgl_count"] == 64 and data["settings"]["kernel"] == "modified"
     assert data["settings"]["positional_distribution"] == "per-lobe"

@@ -145,13 +145,16 @@ def test_statistics_and_warnings_are_shown(registered):
     scene = registered
     assert "Turn on the overlay or render to see timings" in draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
     engine.last_frame_statistics.update(timings={"gbuffer": 0.012, "vsgl_shading": 0.5}, counts={"vsgls": 256},
-                                        resolution=[96, 72], warnings=["VSGL: skipped lights: Sun"])
+                                        resolution=[96, 72], warnings=["VSGL: skipped lights: Sun"],
+                                        proxies=[{"object": "Floor", "size": [4.0, 3.0], "roughness": 0.2,
+                                                  "lit_by": ["Spot", "Sun"]}])
     overlay.cache.statistics = {"level": "refined", "seconds": 0.2, "size": (80, 60), "counts": {"lights": 1},
                                 "timings": {"vsgl_shading": 0.15}, "light_timings": {"rsm_and_vsgl_generation": 0.05}}
     overlay.cache.error = "ShaderCompileError: broken"
     labels = draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
     for text in ("VSGL Shading", "500.0 ms", "150.0 ms", "RSM + VSGL Generation", "50.0 ms", "VSGLs", "256",
-                 "Last render 96×72", "Overlay: view, refined 80×60", "Overlay: light passes"):
+                 "Last render 96×72", "Overlay: view, refined 80×60", "Overlay: light passes",
+                 "Rectangle proxies (MRP-ASG):", "Floor: 4.00 × 3.00 m, roughness 0.200, lit by Spot, Sun"):
         assert text in labels, text
     top = draw(ui.VIEW3D_PT_vsgl, scene)["labels"]
     assert "Overlay stopped: ShaderCompileError: broken" in top and "VSGL: skipped lights: Sun" in top

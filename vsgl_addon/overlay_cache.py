@@ -38,7 +38,7 @@ STEP_BUDGET = 0.06
 LIGHTS, COARSE, REFINED = "lights", "coarse", "refined"
 #: The cached images of a view (the overlay shader's samplers) and the FrameImages array of each.
 IMAGE_ARRAYS = {"indirect_diffuse": "indirect_diffuse", "indirect_specular": "indirect_specular",
-                "direct_light": "direct"}
+                "direct_light": "direct", "glossy_reflectors": "indirect_glossy_reflectors"}
 
 
 def overlay_size(region_size, scale: float, level: str) -> tuple[int, int]:
@@ -79,13 +79,14 @@ class _Refinement:
     request: ViewRequest
     scene_version: int
     size: tuple[int, int]
-    arrays: dict  # "indirect_diffuse", "indirect_specular", "direct": (h, w, 3); "coverage": (h, w)
+    arrays: dict  # the IMAGE_ARRAYS values: (h, w, 3); "coverage": (h, w)
     rows_done: int = 0
     bands: int = 0
     seconds: float = 0.0
     max_step_seconds: float = 0.0
     timings: dict = field(default_factory=dict)
     counts: dict = field(default_factory=dict)
+    proxies: list = field(default_factory=list)  # renderer.FrameImages.proxies of the last band
 
 
 def same_view(a: ViewRequest, b: ViewRequest) -> bool:
@@ -309,9 +310,10 @@ class OverlayCache:
         if level == COARSE:
             self._refining.pop(key, None)
             images, seconds, timings = self._render(request, width, height, request.projection_matrix)
-            arrays = {"indirect_diffuse": images.indirect_diffuse, "indirect_specular": images.indirect_specular,
-                      "direct": images.direct, "coverage": images.coverage}
-            self._store(key, request, COARSE, (width, height), arrays, seconds, timings, images.counts)
+            arrays = {array: getattr(images, array) for array in IMAGE_ARRAYS.values()}
+            arrays["coverage"] = images.coverage
+            self._store(key, request, COARSE, (width, height), arrays, seconds, timings, images.counts,
+                        {"proxies": list(getattr(images, "proxies", ()))})
             return
         self._refine_band(key, request, width, height)
 
@@ -320,11 +322,9 @@ class OverlayCache:
         job = self._refining.get(key)
         if job is None or job.scene_version != self.lights_version or job.size != (width, height) \
                 or not same_view(job.request, request):
-            job = _Refinement(request, self.lights_version, (width, height), {
-                "indirect_diffuse": np.zeros((height, width, 3), np.float32),
-                "indirect_specular": np.zeros((height, width, 3), np.float32),
-                "direct": np.zeros((height, width, 3), np.float32),
-                "coverage": np.zeros((height, width), np.float32)})
+            arrays = {array: np.zeros((height, width, 3), np.float32) for array in IMAGE_ARRAYS.values()}
+            arrays["coverage"] = np.zeros((height, width), np.float32)
+            job = _Refinement(request, self.lights_version, (width, height), arrays)
             self._refining[key] = job
         rows = height
         if self._seconds_per_pixel:
@@ -333,24 +333,24 @@ class OverlayCache:
         end = min(height, first + max(1, rows))
         images, seconds, timings = self._render(request, width, end - first,
                                                 band_projection(request.projection_matrix, first, end, height))
-        job.arrays["indirect_diffuse"][first:end] = images.indirect_diffuse
-        job.arrays["indirect_specular"][first:end] = images.indirect_specular
-        job.arrays["direct"][first:end] = images.direct
-        job.arrays["coverage"][first:end] = images.coverage
+        for array in (*IMAGE_ARRAYS.values(), "coverage"):
+            job.arrays[array][first:end] = getattr(images, array)
         job.rows_done, job.bands = end, job.bands + 1
         job.seconds += seconds
         job.max_step_seconds = max(job.max_step_seconds, seconds)
         for name, value in timings.items():
             job.timings[name] = job.timings.get(name, 0.0) + value
         job.counts = dict(images.counts)
+        job.proxies = list(getattr(images, "proxies", ()))
         if end < height:
             self.statistics = {"level": "refining", "seconds": seconds, "timings": timings,
                                "light_timings": dict(self.lights.timings), "counts": dict(images.counts),
-                               "size": (width, end - first), "rows": (first, end, height)}
+                               "size": (width, end - first), "rows": (first, end, height),
+                               "proxies": job.proxies}
             return
         del self._refining[key]
         self._store(key, request, REFINED, (width, height), job.arrays, job.seconds, job.timings, job.counts,
-                    {"bands": job.bands, "max_step_seconds": job.max_step_seconds})
+                    {"bands": job.bands, "max_step_seconds": job.max_step_seconds, "proxies": job.proxies})
 
     def ensure_draw_resources(self) -> None:
         """Compile the draw shader and make its triangle (outside the draw callback)."""

@@ -278,6 +278,36 @@ def lit_proxies(proxies, scene, samples: int = 5) -> list[tuple[RectangleProxy, 
     return kept
 
 
+def describe_proxies(lit, scene) -> list[dict]:
+    """Plain, JSON-ready rows of ``lit`` ((proxy, lit-by mask) pairs, as :func:`lit_proxies` and
+    ``renderer.scene_proxies`` give them) for the statistics panel and the render report: the object,
+    the material, the rectangle's size (m), the material's roughness and GGX α, the side's normal
+    and the names of the lights that reach that side."""
+    rows = []
+    for proxy, mask in lit:
+        names = scene.object_names
+        material = scene.materials[proxy.material_index] if 0 <= proxy.material_index < len(scene.materials) else None
+        rows.append({
+            "object": names[proxy.object_index] if 0 <= proxy.object_index < len(names) else "",
+            "material": getattr(material, "name", ""),
+            "size": [round(2.0 * proxy.half_u, 6), round(2.0 * proxy.half_v, 6)],
+            "area": round(float(proxy.area), 6),
+            "roughness": round(float(np.sqrt(max(proxy.alpha, 0.0))), 6),
+            "alpha": round(float(proxy.alpha), 6),
+            "normal": [round(float(c), 6) for c in proxy.normal],
+            "triangles": int(proxy.triangle_count),
+            "lit_by": [light.name for light, lit_by in zip(scene.lights, mask) if lit_by],
+        })
+    return rows
+
+
+def describe_row(row: dict) -> str:
+    """One line of the statistics panel for a :func:`describe_proxies` row."""
+    lights = ", ".join(row["lit_by"]) or "no light"
+    return (f"{row['object']}: {row['size'][0]:.2f} × {row['size'][1]:.2f} m, "
+            f"roughness {row['roughness']:.3f}, lit by {lights}")
+
+
 def geometry_key(scene, caustic_roughness: float, overrides) -> str:
     """What the proxies depend on: triangles, material indices and materials' roughness, metallic,
     colour and IOR, α_c, the overrides."""

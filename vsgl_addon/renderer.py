@@ -24,7 +24,7 @@ from .passes.contract import LIGHT_PASSES
 from .passes.gpu_util import finish
 from .passes.rsm import SceneGPU
 from .pipeline import build_visibility, render_scene_vsgls
-from .proxies import ProxyCache, lit_proxies
+from .proxies import ProxyCache, describe_proxies, lit_proxies
 from .reference.vsgl_shading import diffuse_mode_for_kernel
 from .settings import VSGLSettings
 
@@ -43,6 +43,9 @@ class FrameImages:
     # The part of indirect_specular MRP-ASG carries (light reflected by a rectangle proxy onto
     # glossy receivers, 001); None: zeros.
     indirect_glossy_reflectors: np.ndarray | None = None
+    # The rectangle proxies MRP-ASG shaded (proxies.describe_proxies rows: object, size, roughness,
+    # lit by which lights), for the statistics panel and the render report.
+    proxies: list = field(default_factory=list)
 
     def __post_init__(self):
         if self.indirect_glossy_reflectors is None:
@@ -183,6 +186,7 @@ class ViewTextures:
     _owned: list = field(default_factory=list)
 
     TEXTURES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "position", "normal")
+    # Also "indirect_glossy_reflectors" (MRP-ASG's part of indirect_specular) when a proxy is lit.
 
     def free(self) -> None:
         for item in self._owned:
@@ -244,6 +248,8 @@ class FrameRenderer:
         textures = {"direct_diffuse": direct.textures["diffuse"], "direct_specular": direct.textures["glossy"],
                     "indirect_diffuse": self._shading.diffuse, "indirect_specular": specular,
                     "position": gbuffer.textures["position"], "normal": gbuffer.textures["normal"]}
+        if lights.proxies:
+            textures["indirect_glossy_reflectors"] = self._mrp.texture
         glossy_count = lights.glossy_vsgls.vsgl_count if lights.glossy_vsgls is not None else 0
         counts = {"lights": len(scene.lights), "vsgls": lights.vsgls.vsgl_count + glossy_count,
                   "triangles": int(len(scene.geometry.positions)), "proxies": len(lights.proxies)}
@@ -347,4 +353,4 @@ class FrameRenderer:
             indirect_specular = indirect_specular + glossy_reflectors
         return FrameImages(_rgb(direct_diffuse), _rgb(direct_specular), _rgb(indirect_diffuse),
                            indirect_specular, np.clip(np.nan_to_num(coverage), 0.0, 1.0).astype(np.float32),
-                           timings, counts, glossy_reflectors)
+                           timings, counts, glossy_reflectors, describe_proxies(lights.proxies, scene))

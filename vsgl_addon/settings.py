@@ -118,6 +118,9 @@ OVERLAY_DISPLAYS = Choices(
            "Only the direct light the VSGL renderer computes (with its shadow-map shadows)"),
     Choice("combined", "COMBINED", "Combined",
            "Direct plus indirect light: what an F12 render with the VSGL engine gives"),
+    Choice("indirect_glossy_reflectors", "INDIRECT_GLOSSY_REFLECTORS", "Indirect Glossy Reflectors",
+           "Only the light sharp planar reflectors (rectangle proxies) send to glossy surfaces, as "
+           "MRP-ASG renders it (001): the part of Indirect Specular that the VSGLs no longer carry"),
 )
 
 #: Which light a look-dev image holds (operators.py); the name is the renderer's FrameImages attribute.
@@ -157,6 +160,9 @@ VIEWPORT_PASSES = Choices(
            "Diffuse part of the indirect light (the Indirect Diffuse render pass)"),
     Choice("indirect_specular", "INDIRECT_SPECULAR", "Indirect Specular",
            "Glossy part of the indirect light (the Indirect Specular render pass)"),
+    Choice("indirect_glossy_reflectors", "INDIRECT_GLOSSY_REFLECTORS", "Indirect Glossy Reflectors",
+           "The part of Indirect Specular that MRP-ASG renders: light of sharp planar reflectors on "
+           "glossy surfaces (the Indirect Glossy Reflectors render pass)"),
 )
 
 KERNEL_MODES = KERNELS.names

@@ -18,6 +18,7 @@ from __future__ import annotations
 import bpy
 
 from . import engine, overlay, passes
+from .proxies import describe_row
 from .settings import KERNELS
 
 #: (heading, scene.vsgl property names), in pipeline order. Append an entry for a new pass's controls.
@@ -106,6 +107,12 @@ def _draw_statistics_block(layout, title: str, statistics: dict) -> None:
             row = column.split(factor=0.62)
             row.label(text=COUNT_LABELS.get(key, key))
             row.label(text=f"{value}")
+    proxies = statistics.get("proxies", ())
+    if proxies:
+        column.separator()
+        column.label(text="Rectangle proxies (MRP-ASG):")
+        for row in proxies:
+            column.label(text=describe_row(row), icon="MESH_PLANE")
 
 
 def draw_statistics(layout) -> None:

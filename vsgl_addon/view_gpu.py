@@ -24,23 +24,25 @@ from .passes.gpu_util import finish, fullscreen_triangle_batch
 from .settings import VIEWPORT_PASSES
 from .shaders import ShaderInterface
 
-#: The accumulation images of a view (RGBA32F; rgb radiance sum, a coverage sum).
-IMAGES = ("direct", "indirect_diffuse", "indirect_specular")
+#: The accumulation images of a view (RGBA32F; rgb radiance sum, a coverage sum). The last is MRP-ASG's
+#: part of indirect_specular (the Indirect Glossy Reflectors pass), kept apart only to be shown alone.
+IMAGES = ("direct", "indirect_diffuse", "indirect_specular", "indirect_glossy_reflectors")
 #: Joint bilateral range parameters: positions compared in low-resolution texel footprints, and the
 #: power of the normals' cosine (reference/joint_bilateral.py has the same defaults).
 SIGMA_POSITION = 1.0
 NORMAL_POWER = 8.0
 
 _OUTPUTS = [("VEC4", f"out_{name}") for name in IMAGES]
+#: The textures of a view render (renderer.ViewTextures) the resolve reads.
+RESOLVED = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular",
+            "indirect_glossy_reflectors", "position", "normal")
 
 
 def _resolve_interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("FLOAT", "projection_11"), ("FLOAT", "sigma_position"),
-                        ("FLOAT", "normal_power"), ("FLOAT", "weight")],
-        samplers=[("FLOAT_2D", f"low_{name}") for name in ("direct_diffuse", "direct_specular",
-                                                           "indirect_diffuse", "indirect_specular",
-                                                           "position", "normal")]
+                        ("FLOAT", "normal_power"), ("FLOAT", "weight"), ("INT", "has_glossy_reflectors")],
+        samplers=[("FLOAT_2D", f"low_{name}") for name in RESOLVED]
         + [("FLOAT_2D", "guide_position"), ("FLOAT_2D", "guide_normal")],
         vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")], fragment_outputs=_OUTPUTS)
 
@@ -150,9 +152,13 @@ def resolve(view, guide_position, guide_normal, camera, projection_11: float, ta
         program.uniform_float("sigma_position", SIGMA_POSITION)
         program.uniform_float("normal_power", NORMAL_POWER)
         program.uniform_float("weight", float(weight))
-        for name in ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular",
-                     "position", "normal"):
-            program.uniform_sampler(f"low_{name}", view.textures[name])
+        # A view without rectangle proxies has no MRP-ASG image: any texture is bound, and ignored.
+        reflectors = view.textures.get("indirect_glossy_reflectors")
+        program.uniform_int("has_glossy_reflectors", 0 if reflectors is None else 1)
+        for name in RESOLVED:
+            texture = view.textures[name] if name != "indirect_glossy_reflectors" or reflectors is not None \
+                else view.textures["indirect_specular"]
+            program.uniform_sampler(f"low_{name}", texture)
         program.uniform_sampler("guide_position", guide_position)
         program.uniform_sampler("guide_normal", guide_normal)
 

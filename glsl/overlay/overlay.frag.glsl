@@ -1,9 +1,10 @@
 // The viewport overlay: draws the cached VSGL images (overlay_cache.py) over a 3D viewport.
 //
 // Inputs (all RGBA32F, the overlay's own resolution, row 0 at the bottom, alpha = coverage):
-//   indirect_diffuse, indirect_specular, direct_light   linear radiance, Blender's units
+//   indirect_diffuse, indirect_specular, direct_light, glossy_reflectors   linear radiance,
+//   Blender's units (glossy_reflectors: MRP-ASG's part of indirect_specular)
 // `mode` (settings.OVERLAY_DISPLAYS order): 0 indirect only, 1 indirect added to the viewport,
-// 2 indirect diffuse, 3 indirect specular, 4 direct, 5 direct + indirect.
+// 2 indirect diffuse, 3 indirect specular, 4 direct, 5 direct + indirect, 6 glossy reflectors.
 // `scale` = intensity x 2^exposure; the view transform is Blender's "Standard" one (scale, then
 // the look's gamma); the framebuffer's sRGB encoding (or ours, `encode_srgb`) makes it display-referred.
 // Sampled bilinearly by hand (texelFetch) so a coarse image shows smooth, not blocky, whatever the
@@ -49,6 +50,9 @@ void main()
   }
   else if (mode == 5) {
     radiance = direct.rgb + diffuse.rgb + specular.rgb;
+  }
+  else if (mode == 6) {
+    radiance = fetch_bilinear(glossy_reflectors, uv).rgb;
   }
   else {
     radiance = diffuse.rgb + specular.rgb;

@@ -6,4 +6,5 @@ void main()
   out_direct = texelFetch(source_direct, pixel, 0) * weight;
   out_indirect_diffuse = texelFetch(source_indirect_diffuse, pixel, 0) * weight;
   out_indirect_specular = texelFetch(source_indirect_specular, pixel, 0) * weight;
+  out_indirect_glossy_reflectors = texelFetch(source_indirect_glossy_reflectors, pixel, 0) * weight;
 }

@@ -1,6 +1,7 @@
 // The Rendered viewport's image (vsgl_addon/view_gpu.py): the running sums of the accumulation
 // images times `weight` (1 / samples), as the pass `mode` shows them (settings.VIEWPORT_PASSES
-// order: 0 combined, 1 direct, 2 indirect, 3 indirect diffuse, 4 indirect specular). Linear,
+// order: 0 combined, 1 direct, 2 indirect, 3 indirect diffuse, 4 indirect specular, 5 indirect
+// glossy reflectors: MRP-ASG's part of indirect specular). Linear,
 // scene-referred, Blender's units: the viewport's colour management (the scene's view transform,
 // look, exposure and gamma) is applied by Blender afterwards, as to F12's render result.
 void main()
@@ -22,6 +23,9 @@ void main()
   }
   else if (mode == 4) {
     radiance = specular;
+  }
+  else if (mode == 5) {
+    radiance = texelFetch(accum_indirect_glossy_reflectors, pixel, 0).rgb;
   }
   else {
     radiance = direct + diffuse + specular;

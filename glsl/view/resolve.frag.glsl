@@ -3,6 +3,7 @@
 // view render, upsampled to the guide's pixels by the joint bilateral filter (the identity when the
 // render has the guide's resolution), times `weight`. Outputs rgb = radiance (Blender's units),
 // a = the guide's coverage, all times `weight` (added by blending when accumulating).
+// has_glossy_reflectors = 0: the view has no MRP-ASG image (no proxy); its output is black.
 void main()
 {
   ivec2 pixel = clamp(ivec2(uv * vec2(textureSize(guide_position, 0))), ivec2(0),
@@ -14,6 +15,7 @@ void main()
     out_direct = vec4(0.0);
     out_indirect_diffuse = vec4(0.0);
     out_indirect_specular = vec4(0.0);
+    out_indirect_glossy_reflectors = vec4(0.0);
     return;
   }
   float footprint = jbu_footprint(camera, position.xyz, projection_11, float(textureSize(low_position, 0).y));
@@ -25,6 +27,11 @@ void main()
                                      footprint, sigma_position, normal_power);
   vec4 is = joint_bilateral_upsample(low_indirect_specular, low_position, low_normal, uv, position.xyz, normal,
                                      footprint, sigma_position, normal_power);
+  vec3 reflectors = vec3(0.0);
+  if (has_glossy_reflectors != 0) {
+    reflectors = joint_bilateral_upsample(low_indirect_glossy_reflectors, low_position, low_normal, uv,
+                                          position.xyz, normal, footprint, sigma_position, normal_power).rgb;
+  }
   // No NaN or Inf may reach a pixel.
   vec3 direct = dd.rgb + ds.rgb;
   direct = all(lessThan(abs(direct), vec3(1e30))) ? direct : vec3(0.0);
@@ -33,4 +40,6 @@ void main()
   out_direct = vec4(direct, coverage) * weight;
   out_indirect_diffuse = vec4(diffuse, coverage) * weight;
   out_indirect_specular = vec4(specular, coverage) * weight;
+  reflectors = all(lessThan(abs(reflectors), vec3(1e30))) ? reflectors : vec3(0.0);
+  out_indirect_glossy_reflectors = vec4(reflectors, coverage) * weight;
 }
