@@ -75,6 +75,8 @@ def draw_overlay_settings(layout, settings) -> None:
     column.active = settings.show_overlay
     for name in OVERLAY_PROPERTIES:
         column.prop(settings, name)
+    # The proxies' debug outlines work with the overlay off too.
+    layout.prop(settings, "show_proxy_outlines")
     state = overlay.cache.statistics
     if settings.show_overlay:
         if overlay.cache.error:
@@ -256,6 +258,26 @@ class RENDER_PT_vsgl_statistics(_RenderPanel, bpy.types.Panel):
         draw_statistics(self.layout)
 
 
+class OBJECT_PT_vsgl_proxy(bpy.types.Panel):
+    """Object Properties: whether the object's planar regions become rectangle proxies (MRP-ASG)."""
+
+    bl_label = "VSGL Glossy Reflector"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "object"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        obj = getattr(context, "object", None)
+        return obj is not None and obj.type == "MESH" and hasattr(obj, "vsgl_proxy")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(context.object, "vsgl_proxy")
+
+
 def draw_viewport_pass(self, context):
     """Appended to the 3D viewport's Shading popover: the pass Rendered shading shows, where
     Cycles and EEVEE put theirs."""
@@ -284,4 +306,5 @@ CLASSES = (
     VIEW3D_PT_vsgl, VIEW3D_PT_vsgl_overlay, VIEW3D_PT_vsgl_passes, VIEW3D_PT_vsgl_lookdev,
     VIEW3D_PT_vsgl_statistics,
     RENDER_PT_vsgl, RENDER_PT_vsgl_overlay, RENDER_PT_vsgl_viewport, RENDER_PT_vsgl_lookdev, RENDER_PT_vsgl_statistics,
+    OBJECT_PT_vsgl_proxy,
 )
