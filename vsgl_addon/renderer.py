@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .layouts import GBUFFER
-from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg, shading_inputs, vsgl_shading
+from .passes import (READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg, mrp_visibility,
+                     shading_inputs, vsgl_shading)
 from .passes.contract import LIGHT_PASSES
 from .passes.gpu_util import finish
 from .passes.rsm import SceneGPU
@@ -92,6 +93,9 @@ class SceneLights:
     glossy_vsgls: object = None
     # MRP-ASG (001): (rectangle proxy, lit-by mask over scene.lights) of the proxies some light reaches.
     proxies: list = field(default_factory=list)
+    # With visibility on: the proxies' mirror shadow maps (passes/mrp_visibility.py), MRP-ASG's
+    # proxy-to-receiver shadows.
+    mirror_maps: object = None
 
     @classmethod
     def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None) -> "SceneLights":
@@ -119,12 +123,19 @@ class SceneLights:
                     if table_set.isms:
                         _finish(table_set.isms[-1].texture)
             timings[ism.PASS.step.name] = time.perf_counter() - clock
+            mirror_maps = None
+            clock = time.perf_counter()
+            if settings.visibility and proxies:
+                mirror_maps = mrp_visibility.PASS.run(scene_gpu, proxies, settings.rsm_size, settings.disk_radius)
+                for depth, _ in mirror_maps.atlases.values():
+                    _finish(depth)
+            timings[mrp_visibility.PASS.step.name] = time.perf_counter() - clock
         except BaseException:
             for table_set in sets:
                 table_set.free()
             scene_gpu.free()
             raise
-        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies)
+        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies, mirror_maps)
 
     def free(self) -> None:
         if self.vsgls is not None:
@@ -133,6 +144,9 @@ class SceneLights:
         if self.glossy_vsgls is not None:
             self.glossy_vsgls.free()
             self.glossy_vsgls = None
+        if self.mirror_maps is not None:
+            self.mirror_maps.free()
+            self.mirror_maps = None
         if self.scene_gpu is not None:
             self.scene_gpu.free()
             self.scene_gpu = None
@@ -238,7 +252,8 @@ class FrameRenderer:
                 gated = not scene.receiver_lobe_split
                 mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, lights.vsgls.views_by_light,
                                  lights.proxies, settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
-                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
+                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0),
+                                 mirror_maps=lights.mirror_maps)
                 specular = self._mrp.composite_specular(self._shading.specular, specular, gated)
         except BaseException:
             for item in (direct, gbuffer):
@@ -327,7 +342,8 @@ class FrameRenderer:
                 # MRP-ASG's cell (light-paths.md): proxy-reflected light onto glossy receivers.
                 mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, vsgls.views_by_light, lights.proxies,
                                  settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
-                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
+                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0),
+                                 mirror_maps=lights.mirror_maps)
                 _finish(self._mrp.texture)
             lap(mrp_asg.PASS.step.name)
             if lights.proxies:
