@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..shaders import ShaderInterface  # noqa: F401  (the interface below is built from scene_gpu's)
 from ..views import box_corners, view_from_frame
 from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import matrix, texture_from_array
@@ -174,7 +173,8 @@ def render_mirror_maps(scene_gpu, lit, size: int, margin: float) -> MirrorMaps:
         depth = gpu.types.GPUTexture((maps.size * len(proxies), maps.size), format="DEPTH_COMPONENT32F")
         colour = gpu.types.GPUTexture((maps.size * len(proxies), maps.size), format="R32F")
         framebuffer = gpu.types.GPUFrameBuffer(depth_slot=depth, color_slots=[colour])
-        saved = (gpu.state.depth_test_get(), gpu.state.depth_mask_get(), tuple(gpu.state.viewport_get()))
+        saved = (gpu.state.depth_test_get(), gpu.state.depth_mask_get(), tuple(gpu.state.viewport_get()),
+                 gpu.state.blend_get())
         try:
             with framebuffer.bind():
                 framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
@@ -196,6 +196,7 @@ def render_mirror_maps(scene_gpu, lit, size: int, margin: float) -> MirrorMaps:
             gpu.state.depth_test_set(saved[0])
             gpu.state.depth_mask_set(saved[1])
             gpu.state.viewport_set(*saved[2])
+            gpu.state.blend_set(saved[3])
         maps.atlases[index] = (depth, texture_from_array(mirror_constants(views)))
     return maps
 
