@@ -11,6 +11,8 @@ with the scene's saved settings (the add-on's defaults for the suite's scenes), 
   RMSE (both noise-corrected, tradeoff.metrics.Errors), mean indirect ours / Cycles, the number of
   proxies; per material (the demo's gold sphere, the new scene's objects): mean ours / Cycles;
 * cost: the MRP-ASG pass's time over the VSGL shading time of the same frame (N = 256 on the demo);
+* on occluded_reflector, MRP-ASG also without its proxy-to-receiver shadows (mirror shadow maps):
+  what those shadows change, per material (the wall behind the block against the open one);
 * disk-radius sweep (r_d = 0.01 … 1 m) on the demo and the polished metal floor: specular and total
   relative RMSE and the pass's time; a plot.
 
@@ -38,12 +40,32 @@ from validation_suite import TRUTH_SAMPLES, open_scene, suite  # noqa: E402
 
 RADII = (0.01, 0.03, 0.1, 0.3, 1.0)
 SWEEP_SCENES = ("demo", "polished_metal_floor")
+# Scenes whose per-material figures are reported, and where MRP-ASG is also measured without its
+# proxy-to-receiver shadows (the mirror shadow maps of passes/mrp_visibility.py).
+REGION_SCENES = SWEEP_SCENES + ("occluded_reflector",)
+MIRROR_SCENES = ("occluded_reflector",)
 WIDTH, HEIGHT = 240, 180
 
 
-def _frame(renderer, description, settings):
-    renderer.render(description, settings, WIDTH, HEIGHT)  # warm-up: shaders, llvmpipe
-    return renderer.render(description, settings, WIDTH, HEIGHT)
+def _frame(renderer, description, settings, mirror_maps=True):
+    """The second of two frames (the first warms up shaders and llvmpipe); ``mirror_maps=False``:
+    MRP-ASG without its proxy-to-receiver shadows, everything else the same."""
+    if mirror_maps:
+        renderer.render(description, settings, WIDTH, HEIGHT)
+        return renderer.render(description, settings, WIDTH, HEIGHT)
+    from vsgl_addon.renderer import SceneLights
+
+    lights = SceneLights.build(description, settings)
+    try:
+        maps, lights.mirror_maps = lights.mirror_maps, None
+        if maps is not None:
+            maps.free()
+        camera = description.camera
+        args = (lights, settings, WIDTH, HEIGHT, camera.view_matrix(), camera.projection_matrix())
+        renderer.render_view(*args)
+        return renderer.render_view(*args)
+    finally:
+        lights.free()
 
 
 def _material_index(description):
@@ -74,9 +96,13 @@ def measure(name, path, sweep: bool) -> dict:
     out = {"scene": name, "settings": str(settings)}
     try:
         images = {"Cycles": truth["indirect"]}
-        for label, on in (("vsgl", False), ("mrp", True)):
-            frame = _frame(renderer, description, settings.overridden(glossy_reflectors=on))
-            images["VSGLs alone" if not on else "with MRP-ASG"] = frame.indirect_diffuse + frame.indirect_specular
+        variants = [("vsgl", False, True), ("mrp", True, True)]
+        if name in MIRROR_SCENES:
+            variants.append(("mrp_unshadowed", True, False))
+        for label, on, mirror in variants:
+            frame = _frame(renderer, description, settings.overridden(glossy_reflectors=on), mirror)
+            if mirror:
+                images["VSGLs alone" if not on else "with MRP-ASG"] = frame.indirect_diffuse + frame.indirect_specular
             errors = Errors(truth, frame.coverage)
             figures = errors(frame.indirect_diffuse, frame.indirect_specular)
             ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
@@ -90,7 +116,7 @@ def measure(name, path, sweep: bool) -> dict:
                           "regions": {k: {"mean_ratio": v["mean_ratio"], "error_share": v["error_share"]}
                                       for k, v in regions.items()}}
         out["cost_ratio"] = out["mrp"]["mrp_seconds"] / out["mrp"]["vsgl_shading_seconds"]
-        if name in SWEEP_SCENES:
+        if name in REGION_SCENES:
             comparison(images, RESULTS_DIR / f"mrp_asg_{name}_indirect.png", name)
         if sweep and out["mrp"]["proxies"]:
             rows = []
@@ -140,11 +166,22 @@ def markdown(results) -> str:
                      f"{r['cost_ratio']:.3f} |")
     lines += ["", "Per material, mean ours / Cycles (VSGL → MRP-ASG):", ""]
     for r in results:
-        if r["scene"] in SWEEP_SCENES:
+        if r["scene"] in REGION_SCENES:
             for material, v in r["vsgl"]["regions"].items():
                 m = r["mrp"]["regions"][material]
                 lines.append(f"- {r['scene']}, {material}: {v['mean_ratio']:.3f} → {m['mean_ratio']:.3f} "
                              f"(error share {v['error_share']:.2f} → {m['error_share']:.2f})")
+    for r in results:
+        if "mrp_unshadowed" in r:
+            u, m = r["mrp_unshadowed"], r["mrp"]
+            lines += ["", f"MRP-ASG's proxy-to-receiver shadows (mirror shadow maps) on {r['scene']}, without → with:", "",
+                      f"- indirect specular rel. RMSE {u['rel_specular']:.3f} → {m['rel_specular']:.3f}, "
+                      f"total {u['rel']:.3f} → {m['rel']:.3f}, mean ours/Cycles {u['mean_ratio']:.3f} → "
+                      f"{m['mean_ratio']:.3f}"]
+            for material, v in u["regions"].items():
+                w = m["regions"][material]
+                lines.append(f"- {material}: mean ours/Cycles {v['mean_ratio']:.3f} → {w['mean_ratio']:.3f} "
+                             f"(error share {v['error_share']:.2f} → {w['error_share']:.2f})")
     for r in results:
         if "sweep" in r:
             lines += ["", f"Disk-radius sweep, {r['scene']}:", "",

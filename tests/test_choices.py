@@ -14,14 +14,16 @@ from vsgl_addon import settings
 from vsgl_addon.cli import UsageError, build_parser
 from vsgl_addon.reference import vsgl as reference_vsgl
 from vsgl_addon.settings import (KERNELS, LOOKDEV_PASSES, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES,
-                                REFLECTOR_MODES, Choice, Choices,
+                                REFLECTOR_MODES, VIEWPORT_PASSES, Choice, Choices,
                                  VSGLSettings)
 
 STORED = {
     "kernel": (KERNELS, ["MODIFIED", "ORIGINAL", "TWO_VSGL"]),
     "positional_distribution": (POSITIONS, ["PER_LOBE", "SHARED"]),
     "overlay_mode": (OVERLAY_DISPLAYS, ["INDIRECT", "ADDED", "INDIRECT_DIFFUSE", "INDIRECT_SPECULAR", "DIRECT",
-                                        "COMBINED", "INDIRECT_CAUSTICS"]),
+                                        "COMBINED", "INDIRECT_CAUSTICS", "INDIRECT_GLOSSY_REFLECTORS"]),
+    "viewport_pass": (VIEWPORT_PASSES, ["COMBINED", "DIRECT", "INDIRECT", "INDIRECT_DIFFUSE", "INDIRECT_SPECULAR",
+                                        "INDIRECT_CAUSTICS", "INDIRECT_GLOSSY_REFLECTORS"]),
     "vpl_interleave": (settings.INTERLEAVE_CHOICES, ["AUTO", "N1", "N2", "N4", "N8"]),
     "reflector_mode": (REFLECTOR_MODES, ["ASG", "SG"]),
     "vsgl_proxy": (PROXY_OVERRIDES, ["AUTO", "ALWAYS", "NEVER"]),

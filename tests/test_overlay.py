@@ -179,6 +179,13 @@ def test_draw_shows_the_red_bounce_and_follows_mode_and_intensity_on_the_gpu(dem
         _, added = draw_to_array(views, 7, "added")
         np.testing.assert_allclose(added[covered][:, :3], indirect[covered][:, :3], rtol=1e-4, atol=1e-6)
         assert np.all(added[..., 3] == 0.0) and np.all(added[~covered & (indirect[..., 3] == 0)][:, :3] == 0)
+        # MRP-ASG's part alone: the light of demo's floor proxy, a non-empty part of the specular.
+        _, reflectors = draw_to_array(views, 7, "indirect_glossy_reflectors")
+        assert reflectors[covered][:, :3].max() > 0.0
+        assert np.all(reflectors[..., :3] <= specular[..., :3] + 1e-5)
+        from vsgl_addon import ui
+
+        assert ui.overlay_statistics()["proxies"][0]["lit_by"]
         assert not draw_to_array(views, 99)[0]  # a viewport with no images yet draws nothing
     finally:
         views.free()

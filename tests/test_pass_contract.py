@@ -15,8 +15,8 @@ from vsgl_addon.passes.contract import GPUPass, ShaderSpec, Step
 
 
 def test_every_pass_module_declares_its_pass_once():
-    modules = [passes.rsm, passes.vsgl_generation, passes.ism, passes.gbuffer, passes.direct_light,
-               passes.shading_inputs, passes.vsgl_shading, passes.vpl_culling, passes.mrp_asg]
+    modules = [passes.rsm, passes.vsgl_generation, passes.ism, passes.mrp_visibility, passes.gbuffer,
+               passes.direct_light, passes.shading_inputs, passes.vsgl_shading, passes.vpl_culling, passes.mrp_asg]
     assert [module.PASS for module in modules] == list(passes.PASSES)
     assert len({gpu_pass.name for gpu_pass in passes.PASSES}) == len(passes.PASSES)
     for gpu_pass in passes.PASSES:
@@ -35,7 +35,7 @@ def test_reads_come_from_the_scene_or_an_earlier_pass_and_layout_names_are_decla
 
 def test_timing_steps_and_labels_come_from_passes():
     assert [step.name for step in passes.STEPS] == [
-        "scene_extraction", "upload", "rsm_and_vsgl_generation", "ism", "vpl_extraction", "gbuffer",
+        "scene_extraction", "upload", "rsm_and_vsgl_generation", "ism", "vpl_extraction", "mrp_visibility", "gbuffer",
         "direct_light", "vsgl_shading", "vpl_culling", "mrp_asg", "read_back"]
     assert passes.TIMING_LABELS == {step.name: step.label for step in passes.STEPS}
     assert set(passes.COUNT_LABELS) == {"lights", "rsm_views", "vsgls", "triangles", "proxies", "vpls",

@@ -162,3 +162,33 @@ def test_smooth_shaded_facets_are_not_proxies():
                                        scene.geometry.material_index, scene.geometry.object_index),
                               scene.materials, scene.lights, None, scene.object_names)
     assert len(P.build_proxies(scene)) == 1 and P.build_proxies(smooth) == []
+
+
+def test_statistics_rows_and_debug_outlines():
+    scene = floor_scene(0.2)
+    scene = SceneDescription(scene.geometry, scene.materials, scene.lights, None, ("Floor", "Box"))
+    proxies = P.build_proxies(scene, overrides={"Box": "always"})  # the rough box top too: unlit
+    assert len(proxies) == 2
+    lit = P.lit_proxies(proxies, scene)
+    (row,) = P.describe_proxies(lit, scene)
+    assert row["object"] == "Floor" and row["material"] == "Floor" and row["lit_by"] == ["L"]
+    assert sorted(row["size"]) == pytest.approx([3.0, 4.0]) and row["area"] == pytest.approx(12.0, rel=1e-5)
+    assert row["roughness"] == pytest.approx(0.2) and row["alpha"] == pytest.approx(0.04)
+    assert row["normal"] == pytest.approx([0.0, 0.0, 1.0])
+    assert P.describe_row(row).startswith("Floor: ") and row["lit_by"][0] in P.describe_row(row)
+    positions, colours = P.outline_lines(proxies, lit)
+    # Four edges per rectangle, one normal tick for the lit side.
+    assert positions.shape == (2 * (4 * 2 + 1), 3) and colours.shape == (len(positions), 4)
+    floor = next(p for p in proxies if p.object_index == 0)
+    edges = positions[:16].reshape(2, 4, 2, 3)
+    lit_rect = 0 if proxies[0] is floor else 1
+    np.testing.assert_allclose(edges[lit_rect, :, 0], floor.corners(), atol=1e-6)
+    np.testing.assert_allclose(edges[lit_rect, :, 1], np.roll(floor.corners(), -1, axis=0), atol=1e-6)
+    np.testing.assert_array_equal(colours[8 * lit_rect:8 * lit_rect + 8], np.tile(np.float32(P.OUTLINE_LIT), (8, 1)))
+    np.testing.assert_array_equal(colours[8 * (1 - lit_rect):8 * (1 - lit_rect) + 8],
+                                  np.tile(np.float32(P.OUTLINE_UNLIT), (8, 1)))
+    tick = positions[16:]
+    np.testing.assert_allclose(tick[0], floor.center, atol=1e-6)
+    assert tick[1][2] == pytest.approx(0.5 * min(floor.half_u, floor.half_v))  # along +z, the lit side
+    empty = P.outline_lines([], [])
+    assert empty[0].shape == (0, 3) and empty[1].shape == (0, 4)

@@ -86,6 +86,11 @@ def test_render_report_has_timings_counts_parameters_and_renderer(rendered):
     assert data["counts"]["vpls"] > 0 and data["counts"]["vpls_per_pixel"] > 0.0 and "vpl_culling" in data["timings"]
     assert data["settings"]["caustics"] is True and data["settings"]["delta"] == 0.001
     assert data["count_labels"]["vpls_per_pixel"] == "VPLs per Pixel"
+    # ... and the report lists it: object, size, its material's roughness, the lights reaching it.
+    assert len(data["proxies"]) == data["counts"]["proxies"]
+    floor = data["proxies"][0]
+    assert floor["object"] and len(floor["lit_by"]) == data["counts"]["lights"] == 1 and floor["lit_by"][0]
+    assert min(floor["size"]) > 0.5 and 0.0 <= floor["roughness"] < 1.0 and floor["alpha"] < 0.1
     assert data["settings"]["vsgl_count"] == 64 and data["settings"]["kernel"] == "modified"
     assert data["settings"]["positional_distribution"] == "per-lobe"
     assert data["resolution"] == [96, 72] and "llvmpipe" in data["gpu_renderer"]

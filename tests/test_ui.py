@@ -146,7 +146,9 @@ def test_statistics_and_warnings_are_shown(registered):
     scene = registered
     assert "Turn on the overlay or render to see timings" in draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
     engine.last_frame_statistics.update(timings={"gbuffer": 0.012, "vsgl_shading": 0.5}, counts={"vsgls": 256},
-                                        resolution=[96, 72], warnings=["VSGL: skipped lights: Sun"])
+                                        resolution=[96, 72], warnings=["VSGL: skipped lights: Sun"],
+                                        proxies=[{"object": "Floor", "size": [4.0, 3.0], "roughness": 0.2,
+                                                  "lit_by": ["Spot", "Sun"]}])
     pipeline = overlay.views.pipeline(1)  # a viewport's pipeline whose last step was a coarse image
     pipeline.statistics = {"work": "lights", "level": "coarse", "seconds": 0.2, "size": (80, 60),
                            "light_seconds": 0.05, "view_seconds": 0.15, "counts": {"lights": 1}}
@@ -154,7 +156,8 @@ def test_statistics_and_warnings_are_shown(registered):
     overlay.views.settings_error = "ShaderCompileError: broken"
     labels = draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
     for text in ("VSGL Shading", "500.0 ms", "150.0 ms", "Light passes", "50.0 ms", "VSGLs", "256",
-                 "Last render 96×72", "Overlay: last step (coarse 80×60)", "Last step", "200.0 ms"):
+                 "Last render 96×72", "Overlay: last step (coarse 80×60)", "Last step", "200.0 ms",
+                 "Rectangle proxies (MRP-ASG):", "Floor: 4.00 × 3.00 m, roughness 0.200, lit by Spot, Sun"):
         assert text in labels, text
     top = draw(ui.VIEW3D_PT_vsgl, scene)["labels"]
     assert "Overlay stopped: ShaderCompileError: broken" in top and "VSGL: skipped lights: Sun" in top

@@ -73,7 +73,8 @@ def test_one_full_resolution_sample_is_the_renderers_image_and_every_pass_is_sho
         expected = renderer.render(demo, SETTINGS, *REGION, view, projection)
         for view_pass, image in (("combined", expected.combined), ("direct", expected.direct),
                                  ("indirect", expected.indirect), ("indirect_diffuse", expected.indirect_diffuse),
-                                 ("indirect_specular", expected.indirect_specular)):
+                                 ("indirect_specular", expected.indirect_specular),
+                                 ("indirect_glossy_reflectors", expected.indirect_glossy_reflectors)):
             drawn = _draw(pipeline, view_pass)
             assert np.isfinite(drawn).all()
             # The resolve at equal resolution weighs the pixel's own texel 1 up to float32 rounding
@@ -82,6 +83,7 @@ def test_one_full_resolution_sample_is_the_renderers_image_and_every_pass_is_sho
             assert close.mean() > 0.9999, (view_pass, close.mean())
             assert np.abs(drawn[..., :3] - image).max() <= 1e-3 * max(image.max(), 1e-6), view_pass
         assert (drawn[..., 3] == 1.0).all()
+        assert expected.indirect_glossy_reflectors.max() > 0.0  # demo's floor is a lit proxy: not a black pass
     finally:
         pipeline.free()
         renderer.free()

@@ -234,6 +234,27 @@ def polished_metal_floor(scene):
     _camera(scene, (1.2, -5.5, 1.4), (0.0, 0.4, 0.5), lens=32.0)
 
 
+def occluded_reflector(scene):
+    """A polished metal floor (Principled roughness 0.15: a rectangle proxy for MRP-ASG) lit by a spot
+    reflects onto a glossy metal wall (roughness 0.45, GGX α ≈ 0.2); a matte block stands between the
+    floor's specular peaks and the wall's lower left, so the floor's reflection there is blocked
+    (proxy-to-receiver visibility), while the wall's right half is an unoccluded control."""
+    metal = principled("Polished metal floor", (0.75, 0.75, 0.78), roughness=0.15, metallic=1.0)
+    # The same metal twice, under two names, so per-material errors tell the shadowed part of the
+    # wall (behind the block) from the open one.
+    behind = principled("Glossy wall behind block", (0.85, 0.7, 0.45), roughness=0.45, metallic=1.0)
+    open_wall = principled("Glossy wall open", (0.85, 0.7, 0.45), roughness=0.45, metallic=1.0)
+    grey = principled("Matte block", (0.3, 0.3, 0.3), roughness=0.9)
+    _plane("Floor", 8.0, (0, 0, 0), (0, 0, 0), metal)
+    _plane("Wall behind block", (3.0, 3.0), (-1.5, 2.5, 1.5), (math.radians(90), 0, 0), behind)
+    _plane("Wall open", (3.0, 3.0), (1.5, 2.5, 1.5), (math.radians(90), 0, 0), open_wall)
+    # 1.6 m from the wall's foot: the wall's peaks up to ~1.8 m high lie on the floor before it.
+    _box("Block", (1.4, 0.25, 0.9), (-0.7, 1.6, 0.0), grey)
+    _light(scene, "Spot", "SPOT", 1500.0, (0.0, -2.0, 3.0), (-0.4, 0.8, 0.0),
+           spot_size=math.radians(60), spot_blend=0.3)
+    _camera(scene, (1.8, -4.5, 1.5), (-0.2, 1.8, 0.8), lens=30.0)
+
+
 # 24 small point lights, a 6 × 4 grid at two heights, in six colours (deterministic, no randomness).
 _PALETTE = [(1.0, 0.55, 0.25), (0.3, 0.55, 1.0), (1.0, 0.9, 0.7), (0.5, 1.0, 0.45), (1.0, 0.35, 0.6),
             (0.8, 0.8, 1.0)]
@@ -273,6 +294,7 @@ SCENES = {
     "glossy_floor_object": glossy_floor_object,
     "many_lights": many_lights,
     "polished_metal_floor": polished_metal_floor,
+    "occluded_reflector": occluded_reflector,
 }
 
 

@@ -37,14 +37,14 @@ class Registry(NamedTuple):
 
 def _registry() -> Registry:
     """Everything register() adds, built on demand (it imports bpy-dependent submodules)."""
-    from . import engine, operators, overlay, properties, ui
+    from . import engine, operators, overlay, properties, proxy_outlines, ui
 
     return Registry(
         classes=(*properties.CLASSES, *engine.CLASSES, *operators.CLASSES, *ui.CLASSES),
         properties=(*properties.TYPE_PROPERTIES,),
-        handlers=(*overlay.HANDLERS,),
-        timers=(*overlay.TIMERS, *engine.TIMERS),
-        hooks=(*overlay.HOOKS, *engine.HOOKS, *ui.HOOKS),
+        handlers=(*overlay.HANDLERS, *proxy_outlines.HANDLERS),
+        timers=(*overlay.TIMERS, *engine.TIMERS, *proxy_outlines.TIMERS),
+        hooks=(*overlay.HOOKS, *engine.HOOKS, *ui.HOOKS, *proxy_outlines.HOOKS),
     )
 
 

@@ -30,6 +30,13 @@ def _overlay_changed(settings, context):
     overlay.on_overlay_toggled(bool(settings.show_overlay))
 
 
+def _proxy_outlines_changed(settings, context):
+    """Proxy outlines switched on or off (proxy_outlines.py)."""
+    from . import proxy_outlines
+
+    proxy_outlines.on_toggled(bool(settings.show_proxy_outlines))
+
+
 class VSGLSceneSettings(PropertyGroup):
     """VSGL render parameters of a scene (``scene.vsgl``)."""
 
@@ -297,6 +304,18 @@ class VSGLSceneSettings(PropertyGroup):
         max=1000.0,
         soft_max=16.0,
         precision=2,
+    )
+
+    show_proxy_outlines: BoolProperty(
+        name="Proxy Outlines",
+        description=(
+            "Draw the outlines of the rectangle proxies MRP-ASG uses (debug view, every 3D viewport): "
+            "orange where a light reaches the proxy, with a blue tick along each lit side's normal; "
+            "grey where none does (built, not shaded). Rebuilt when geometry, materials or lights "
+            "change; changes no render"
+        ),
+        default=False,
+        update=_proxy_outlines_changed,
     )
 
     # --- the Rendered viewport (engine.py view_draw) ---

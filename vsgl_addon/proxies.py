@@ -278,6 +278,68 @@ def lit_proxies(proxies, scene, samples: int = 5) -> list[tuple[RectangleProxy, 
     return kept
 
 
+#: Debug outline colours (RGBA): a proxy some light reaches (MRP-ASG shades with it), one no light
+#: reaches or no receiver faces (built, not used), and the tick along a lit side's normal.
+OUTLINE_LIT = (1.0, 0.75, 0.1, 1.0)
+OUTLINE_UNLIT = (0.55, 0.55, 0.55, 0.8)
+OUTLINE_NORMAL = (0.2, 0.8, 1.0, 1.0)
+
+
+def outline_lines(proxies, lit) -> tuple[np.ndarray, np.ndarray]:
+    """(positions (2L, 3), colours (2L, 4)) float32 of line segments (pairs of rows) outlining
+    ``proxies`` (every built rectangle) for the debug overlay: the four edges of each, coloured
+    :data:`OUTLINE_LIT` when it has a side in ``lit`` ((proxy, mask) pairs) and :data:`OUTLINE_UNLIT`
+    otherwise, and for each lit side a tick from the centre along that side's normal, a quarter of
+    the rectangle's shorter side long (which way it reflects)."""
+    lit_keys = [(proxy.object_index, proxy.material_index, np.asarray(proxy.center, np.float64)) for proxy, _ in lit]
+    points, colours = [], []
+    for proxy in proxies:
+        corners = proxy.corners()
+        centre = np.asarray(proxy.center, np.float64)
+        is_lit = any(o == proxy.object_index and m == proxy.material_index and np.allclose(c, centre)
+                     for o, m, c in lit_keys)
+        for i in range(4):
+            points += [corners[i], corners[(i + 1) % 4]]
+            colours += [OUTLINE_LIT if is_lit else OUTLINE_UNLIT] * 2
+    for proxy, _ in lit:
+        tick = 0.5 * min(proxy.half_u, proxy.half_v)
+        points += [proxy.center, proxy.center + tick * np.asarray(proxy.normal, np.float64)]
+        colours += [OUTLINE_NORMAL] * 2
+    if not points:
+        return np.zeros((0, 3), np.float32), np.zeros((0, 4), np.float32)
+    return np.asarray(points, np.float32), np.asarray(colours, np.float32)
+
+
+def describe_proxies(lit, scene) -> list[dict]:
+    """Plain, JSON-ready rows of ``lit`` ((proxy, lit-by mask) pairs, as :func:`lit_proxies` and
+    ``renderer.scene_proxies`` give them) for the statistics panel and the render report: the object,
+    the material, the rectangle's size (m), the material's roughness and GGX α, the side's normal
+    and the names of the lights that reach that side."""
+    rows = []
+    for proxy, mask in lit:
+        names = scene.object_names
+        material = scene.materials[proxy.material_index] if 0 <= proxy.material_index < len(scene.materials) else None
+        rows.append({
+            "object": names[proxy.object_index] if 0 <= proxy.object_index < len(names) else "",
+            "material": getattr(material, "name", ""),
+            "size": [round(2.0 * proxy.half_u, 6), round(2.0 * proxy.half_v, 6)],
+            "area": round(float(proxy.area), 6),
+            "roughness": round(float(np.sqrt(max(proxy.alpha, 0.0))), 6),
+            "alpha": round(float(proxy.alpha), 6),
+            "normal": [round(float(c), 6) for c in proxy.normal],
+            "triangles": int(proxy.triangle_count),
+            "lit_by": [light.name for light, lit_by in zip(scene.lights, mask) if lit_by],
+        })
+    return rows
+
+
+def describe_row(row: dict) -> str:
+    """One line of the statistics panel for a :func:`describe_proxies` row."""
+    lights = ", ".join(row["lit_by"]) or "no light"
+    return (f"{row['object']}: {row['size'][0]:.2f} × {row['size'][1]:.2f} m, "
+            f"roughness {row['roughness']:.3f}, lit by {lights}")
+
+
 def geometry_key(scene, caustic_roughness: float, overrides) -> str:
     """What the proxies depend on: triangles, material indices and materials' roughness, metallic,
     colour and IOR, α_c, the overrides."""

@@ -21,12 +21,12 @@ import numpy as np
 from .layouts import GBUFFER
 from .light_paths import needs_glossy_vpls
 from .passes import (READ_BACK, UPLOAD, VPL_EXTRACTION, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg,
-                     shading_inputs, vpl_culling, vsgl_shading)
+                     mrp_visibility, shading_inputs, vpl_culling, vsgl_shading)
 from .passes.contract import LIGHT_PASSES
 from .passes.gpu_util import finish, read_texture
 from .passes.rsm import SceneGPU
 from .pipeline import build_visibility, render_scene_vsgls
-from .proxies import ProxyCache, lit_proxies
+from .proxies import ProxyCache, describe_proxies, lit_proxies
 from .reference.vsgl_shading import diffuse_mode_for_kernel
 from .settings import VSGLSettings
 
@@ -48,6 +48,9 @@ class FrameImages:
     # The part of indirect_diffuse the glossy VPLs carry (sharp reflectors' light on diffuse
     # receivers, 004); None: zeros.
     indirect_caustics: np.ndarray | None = None
+    # The rectangle proxies MRP-ASG shaded (proxies.describe_proxies rows: object, size, roughness,
+    # lit by which lights), for the statistics panel and the render report.
+    proxies: list = field(default_factory=list)
 
     def __post_init__(self):
         if self.indirect_glossy_reflectors is None:
@@ -102,6 +105,9 @@ class SceneLights:
     # With VPLs and MRP-ASG gated by receiver roughness: the VSGLs of every reflector, whose specular
     # image lights the receivers MRP-ASG leaves (the first set no longer holds the proxies' light).
     whole_vsgls: object = None
+    # With visibility on: the proxies' mirror shadow maps (passes/mrp_visibility.py), MRP-ASG's
+    # proxy-to-receiver shadows.
+    mirror_maps: object = None
 
     @classmethod
     def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None) -> "SceneLights":
@@ -111,7 +117,7 @@ class SceneLights:
         proxies = scene_proxies(scene, settings, proxy_cache) if settings.glossy_reflectors else []
         caustics = needs_glossy_vpls(scene, settings)
         sets = []
-        vpls = None
+        vpls = mirror_maps = None
         try:
             clock = time.perf_counter()
             # light-paths.md: the receivers' diffuse lobes take the sharp reflectors' specular flux from
@@ -149,16 +155,23 @@ class SceneLights:
                 vpls = (vpl_culling.upload_visible_vpls(found, scene_gpu, settings, settings.rsm_size)
                         if settings.visibility and settings.vpl_visibility else vpl_culling.upload_vpls(found))
             timings[VPL_EXTRACTION.name] = time.perf_counter() - clock
+            clock = time.perf_counter()
+            if settings.visibility and proxies:
+                mirror_maps = mrp_visibility.PASS.run(scene_gpu, proxies, settings.rsm_size, settings.disk_radius)
+                for depth, _ in mirror_maps.atlases.values():
+                    _finish(depth)
+            timings[mrp_visibility.PASS.step.name] = time.perf_counter() - clock
         except BaseException:
-            for table_set in sets:
-                table_set.free()
+            for item in (*sets, vpls, mirror_maps):
+                if item is not None:
+                    item.free()
             scene_gpu.free()
             raise
         return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies, vpls,
-                   sets[2] if whole else None)
+                   sets[2] if whole else None, mirror_maps)
 
     def free(self) -> None:
-        for name in ("vsgls", "glossy_vsgls", "whole_vsgls", "vpls"):
+        for name in ("vsgls", "glossy_vsgls", "whole_vsgls", "vpls", "mirror_maps"):
             if getattr(self, name) is not None:
                 getattr(self, name).free()
                 setattr(self, name, None)
@@ -215,6 +228,7 @@ class ViewTextures:
     _owned: list = field(default_factory=list)
 
     TEXTURES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "position", "normal")
+    # Also "indirect_glossy_reflectors" (MRP-ASG's part of indirect_specular) when a proxy is lit.
 
     def free(self) -> None:
         for item in self._owned:
@@ -309,7 +323,8 @@ class FrameRenderer:
                 gated = not scene.receiver_lobe_split
                 mrp_asg.PASS.run(inputs, gbuffer.camera_vector, scene.lights, lights.vsgls.views_by_light,
                                  lights.proxies, settings.disk_radius, settings.reflector_mode, mrp=self._mrp,
-                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0))
+                                 receiver_range=RECEIVER_ALPHA_RANGE if gated else (0.0, 1.0),
+                                 mirror_maps=lights.mirror_maps)
                 specular = self._mrp.composite_specular(whole_specular, specular, gated)
                 glossy_reflectors = self._mrp.texture
                 lap(mrp_asg.PASS.step, specular)
@@ -379,4 +394,4 @@ class FrameRenderer:
         return FrameImages(_rgb(images["direct_diffuse"]), _rgb(images["direct_specular"]),
                            _rgb(images["indirect_diffuse"]), _rgb(images["indirect_specular"]),
                            np.clip(np.nan_to_num(GBUFFER.unpack_slots(images, ["coverage"])["coverage"]), 0.0, 1.0).astype(np.float32),
-                           timings, counts, **optional)
+                           timings, counts, **optional, proxies=describe_proxies(lights.proxies, lights.scene))

@@ -121,6 +121,9 @@ OVERLAY_DISPLAYS = Choices(
     Choice("indirect_caustics", "INDIRECT_CAUSTICS", "Indirect Caustics",
            "Only the caustics the glossy VPLs render (sharp reflectors' light on matte surfaces, 004; part "
            "of Indirect Diffuse); black where no lit sharp reflector exists"),
+    Choice("indirect_glossy_reflectors", "INDIRECT_GLOSSY_REFLECTORS", "Indirect Glossy Reflectors",
+           "Only the light sharp planar reflectors (rectangle proxies) send to glossy surfaces, as "
+           "MRP-ASG renders it (001): the part of Indirect Specular that the VSGLs no longer carry"),
 )
 
 #: Which light a look-dev image holds (operators.py); the name is the renderer's FrameImages attribute.
@@ -162,6 +165,9 @@ VIEWPORT_PASSES = Choices(
            "Glossy part of the indirect light (the Indirect Specular render pass)"),
     Choice("indirect_caustics", "INDIRECT_CAUSTICS", "Indirect Caustics",
            "The glossy VPLs' caustics alone (the Indirect Caustics render pass, part of Indirect Diffuse)"),
+    Choice("indirect_glossy_reflectors", "INDIRECT_GLOSSY_REFLECTORS", "Indirect Glossy Reflectors",
+           "The part of Indirect Specular that MRP-ASG renders: light of sharp planar reflectors on "
+           "glossy surfaces (the Indirect Glossy Reflectors render pass)"),
 )
 
 #: The VPL pass's interleaved sampling (004 §6): N x N sub-images, each shading every N²-th VPL

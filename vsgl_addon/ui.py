@@ -18,6 +18,7 @@ from __future__ import annotations
 import bpy
 
 from . import engine, overlay, passes
+from .proxies import describe_proxies, describe_row
 from .settings import KERNELS
 
 #: (heading, scene.vsgl property names), in pipeline order. Append an entry for a new pass's controls.
@@ -81,6 +82,8 @@ def draw_overlay_settings(layout, settings) -> None:
         column.prop(settings, name)
     column.prop(settings, "viewport_samples")
     last = overlay.views.last
+    # The proxies' debug outlines work with the overlay off too.
+    layout.prop(settings, "show_proxy_outlines")
     if settings.show_overlay:
         if overlay.views.error:
             column.label(text="Stopped (see warnings)", icon="ERROR")
@@ -109,10 +112,17 @@ def _draw_statistics_block(layout, title: str, statistics: dict) -> None:
             row = column.split(factor=0.62)
             row.label(text=COUNT_LABELS.get(key, key))
             row.label(text=f"{value:.1f}" if isinstance(value, float) else f"{value}")
+    proxies = statistics.get("proxies", ())
+    if proxies:
+        column.separator()
+        column.label(text="Rectangle proxies (MRP-ASG):")
+        for row in proxies:
+            column.label(text=describe_row(row), icon="MESH_PLANE")
 
 
 def overlay_statistics() -> dict:
-    """The overlay's last step as a statistics block: its time per stage and its counts."""
+    """The overlay's last step as a statistics block: its time per stage, its counts and the
+    rectangle proxies its light passes keep."""
     state = overlay.views.statistics
     if not state:
         return {}
@@ -121,7 +131,9 @@ def overlay_statistics() -> dict:
         timings["overlay_light_passes"] = state["light_seconds"]
     if state.get("view_seconds") is not None:
         timings["overlay_view"] = state["view_seconds"]
-    return {"timings": timings, "counts": dict(state.get("counts", {}))}
+    lights = overlay.views.last.lights if overlay.views.last is not None else None
+    proxies = describe_proxies(lights.proxies, lights.scene) if lights is not None else []
+    return {"timings": timings, "counts": dict(state.get("counts", {})), "proxies": proxies}
 
 
 def draw_statistics(layout) -> None:
@@ -265,6 +277,26 @@ class RENDER_PT_vsgl_statistics(_RenderPanel, bpy.types.Panel):
         draw_statistics(self.layout)
 
 
+class OBJECT_PT_vsgl_proxy(bpy.types.Panel):
+    """Object Properties: whether the object's planar regions become rectangle proxies (MRP-ASG)."""
+
+    bl_label = "VSGL Glossy Reflector"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "object"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        obj = getattr(context, "object", None)
+        return obj is not None and obj.type == "MESH" and hasattr(obj, "vsgl_proxy")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(context.object, "vsgl_proxy")
+
+
 def draw_viewport_pass(self, context):
     """Appended to the 3D viewport's Shading popover: the pass Rendered shading shows, where
     Cycles and EEVEE put theirs."""
@@ -293,4 +325,5 @@ CLASSES = (
     VIEW3D_PT_vsgl, VIEW3D_PT_vsgl_overlay, VIEW3D_PT_vsgl_passes, VIEW3D_PT_vsgl_lookdev,
     VIEW3D_PT_vsgl_statistics,
     RENDER_PT_vsgl, RENDER_PT_vsgl_overlay, RENDER_PT_vsgl_viewport, RENDER_PT_vsgl_lookdev, RENDER_PT_vsgl_statistics,
+    OBJECT_PT_vsgl_proxy,
 )

@@ -24,8 +24,10 @@ from .passes.gpu_util import finish, fullscreen_triangle_batch
 from .settings import VIEWPORT_PASSES
 from .shaders import ShaderInterface
 
-#: The accumulation images of a view (RGBA32F; rgb radiance sum, a coverage sum).
-IMAGES = ("direct", "indirect_diffuse", "indirect_specular", "indirect_caustics")
+#: The accumulation images of a view (RGBA32F; rgb radiance sum, a coverage sum). The last two are
+#: parts of indirect_diffuse (the glossy VPLs' caustics) and of indirect_specular (MRP-ASG's Indirect
+#: Glossy Reflectors), kept apart only to be shown alone.
+IMAGES = ("direct", "indirect_diffuse", "indirect_specular", "indirect_caustics", "indirect_glossy_reflectors")
 #: Joint bilateral range parameters: positions compared in low-resolution texel footprints, and the
 #: power of the normals' cosine (reference/joint_bilateral.py has the same defaults).
 SIGMA_POSITION = 1.0
@@ -33,9 +35,9 @@ NORMAL_POWER = 8.0
 
 _OUTPUTS = [("VEC4", f"out_{name}") for name in IMAGES]
 #: The view render's textures the resolve reads (renderer.ViewTextures; indirect_caustics only when
-#: the glossy VPL pass ran, else a black texel).
+#: the glossy VPL pass ran, indirect_glossy_reflectors only when a proxy is lit, else a black texel).
 LOW_IMAGES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular", "indirect_caustics",
-              "position", "normal")
+              "indirect_glossy_reflectors", "position", "normal")
 
 
 def _resolve_interface() -> ShaderInterface:

@@ -20,8 +20,32 @@
 //
 // Visibility: the light's at each specular peak from its RSM depth, the direct light's test
 // (direct_light/light_visibility.glsl: the first view containing the peak decides; a peak outside
-// every view is unlit). The path from the proxy to the
-// receiver is not shadowed (001 assumes no occlusion).
+// every view is unlit). From the peak to the receiver (001 assumes no occlusion), when
+// mirror_params.x = 1: the receiver's shadow-map test in proxy i's tile of the light's mirror shadow
+// map atlas (mirror_depth, tiles of mirror_params.y texels side by side; mirror_constants: 5
+// texels per tile, view-projection rows then (perspective, P00, P22, P23);
+// vsgl_addon/passes/mrp_visibility.py). A receiver outside the tile's frustum (its peak off the
+// widened rectangle) is not shadowed there.
+
+float mrp_mirror_visibility(int i, vec3 position, vec3 normal, vec3 peak)
+{
+  int base = 5 * i;
+  mat4 view_projection = transpose(mat4(texelFetch(mirror_constants, ivec2(base, 0), 0),
+                                        texelFetch(mirror_constants, ivec2(base + 1, 0), 0),
+                                        texelFetch(mirror_constants, ivec2(base + 2, 0), 0),
+                                        texelFetch(mirror_constants, ivec2(base + 3, 0), 0)));
+  vec4 projection = texelFetch(mirror_constants, ivec2(base + 4, 0), 0);
+  float size = mirror_params.y;
+  float tan_theta = shadow_tan_incidence(normal, safe_normalize(peak - position, normal));
+  ivec2 texel;
+  float receiver, bias;
+  if (!shadow_map_lookup(view_projection, projection, size, shadow_params.y, shadow_params.z, tan_theta,
+                         position, normal, texel, receiver, bias)) {
+    return 1.0;
+  }
+  float stored = texelFetch(mirror_depth, texel + ivec2(i * int(size + 0.5), 0), 0).r;
+  return shadow_map_test(stored, projection, receiver, bias);
+}
 
 void main()
 {
@@ -62,6 +86,9 @@ void main()
     if (shadow_params.w > 0.5 && dot(radiance, radiance) > 0.0) {
       vec3 incoming = sun ? -light_axis : safe_normalize(light0.xyz - peak, p.normal);
       radiance *= direct_light_visibility(peak, p.normal, incoming, view_count);
+    }
+    if (mirror_params.x > 0.5 && dot(radiance, radiance) > 0.0) {
+      radiance *= mrp_mirror_visibility(i, g.position, normal, peak);
     }
     sum += radiance;
   }

@@ -7,4 +7,5 @@ void main()
   out_indirect_diffuse = texelFetch(source_indirect_diffuse, pixel, 0) * weight;
   out_indirect_specular = texelFetch(source_indirect_specular, pixel, 0) * weight;
   out_indirect_caustics = texelFetch(source_indirect_caustics, pixel, 0) * weight;
+  out_indirect_glossy_reflectors = texelFetch(source_indirect_glossy_reflectors, pixel, 0) * weight;
 }

@@ -1,7 +1,7 @@
 // A viewport's image (vsgl_addon/view_gpu.py): the running sums of the accumulation images times
 // `weight` (1 / samples), as the pass `mode` shows them (settings.VIEWPORT_PASSES order: 0 combined,
 // 1 direct, 2 indirect, 3 indirect diffuse, 4 indirect specular, 5 indirect caustics, the glossy
-// VPLs' part of indirect diffuse).
+// VPLs' part of indirect diffuse; 6 indirect glossy reflectors, MRP-ASG's part of indirect specular).
 // `composition` 0 (Rendered shading): opaque, linear, scene-referred, Blender's units; the viewport's
 // colour management (view transform, look, exposure, gamma) is applied by Blender afterwards, as to
 // F12's render result.
@@ -38,6 +38,9 @@ void main()
   }
   else if (mode == 5) {
     radiance = texelFetch(accum_indirect_caustics, pixel, 0).rgb;
+  }
+  else if (mode == 6) {
+    radiance = texelFetch(accum_indirect_glossy_reflectors, pixel, 0).rgb;
   }
   else {
     radiance = direct.rgb + diffuse + specular;

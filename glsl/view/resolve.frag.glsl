@@ -15,6 +15,7 @@ void main()
     out_indirect_diffuse = vec4(0.0);
     out_indirect_specular = vec4(0.0);
     out_indirect_caustics = vec4(0.0);
+    out_indirect_glossy_reflectors = vec4(0.0);
     return;
   }
   float footprint = jbu_footprint(camera, position.xyz, projection_11, float(textureSize(low_position, 0).y));
@@ -28,6 +29,8 @@ void main()
                                      footprint, sigma_position, normal_power);
   vec4 ic = joint_bilateral_upsample(low_indirect_caustics, low_position, low_normal, uv, position.xyz, normal,
                                      footprint, sigma_position, normal_power);
+  vec4 ir = joint_bilateral_upsample(low_indirect_glossy_reflectors, low_position, low_normal, uv, position.xyz,
+                                     normal, footprint, sigma_position, normal_power);
   // No NaN or Inf may reach a pixel.
   vec3 direct = dd.rgb + ds.rgb;
   direct = all(lessThan(abs(direct), vec3(1e30))) ? direct : vec3(0.0);
@@ -38,4 +41,6 @@ void main()
   out_indirect_specular = vec4(specular, coverage) * weight;
   vec3 caustics = all(lessThan(abs(ic.rgb), vec3(1e30))) ? ic.rgb : vec3(0.0);
   out_indirect_caustics = vec4(caustics, coverage) * weight;
+  vec3 reflectors = all(lessThan(abs(ir.rgb), vec3(1e30))) ? ir.rgb : vec3(0.0);
+  out_indirect_glossy_reflectors = vec4(reflectors, coverage) * weight;
 }

@@ -10,6 +10,7 @@ touches ``bpy.context``; its float64 twin lives in ``vsgl_addon.reference``.
 * :mod:`.shading_inputs`: the G-buffer's Principled inputs -> Rd and F0 for VSGL shading.
 * :mod:`.vsgl_shading`: indirect light from VSGLs (000 app. C).
 * :mod:`.vpl_culling`: glossy VPLs with stochastic light culling, caustics on diffuse receivers (004).
+* :mod:`.mrp_visibility`: mirror shadow maps of the rectangle proxies (MRP-ASG's proxy-to-receiver visibility).
 * :mod:`.mrp_asg`: glossy interreflection from rectangle proxies (001).
 
 Each pass module declares its contract once, as ``PASS`` (:class:`.contract.GPUPass`: shaders,
@@ -25,12 +26,14 @@ matrices for uniforms). The texture layouts passes hand each other: :mod:`vsgl_a
 
 import atexit
 
-from . import direct_light, gbuffer, ism, mrp_asg, rsm, shading_inputs, vpl_culling, vsgl_generation, vsgl_shading
+from . import (direct_light, gbuffer, ism, mrp_asg, mrp_visibility, rsm, shading_inputs, vpl_culling, vsgl_generation,
+               vsgl_shading)
 from .contract import GPUPass, Step
 
 #: Every GPU pass, in the order a frame runs them.
-PASSES: tuple[GPUPass, ...] = (rsm.PASS, vsgl_generation.PASS, ism.PASS, gbuffer.PASS, direct_light.PASS,
-                               shading_inputs.PASS, vsgl_shading.PASS, vpl_culling.PASS, mrp_asg.PASS)
+PASSES: tuple[GPUPass, ...] = (rsm.PASS, vsgl_generation.PASS, ism.PASS, mrp_visibility.PASS, gbuffer.PASS,
+                               direct_light.PASS, shading_inputs.PASS, vsgl_shading.PASS, vpl_culling.PASS,
+                               mrp_asg.PASS)
 
 #: Steps of a frame that are not GPU passes. Scene extraction is the Blender-facing caller's (the
 #: engine and the overlay time it); upload and read-back are the renderer's.

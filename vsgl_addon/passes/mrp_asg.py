@@ -13,7 +13,8 @@ the receiver's specular lobe. Per receiver pixel (G-buffer position and normal w
 perceptual roughness, the shading inputs' specular F0), per light (one draw, added by blending),
 per proxy that light reaches (``lit``: :func:`vsgl_addon.proxies.lit_proxies` pairs): the radiance
 001 Eqs. 6–37 give, with the light's shadow at the specular peak from its RSM depth (the direct
-light's test). Not shadowed: the path from the proxy to the receiver (001 assumes no occlusion).
+light's test), and, given the mirror shadow maps of :mod:`.mrp_visibility`, from the peak to the
+receiver (001 assumes no occlusion; that module says what is and is not shadowed).
 Output: one RGBA32F texture ``indirect_glossy_reflectors`` (RGB, W/(m² sr), alpha 0), the
 ``Indirect Glossy Reflectors`` render pass; the renderer adds it to the indirect specular image.
 
@@ -36,10 +37,11 @@ from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, text
 def _interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("VEC4", "mrp_params"), ("VEC4", "shadow_params"),
-                        ("VEC4", "receiver_range")],
+                        ("VEC4", "receiver_range"), ("VEC4", "mirror_params")],
         samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal"),
                   ("FLOAT_2D", "shading_inputs_specular_f0"), ("FLOAT_2D", "shading_inputs_diffuse_reflectance"),
-                  ("FLOAT_2D", "proxy_table"), ("FLOAT_2D", "light_constants")]
+                  ("FLOAT_2D", "proxy_table"), ("FLOAT_2D", "light_constants"),
+                  ("FLOAT_2D", "mirror_depth"), ("FLOAT_2D", "mirror_constants")]
         + [("FLOAT_2D", f"rsm_depth_{k}") for k in range(MAX_VIEWS)],
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
@@ -126,11 +128,13 @@ class MRPASG:
             self._size = (width, height)
 
     def run(self, gbuffer, camera, lights, views_by_light, lit, disk_radius: float, mode: str = "asg",
-            shadows: bool = True, receiver_range=(0.0, 1.0)):
+            shadows: bool = True, receiver_range=(0.0, 1.0), mirror_maps=None):
         """Shade every pixel of ``gbuffer`` (a passes.vsgl_shading.ShadingGBuffer) with the proxies of
         ``lit`` ((proxy, lit-by mask over ``lights``) pairs) for every light that reaches one;
         ``views_by_light``: light index -> its RSM views (the shadows). ``receiver_range``: the GGX α
-        of the receivers shaded (others get 0 and alpha 0; served pixels alpha 1). Returns the texture."""
+        of the receivers shaded (others get 0 and alpha 0; served pixels alpha 1). ``mirror_maps``
+        (passes.mrp_visibility.MirrorMaps of the same ``lit``): the proxy-to-receiver shadows; None:
+        not shadowed there. Returns the texture."""
         import gpu
 
         from .vsgl_shading import camera_uniform
@@ -177,6 +181,12 @@ class MRPASG:
                     program.uniform_sampler("light_constants", constants)
                     for k in range(MAX_VIEWS):
                         program.uniform_sampler(f"rsm_depth_{k}", views[k].textures["depth"] if k < len(views) else dummy)
+                    mirror = mirror_maps.atlases.get(index) if mirror_maps is not None else None
+                    program.uniform_sampler("mirror_depth", mirror[0] if mirror is not None else dummy)
+                    program.uniform_sampler("mirror_constants", mirror[1] if mirror is not None else constants)
+                    set_uniform(program.uniform_float, "mirror_params",
+                                (1.0 if mirror is not None else 0.0,
+                                 float(mirror_maps.size) if mirror is not None else 1.0, 0.0, 0.0))
                     size = views[0].size if views else 1
                     set_uniform(program.uniform_float, "mrp_params",
                                 (float(disk_radius), float(len(proxies)), float(MODES.index(mode)),
@@ -197,10 +207,10 @@ class MRPASG:
 
 
 def run(gbuffer, camera, lights, views_by_light, lit, disk_radius: float, mode: str = "asg",
-        shadows: bool = True, mrp: "MRPASG | None" = None, receiver_range=(0.0, 1.0)) -> MRPASG:
+        shadows: bool = True, mrp: "MRPASG | None" = None, receiver_range=(0.0, 1.0), mirror_maps=None) -> MRPASG:
     """The pass's entry: a :class:`MRPASG` (new, or ``mrp`` reused) holding the image; ``free()`` it."""
     mrp = MRPASG() if mrp is None else mrp
-    mrp.run(gbuffer, camera, lights, views_by_light, lit, disk_radius, mode, shadows, receiver_range)
+    mrp.run(gbuffer, camera, lights, views_by_light, lit, disk_radius, mode, shadows, receiver_range, mirror_maps)
     return mrp
 
 
@@ -210,7 +220,7 @@ PASS = GPUPass(
     step=Step("mrp_asg", "Glossy Reflectors (MRP-ASG)", {"proxies": "Rectangle Proxies"}),
     shaders={"mrp_asg": _shader_spec(), "specular_composite": _composite_spec()},
     # The proxy table is made from the scene (vsgl_addon/proxies.py), not by an earlier pass.
-    reads=(GBUFFER.name, SHADING_INPUTS.name, "scene", "rsm_depth"),
+    reads=(GBUFFER.name, SHADING_INPUTS.name, "scene", "rsm_depth", "mirror_depth"),
     writes=("indirect_glossy_reflectors",),
     run=run,
 )
