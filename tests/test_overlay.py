@@ -183,9 +183,10 @@ def test_draw_shows_the_red_bounce_and_follows_mode_and_intensity_on_the_gpu(dem
         _, reflectors = draw_to_array(views, 7, "indirect_glossy_reflectors")
         assert reflectors[covered][:, :3].max() > 0.0
         assert np.all(reflectors[..., :3] <= specular[..., :3] + 1e-5)
-        from vsgl_addon import ui
+        from vsgl_addon.proxies import describe_proxies
 
-        assert ui.overlay_statistics()["proxies"][0]["lit_by"]
+        lights = views.pipelines[7].lights  # what the statistics panel lists for the overlay
+        assert describe_proxies(lights.proxies, lights.scene)[0]["lit_by"]
         assert not draw_to_array(views, 99)[0]  # a viewport with no images yet draws nothing
     finally:
         views.free()
