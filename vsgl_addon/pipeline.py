@@ -4,9 +4,10 @@
 Never touches bpy.context. Needs a GPU context (gpu_context.ensure_gpu_context), main thread.
 
 A light may have several RSM views (a point or area light: cube faces; a wide spot: cube faces).
-VSGL count N is per light (000 generates N VSGLs from one RSM): a light with several views shares
-its N among them in proportion to each view's power lum(Σ Φ(Rd + Rs)), by largest remainders, so
-the VSGLs go where the light's bounce is. Views with no power get none. In 003's two-VSGL mode
+VSGL count N is the frame's (planner.py): every view of every light the plan gives RSM views is
+rendered first, then N is shared among all of them in proportion to each view's power
+lum(Σ Φ(Rd + Rs)) (planner.allocate_vsgls), so the VSGLs go where the frame's bounce is, whichever
+light it comes from. Views with no power (or a negligible share) get none. In 003's two-VSGL mode
 every view gives its two VSGLs (meant for one spot view, 003).
 """
 
@@ -19,7 +20,7 @@ import numpy as np
 from .layouts import VSGL_TABLE
 from .passes.rsm import SceneGPU, render_rsm_views
 from .passes.vsgl_generation import VSGLGeneration
-from .reference.vsgl import LUMINANCE_WEIGHTS
+from .planner import plan_frame, share_counts, view_power
 from .reference.ism import shadow_origin
 from .scene_points import triangle_areas
 from .settings import VSGLSettings
@@ -37,15 +38,7 @@ def share_vsgl_count(vsgl_count: int, view_powers) -> np.ndarray:
 
     All views without power: none get any. N smaller than the number of lit views: the brightest get one.
     """
-    powers = np.maximum(np.asarray(view_powers, np.float64), 0.0)
-    total = powers.sum()
-    if not np.isfinite(total) or total <= 0.0:
-        return np.zeros(len(powers), np.int64)
-    quota = vsgl_count * powers / total
-    counts = np.floor(quota).astype(np.int64)
-    order = np.argsort(-(quota - counts), kind="stable")
-    counts[order[: vsgl_count - counts.sum()]] += 1
-    return counts
+    return share_counts(vsgl_count, view_powers)
 
 
 def _rotation(seed: int, light_index: int, view_index: int) -> np.ndarray:
@@ -116,44 +109,54 @@ class SceneVSGLs:
 
 
 def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lobe: str = "all",
-                       proxies=()) -> SceneVSGLs:
-    """RSM views of every light of the uploaded scene, then their VSGLs (tables stay on the GPU).
+                       proxies=(), plan=None) -> SceneVSGLs:
+    """RSM views of the lights the frame plan gives them, then the frame's VSGLs (tables stay on the GPU).
 
     ``receiver_lobe`` (scene_description.RECEIVER_LOBES): the VSGLs of every reflector ("all"), or
     only of those seen by diffuse or by glossy rays, for a scene where some object is hidden from one
     ray type (Blender's ray visibility): the receivers' two lobes then see different reflectors.
     ``proxies`` (with "glossy"): the rectangle proxies whose specular flux MRP-ASG carries to the
-    receivers' glossy lobes instead (light-paths.md; passes/rsm.py).
+    receivers' glossy lobes instead (light-paths.md; passes/rsm.py). ``plan``: the frame's
+    planner.FramePlan (made here when None); the views' measured powers share its N
+    (FramePlan.allocate, recorded in the plan under ``receiver_lobe``).
     """
     light_count = len(scene_gpu.scene.lights)
+    if plan is None:
+        plan = plan_frame(scene_gpu.scene, settings)
     result = SceneVSGLs({}, [], np.zeros((light_count, 3)), settings.rsm_size)
     two_vsgl = settings.kernel == "two-vsgl"
+    pending = []  # (light index, view index, generation) with the view's total read, not yet sampled
     try:
-        for light_index in range(light_count):
-            views = render_rsm_views(scene_gpu, light_index, settings.rsm_size, receiver_lobe, proxies)
+        view_powers = {}
+        for light_index in plan.rsm_lights():
+            views = render_rsm_views(scene_gpu, light_index, plan.lights[light_index].rsm_size, receiver_lobe,
+                                     proxies)
             result.views_by_light[light_index] = views
-            generations = [VSGLGeneration() for _ in views]
             totals = []
-            for view, generation in zip(views, generations):
+            for view_index, view in enumerate(views):
+                generation = VSGLGeneration()
+                pending.append((light_index, view_index, generation))
                 generation.build_mip_atlas(view.rsm_textures())
                 # One kernel is enough to read the view's total from the atlas's top level.
                 generation.generate(1 if not two_vsgl else 2, settings.k, settings.kernel)
                 totals.append(generation.read_table()["rsm_total_power"])
             if totals:
                 result.rsm_total_power[light_index] = np.sum(totals, axis=0)
-            if two_vsgl:
-                counts = np.full(len(views), 2)
-            else:
-                counts = share_vsgl_count(settings.vsgl_count, [t @ LUMINANCE_WEIGHTS for t in totals])
-            for view_index, (generation, count) in enumerate(zip(generations, counts)):
-                if count == 0:
-                    generation.free()
-                    continue
-                generation.generate(int(count), settings.k, settings.kernel,
-                                    _rotation(settings.seed, light_index, view_index),
-                                    settings.positional_distribution)
-                result.generations.append((light_index, view_index, generation))
+            view_powers[light_index] = [view_power(total) for total in totals]
+        counts = plan.allocate(view_powers, receiver_lobe)
+        while pending:
+            light_index, view_index, generation = pending.pop(0)
+            count = int(counts[light_index][view_index])
+            if count == 0:
+                generation.free()
+                continue
+            result.generations.append((light_index, view_index, generation))
+            generation.generate(count, settings.k, settings.kernel,
+                                _rotation(settings.seed, light_index, view_index),
+                                settings.positional_distribution)
     except BaseException:
+        for _, _, generation in pending:
+            generation.free()
         result.free()
         raise
     return result

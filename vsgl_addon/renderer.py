@@ -24,7 +24,8 @@ from .passes.contract import LIGHT_PASSES
 from .passes.gpu_util import finish
 from .passes.rsm import SceneGPU
 from .pipeline import build_visibility, render_scene_vsgls
-from .proxies import ProxyCache, lit_proxies
+from .planner import PROXY_CACHE, RECEIVER_ALPHA_RANGE, kept_proxies, plan_frame
+from .proxies import ProxyCache
 from .reference.vsgl_shading import diffuse_mode_for_kernel
 from .settings import VSGLSettings
 
@@ -43,6 +44,7 @@ class FrameImages:
     # The part of indirect_specular MRP-ASG carries (light reflected by a rectangle proxy onto
     # glossy receivers, 001); None: zeros.
     indirect_glossy_reflectors: np.ndarray | None = None
+    plan: object = None  # the planner.FramePlan the frame executed
 
     def __post_init__(self):
         if self.indirect_glossy_reflectors is None:
@@ -87,29 +89,34 @@ class SceneLights:
     # or MRP-ASG carries the proxies' specular light to glossy receivers: the VSGLs of the
     # reflectors glossy rays see (without the proxies' specular flux), for the receivers' specular lobes.
     glossy_vsgls: object = None
-    # MRP-ASG (001): (rectangle proxy, lit-by mask over scene.lights) of the proxies some light reaches.
+    # MRP-ASG (001): (rectangle proxy, lit-by mask over scene.lights) of the proxies the plan keeps.
     proxies: list = field(default_factory=list)
+    plan: object = None  # planner.FramePlan: what these light passes ran, and why
 
     @classmethod
-    def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None) -> "SceneLights":
+    def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
+              view_projection=None) -> "SceneLights":
+        """``view_projection``: the one view the frame is seen from (4×4 world -> clip), when known,
+        so the plan can skip the work no receiver in it needs; None: any view (the viewport)."""
+        plan = plan_frame(scene, settings, proxy_cache, view_projection)
         clock = time.perf_counter()
         scene_gpu = SceneGPU(scene)
         timings = {UPLOAD.name: time.perf_counter() - clock}
-        proxies = scene_proxies(scene, settings, proxy_cache) if settings.glossy_reflectors else []
+        proxies = plan.proxies
         sets = []
         try:
             clock = time.perf_counter()
-            # Some object hidden from diffuse or glossy rays, or proxies for MRP-ASG: one VSGL set per
-            # receiver lobe (light-paths.md: the proxies' specular light leaves the glossy set).
-            lobes = ("diffuse", "glossy") if scene.receiver_lobe_split or proxies else ("all",)
-            for lobe in lobes:
+            # The plan's VSGL sets: one, or one per receiver lobe when some object is hidden from
+            # diffuse or glossy rays, or MRP-ASG runs (light-paths.md: the proxies' specular light
+            # leaves the glossy set).
+            for lobe in plan.receiver_sets:
                 sets.append(render_scene_vsgls(scene_gpu, settings, lobe,
-                                               [proxy for proxy, _ in proxies] if lobe == "glossy" else ()))
+                                               [proxy for proxy, _ in proxies] if lobe == "glossy" else (), plan))
                 if sets[-1].generations:
                     _finish(sets[-1].generations[-1][2].table)
             timings[LIGHT_PASSES.name] = time.perf_counter() - clock
             clock = time.perf_counter()
-            if settings.visibility:
+            if plan.runs("visibility"):
                 first_map = 0  # each set's maps draw other point sets
                 for table_set in sets:
                     first_map = build_visibility(scene_gpu, table_set, settings, first_map)
@@ -121,7 +128,7 @@ class SceneLights:
                 table_set.free()
             scene_gpu.free()
             raise
-        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies)
+        return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies, plan)
 
     def free(self) -> None:
         if self.vsgls is not None:
@@ -135,37 +142,10 @@ class SceneLights:
             self.scene_gpu = None
 
 
-#: GGX α of the receivers MRP-ASG shades (both ends included); rougher ones take the proxies' light
-#: from the VSGLs. Measured: the receiver's SG (001 Eqs. 6, 8) fits a rough GGX NDF poorly (α ≥ 0.5
-#: worse than VSGLs in docs/accuracy.md's error table; on the caustic panel's α 0.64 walls MRP-ASG
-#: doubled the specular error, benchmarks/results/mrp_asg_suite.md). No lower bound: the table's
-#: sharp receiver (α 0.05) is worse, but the suite's mirror-like floors (α 0.02) gain the most.
-RECEIVER_ALPHA_RANGE = (0.0, 0.35)
-
-#: The proxies of the last scene geometry (rebuilt only when it changes, not when a light or the view
-#: moves), for callers that keep no cache of their own.
-PROXY_CACHE = ProxyCache()
-
-
 def scene_proxies(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None, overrides=None) -> list:
-    """(proxy, lit-by mask) of the rectangle proxies of ``scene`` that some light reaches on their
-    front side (vsgl_addon/proxies.py), without lights the proxy's object does not receive (light
-    linking) and proxies glossy rays do not see (ray visibility). ``overrides``: object name ->
-    proxies.PROXY_MODES (default: the scene description's ``proxy_overrides`` if it has them)."""
-    cache = PROXY_CACHE if proxy_cache is None else proxy_cache
-    if overrides is None:
-        overrides = getattr(scene, "proxy_overrides", None)
-    proxies = cache.get(scene, settings.caustic_roughness, overrides)
-    visibility = scene.visibility()
-    kept = []
-    for proxy, mask in lit_proxies(proxies, scene):
-        mask = mask.copy()
-        for index, light in enumerate(scene.lights):
-            if light.receivers is not None and not light.receivers[proxy.object_index]:
-                mask[index] = False
-        if mask.any() and visibility[proxy.object_index, 1]:
-            kept.append((proxy, mask))
-    return kept
+    """(proxy, lit-by mask) of the rectangle proxies of ``scene`` some light reaches
+    (planner.kept_proxies), from ``proxy_cache`` or the planner's."""
+    return kept_proxies(scene, settings, PROXY_CACHE if proxy_cache is None else proxy_cache, overrides)
 
 
 @dataclass
@@ -268,7 +248,8 @@ class FrameRenderer:
             if scene.camera is None:
                 raise ValueError("the scene has no camera")
             view_matrix, projection_matrix = scene.camera.view_matrix(), scene.camera.projection_matrix()
-        lights = SceneLights.build(scene, settings)
+        lights = SceneLights.build(scene, settings,
+                                   view_projection=np.asarray(projection_matrix) @ np.asarray(view_matrix))
         try:
             return self.render_view(lights, settings, width, height, view_matrix, projection_matrix)
         finally:
@@ -347,4 +328,4 @@ class FrameRenderer:
             indirect_specular = indirect_specular + glossy_reflectors
         return FrameImages(_rgb(direct_diffuse), _rgb(direct_specular), _rgb(indirect_diffuse),
                            indirect_specular, np.clip(np.nan_to_num(coverage), 0.0, 1.0).astype(np.float32),
-                           timings, counts, glossy_reflectors)
+                           timings, counts, glossy_reflectors, lights.plan)
