@@ -228,6 +228,10 @@ def _command_render(arguments) -> int:
           f"{statistics['counts'].get('lights', 0)} lights ({settings_line}): {seconds:.2f} s in all")
     for name, value in statistics["timings"].items():
         print(f"  {name:>24}: {value * 1000:9.1f} ms")
+    if statistics.get("plan"):
+        print("frame plan:")
+        for line in statistics["plan"]["summary"]:
+            print(f"  {line}")
     print(f"images: {out} (layers {', '.join(('Combined',) + tuple(RENDER_PASSES))}), {preview}")
     if report:
         print(f"report: {report}")
@@ -267,7 +271,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "flags override them for this run.")
     vsgl.add_argument("scene", metavar="SCENE.blend")
     vsgl.add_argument("--out", required=True, metavar="VSGLS.npz")
-    vsgl.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per light, 1 to 4096")
+    vsgl.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per frame, shared by the lights by bounce power, 1 to 4096")
     vsgl.add_argument("--k", type=_float, metavar="K", help="kernel size factor K, 0.25 to 16 (000 Eq. 3)")
     vsgl.add_argument("--kernel", choices=KERNELS.names)
     vsgl.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
@@ -286,7 +290,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("scene", metavar="SCENE.blend")
     render.add_argument("--out", required=True, metavar="OUT.exr")
     render.add_argument("--resolution", type=_resolution, metavar="WxH")
-    render.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per light, 1 to 4096")
+    render.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per frame, shared by the lights by bounce power, 1 to 4096")
     render.add_argument("--k", type=_float, metavar="K", help="kernel size factor K, 0.25 to 16 (000 Eq. 3)")
     render.add_argument("--kernel", choices=KERNELS.names)
     render.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")

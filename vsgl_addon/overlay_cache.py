@@ -88,6 +88,12 @@ class _Refinement:
     counts: dict = field(default_factory=dict)
 
 
+def _plan(lights) -> dict:
+    """The JSON form of the frame plan the light passes ran (planner.FramePlan.to_dict), {} without one."""
+    plan = getattr(lights, "plan", None)
+    return plan.to_dict() if plan is not None else {}
+
+
 def same_view(a: ViewRequest, b: ViewRequest) -> bool:
     return (a.region_size == b.region_size and np.array_equal(a.view_matrix, b.view_matrix)
             and np.array_equal(a.projection_matrix, b.projection_matrix))
@@ -278,7 +284,7 @@ class OverlayCache:
         self.lights_version = version
         self.lights_settings = settings
         self.statistics = {"level": LIGHTS, "seconds": self.clock() - started, "timings": {},
-                           "light_timings": dict(self.lights.timings), "counts": {}, "size": None}
+                           "light_timings": dict(self.lights.timings), "plan": _plan(self.lights), "counts": {}, "size": None}
 
     def _render(self, request: ViewRequest, width: int, height: int, projection_matrix):
         """(FrameImages, seconds, view-only timings) of one render_view call."""
@@ -300,7 +306,7 @@ class OverlayCache:
             old.free()
         self.views[key] = ViewImages(request, level, self.lights_version, size, textures, seconds, timings)
         self.statistics = {"level": level, "seconds": seconds, "timings": timings,
-                           "light_timings": dict(self.lights.timings), "counts": dict(counts), "size": size,
+                           "light_timings": dict(self.lights.timings), "plan": _plan(self.lights), "counts": dict(counts), "size": size,
                            **(extra or {})}
 
     def _render_view(self, key: int, level: str, scale: float) -> None:
@@ -345,7 +351,7 @@ class OverlayCache:
         job.counts = dict(images.counts)
         if end < height:
             self.statistics = {"level": "refining", "seconds": seconds, "timings": timings,
-                               "light_timings": dict(self.lights.timings), "counts": dict(images.counts),
+                               "light_timings": dict(self.lights.timings), "plan": _plan(self.lights), "counts": dict(images.counts),
                                "size": (width, end - first), "rows": (first, end, height)}
             return
         del self._refining[key]

@@ -108,10 +108,23 @@ def _draw_statistics_block(layout, title: str, statistics: dict) -> None:
             row.label(text=f"{value}")
 
 
+def _draw_plan(layout, plan: dict) -> None:
+    """The frame plan (planner.py): one line per decision, then one per light."""
+    lines = plan.get("summary", ())
+    if not lines:
+        return
+    box = layout.box()
+    box.label(text="Frame plan")
+    column = box.column(align=True)
+    for line in lines:
+        column.label(text=line)
+
+
 def draw_statistics(layout) -> None:
     state = overlay.cache.statistics
     if state:
         _draw_statistics_block(layout, "Overlay: light passes", {"timings": state.get("light_timings", {})})
+        _draw_plan(layout, state.get("plan", {}))
         size = state.get("size")
         if size:
             _draw_statistics_block(layout, f"Overlay: view, {state['level']} {size[0]}×{size[1]}", state)
@@ -119,6 +132,7 @@ def draw_statistics(layout) -> None:
     if render:
         width, height = render.get("resolution", (0, 0))
         _draw_statistics_block(layout, f"Last render {width}×{height}", render)
+        _draw_plan(layout, render.get("plan", {}))
     if not state and not render:
         layout.label(text="Turn on the overlay or render to see timings")
 
