@@ -80,7 +80,7 @@ def test_export_has_the_issue_s_arrays_and_the_scene_s_own_settings(demo_like_bl
         total = table["rsm_total_power"][light]
         assert total.min() > 0
         np.testing.assert_allclose(estimate, total, rtol=0.05)
-    assert "32 VSGLs" not in result.stdout and f"{count} VSGLs from 2 lights" in result.stdout
+    assert count == 32 and "32 VSGLs from 2 lights" in result.stdout
 
 
 def test_flags_override_the_scene_for_this_run(demo_like_blend, tmp_path):
