@@ -62,9 +62,11 @@ class SceneVSGLs:
     generations: list[tuple[int, int, VSGLGeneration]]  # (light index, view index, its table)
     rsm_total_power: np.ndarray  # (L, 3)
     rsm_size: int
-    # The imperfect shadow maps of each generation's VSGLs (passes/ism.py), in the same order; empty
-    # without visibility.
+    # The imperfect shadow maps of each shading table's VSGLs (passes/ism.py), in the same order
+    # (table_arrays()); empty without visibility.
     isms: list = field(default_factory=list)
+    # (table dict, VSGLTable) of every generation's VSGLs in one table (merge()), or None.
+    merged: tuple | None = None
 
     @property
     def vsgl_count(self) -> int:
@@ -73,8 +75,30 @@ class SceneVSGLs:
     def tables(self) -> list:
         from .passes.vsgl_shading import VSGLTable
 
+        if self.merged is not None:
+            table = self.merged[1]
+            return [VSGLTable(table.texture, table.count, table.shared_positions, self.isms[0] if self.isms else None)]
         isms = self.isms or [None] * len(self.generations)
         return [VSGLTable.from_generation(generation, ism) for (_, _, generation), ism in zip(self.generations, isms)]
+
+    def table_arrays(self) -> list[dict]:
+        """The shading tables' VSGLs as numpy dicts, in the order of tables() (and of isms)."""
+        if self.merged is not None:
+            return [self.merged[0]]
+        return [generation.read_table() for _, _, generation in self.generations]
+
+    def merge(self) -> None:
+        """Every generation's VSGLs in one shading table: with N shared by many lights' views, one
+        shading draw and one atlas of shadow maps instead of one per view (each pays a full-screen
+        pass; the sum over VSGLs is the same)."""
+        from .passes.vsgl_shading import upload_vsgl_table
+
+        if len(self.generations) < 2 or self.merged is not None:
+            return
+        tables = [generation.read_table() for _, _, generation in self.generations]
+        merged = {name: np.concatenate([table[name] for table in tables]) for name in VSGL_TABLE.record_fields()}
+        merged["rsm_total_power"] = np.sum([table["rsm_total_power"] for table in tables], axis=0)
+        self.merged = (merged, upload_vsgl_table(merged))
 
     def read(self) -> dict[str, np.ndarray]:
         """The export table (see generate_scene_vsgls), read back from the GPU."""
@@ -99,6 +123,7 @@ class SceneVSGLs:
         for atlas in self.isms:
             atlas.free()
         self.isms.clear()
+        self.merged = None  # Blender frees a GPUTexture with its last reference
         for _, _, generation in self.generations:
             generation.free()
         self.generations.clear()
@@ -154,6 +179,7 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             generation.generate(count, settings.k, settings.kernel,
                                 _rotation(settings.seed, light_index, view_index),
                                 settings.positional_distribution)
+        result.merge()
     except BaseException:
         for _, _, generation in pending:
             generation.free()
@@ -189,8 +215,7 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
     points = scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
     point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
     textures = ism_pass.upload_points(points) if vsgls.generations else None  # once for every table
-    for _, _, generation in vsgls.generations:
-        table = generation.read_table()
+    for table in vsgls.table_arrays():
         if MAPS_PER_VSGL == 1:
             origins = shadow_origin(table["mean"], table["variance"], table["diffuse_axis"]).reshape(-1, 3)
             sigma = np.sqrt(np.maximum(table["variance"], 0.0)).reshape(-1)

@@ -4,8 +4,11 @@
 bpy-free and GPU-free: from a SceneDescription and VSGLSettings, :func:`plan_frame` decides
 
 * which lights get RSM views (a light whose views see no triangle it lights gets none; its views
-  also give the direct light's shadows, so every light that reaches geometry keeps them, at the
-  settings' size);
+  also give the direct light's shadows, so every light that reaches geometry keeps them) and at
+  what size: a light expected to get the fraction s of the frame's VSGLs (from a CPU estimate of
+  its bounce power) gets the side √s × the settings' size (a power of two, at least MIN_RSM_SIZE),
+  so its texels per VSGL stay what the settings give one light alone (a lone light keeps the
+  settings' size; on llvmpipe a 64² view costs a fifth of a 128² one);
 * how the VSGL count N is spent: N is the frame's budget, not each light's. Once the RSM views
   are rendered, :meth:`FramePlan.allocate` shares N among all views of all lights in proportion to
   their bounce power lum(Σ Φ(Rd + Rs)) (the RSM total, the integral VSGL generation samples from,
@@ -24,6 +27,7 @@ panel and the command line print, :meth:`FramePlan.to_dict` what the JSON report
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,6 +41,10 @@ from .views import light_view_specs, scene_bounds, view_sees_triangles
 #: At most this fraction of the frame's bounce power (the dimmest views first) may go without
 #: VSGLs: its light is still drawn directly, its bounce is dropped (a bias of at most this much).
 NEGLIGIBLE_BOUNCE = 1e-3
+
+#: Smallest RSM side the plan gives a light: its views are also the direct light's shadow maps
+#: (003 finds 64² to 128² enough for VSGLs of a local light).
+MIN_RSM_SIZE = 64
 
 #: GGX α of the receivers MRP-ASG shades (both ends included); rougher ones take the proxies' light
 #: from the VSGLs. Measured: the receiver's SG (001 Eqs. 6, 8) fits a rough GGX NDF poorly (α ≥ 0.5
@@ -170,6 +178,16 @@ class FramePlan:
                         for proxy, mask in self.proxies],
             "summary": self.summary_lines(),
         }
+
+
+def rsm_size_for_share(rsm_size: int, share: float) -> int:
+    """The RSM side of a light expected to get ``share`` of the frame's VSGLs: √share × ``rsm_size``
+    rounded up to a power of two, within [min(MIN_RSM_SIZE, rsm_size), rsm_size]."""
+    floor = min(MIN_RSM_SIZE, rsm_size)
+    if not share > 0.0:
+        return floor
+    side = rsm_size * math.sqrt(min(share, 1.0))
+    return int(min(max(2 ** math.ceil(math.log2(max(side, 1.0)) - 1e-9), floor), rsm_size))
 
 
 def allocate_vsgls(budget: int, view_powers: dict) -> tuple[dict, float]:
@@ -425,6 +443,11 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
         else:
             reason = f"bounce ≈ {estimate:.3g} W (CPU estimate, no occlusion)"
         lights.append(LightPlan(index, light.name, views, settings.rsm_size, estimate, reason))
+    if settings.kernel != "two-vsgl":
+        total = sum(light.bounce_estimate for light in lights if light.gets_rsm)
+        for light in lights:
+            if light.gets_rsm and total > 0.0:
+                light.rsm_size = rsm_size_for_share(settings.rsm_size, light.bounce_estimate / total)
     rsm_lights = sum(light.gets_rsm for light in lights)
     decisions = {}
     if settings.kernel == "two-vsgl":
