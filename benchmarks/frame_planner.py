@@ -10,7 +10,12 @@ this renders the scene's saved settings (N = 256, visibility on) and the same sc
 its lights (the same N), each variant in turn for ``--rounds`` rounds after a warm-up frame, and
 reports per variant the VSGLs in total, the median frame time (the sum of the timed passes, GPU
 finished) and its ratio to the one-light frame's in the same run. Targets: VSGLs ≤ N, and the
-ratio ≤ 3. Writes ``frame_planner.{md,json}`` to the results folder and prints the markdown.
+ratio ≤ 3. Then the 24-light scene's accuracy against its cached Cycles truth
+(benchmarks/reference/many_lights_indirect_240x180.npz, as benchmarks/validation_suite.py measures
+it) at each N of ``--accuracy-counts``: what the frame budget costs in error, and which N matches
+the error of N VSGLs per light (the add-on before the planner: 24 × 256 = 6144 VSGLs, mean ratio
+0.718, relative RMSE 0.320 with visibility in the committed suite results). Writes
+``frame_planner.{md,json}`` to the results folder and prints the markdown.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-for folder in (REPO, REPO / "tools"):
+for folder in (REPO, REPO / "tools", REPO / "tests", REPO / "benchmarks"):
     sys.path.insert(0, str(folder))
 
 SCENE = REPO / "benchmarks" / "scenes" / "many_lights.blend"
@@ -100,6 +105,41 @@ def measure(rounds: int, width: int, height: int) -> dict:
             "settings": settings.__dict__.copy(), "variants": rows}
 
 
+def accuracy(counts, width: int, height: int) -> list[dict]:
+    """Mean ratio and noise-corrected relative RMSE of many_lights' indirect light against Cycles
+    at each N (visibility on, the scene's other settings), with the frame's VSGLs and time."""
+    import bpy
+    import numpy as np
+
+    from tradeoff.metrics import Errors
+    from tradeoff.truth import load_reference
+    from validation_suite import TRUTH_SAMPLES
+    from vsgl_addon.renderer import FrameRenderer
+    from vsgl_addon.scene import extract_scene
+    from vsgl_addon.settings import VSGLSettings
+
+    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False)
+    scene = bpy.context.scene
+    settings = VSGLSettings.from_properties(scene.vsgl)
+    truth = load_reference(scene, width, height, TRUTH_SAMPLES["many_lights"], False, name="many_lights",
+                           source=SCENE, dtype=np.float16)
+    description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    renderer = FrameRenderer()
+    rows = []
+    try:
+        for count in counts:
+            for shadowed in (False, True):
+                frame = renderer.render(description, settings.overridden(vsgl_count=count, visibility=shadowed),
+                                        width, height)
+                errors = Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
+                rows.append({"vsgl_count": count, "visibility": shadowed, "vsgls": frame.counts["vsgls"],
+                             "mean_ratio": errors["mean_ratio"], "rel": errors["rel"],
+                             "frame_seconds": float(sum(frame.timings.values()))})
+    finally:
+        renderer.free()
+    return rows
+
+
 def markdown(results: dict) -> str:
     width, height = results["resolution"]
     n = results["settings"]["vsgl_count"]
@@ -120,6 +160,15 @@ def markdown(results: dict) -> str:
                      f"{row['ratio_to_one_light']:.2f} | {'yes' if row['ratio_to_one_light'] <= TARGET_RATIO else 'no'} | "
                      f"{t.get('rsm_and_vsgl_generation', 0) * 1e3:.0f} | {t.get('ism', 0) * 1e3:.0f} | "
                      f"{t.get('direct_light', 0) * 1e3:.0f} | {t.get('vsgl_shading', 0) * 1e3:.0f} |")
+    if results.get("accuracy"):
+        lines += ["", "many_lights (24 lights) against its Cycles truth at each frame budget N (noise-corrected "
+                  "relative RMSE; frame time informative, the machine is shared). Before the planner (N per "
+                  "light, 6144 VSGLs): mean 0.799 / 0.718 and rel RMSE 0.238 / 0.320 with visibility off / on "
+                  "(benchmarks/results/validation_suite.json).", "",
+                  "| N | visibility | VSGLs | mean ours / Cycles | rel RMSE | frame ms |", "|---|---|---|---|---|---|"]
+        for row in results["accuracy"]:
+            lines.append(f"| {row['vsgl_count']} | {'on' if row['visibility'] else 'off'} | {row['vsgls']} | "
+                         f"{row['mean_ratio']:.3f} | {row['rel']:.3f} | {row['frame_seconds'] * 1e3:.0f} |")
     plan = results["variants"]["32 lights"]["plan"]
     lines += ["", "The 32-light frame's plan (its summary lines):", ""]
     lines += [f"    {line}" for line in plan["summary"]]
@@ -131,9 +180,13 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--resolution", default="240x180", help="WxH (default: the suite's 240x180)")
     parser.add_argument("--results-dir", type=Path, default=RESULTS_DIR)
+    parser.add_argument("--accuracy-counts", type=int, nargs="*", default=[256, 1024, 4096],
+                        help="frame budgets N at which many_lights is compared with Cycles (none: skip)")
     args = parser.parse_args(argv)
     width, height = (int(v) for v in args.resolution.lower().split("x"))
     results = measure(args.rounds, width, height)
+    if args.accuracy_counts:
+        results["accuracy"] = accuracy(args.accuracy_counts, width, height)
     text = markdown(results)
     args.results_dir.mkdir(parents=True, exist_ok=True)
     (args.results_dir / "frame_planner.md").write_text(text, encoding="utf-8")
