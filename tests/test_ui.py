@@ -144,14 +144,16 @@ def test_pass_sections_name_real_properties_so_new_ones_slot_in(registered):
 def test_statistics_and_warnings_are_shown(registered):
     scene = registered
     assert "Turn on the overlay or render to see timings" in draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
+    plan = {"summary": ["VSGLs: on — N = 256 for the frame", "MRP-ASG: off — no lit rectangle proxy"]}
     engine.last_frame_statistics.update(timings={"gbuffer": 0.012, "vsgl_shading": 0.5}, counts={"vsgls": 256},
-                                        resolution=[96, 72], warnings=["VSGL: skipped lights: Sun"])
+                                        resolution=[96, 72], warnings=["VSGL: skipped lights: Sun"], plan=plan)
     overlay.cache.statistics = {"level": "refined", "seconds": 0.2, "size": (80, 60), "counts": {"lights": 1},
                                 "timings": {"vsgl_shading": 0.15}, "light_timings": {"rsm_and_vsgl_generation": 0.05}}
     overlay.cache.error = "ShaderCompileError: broken"
     labels = draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
     for text in ("VSGL Shading", "500.0 ms", "150.0 ms", "RSM + VSGL Generation", "50.0 ms", "VSGLs", "256",
-                 "Last render 96×72", "Overlay: view, refined 80×60", "Overlay: light passes"):
+                 "Last render 96×72", "Overlay: view, refined 80×60", "Overlay: light passes", "Frame plan",
+                 *plan["summary"]):
         assert text in labels, text
     top = draw(ui.VIEW3D_PT_vsgl, scene)["labels"]
     assert "Overlay stopped: ShaderCompileError: broken" in top and "VSGL: skipped lights: Sun" in top
