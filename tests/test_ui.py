@@ -134,7 +134,7 @@ def test_render_panels_only_with_the_vsgl_engine(registered):
 
 def test_pass_sections_name_real_properties_so_new_ones_slot_in(registered):
     names = [name for _heading, names in ui.PASS_SECTIONS for name in names]
-    assert set(names) == {"rsm_size", "vsgl_count", "k", "kernel", "positional_distribution", "seed", "visibility",
+    assert set(names) == {"rsm_size", "vsgl_count", "k", "kernel", "pdf", "positional_distribution", "seed", "visibility",
                           "ism_size", "ism_points", "glossy_reflectors", "disk_radius", "caustic_roughness",
                           "reflector_mode"}
     for name in names:

@@ -12,7 +12,7 @@ import tomllib
 from pathlib import Path
 
 from .gpu_context import GPUContextError
-from .settings import KERNELS, POSITIONS, REFLECTOR_MODES
+from .settings import KERNELS, PDFS, POSITIONS, REFLECTOR_MODES
 
 MANIFEST = Path(__file__).resolve().parent.parent / "blender_manifest.toml"
 
@@ -45,7 +45,7 @@ def _command_demo(arguments) -> int:
                                    resolution=arguments.resolution, vsgl_count=None, k=None, kernel=None,
                                    rsm_size=None, seed=None, positional_distribution=None, visibility=None,
                                    ism_size=None, ism_points=None, frame=None, glossy_reflectors=None,
-                                   disk_radius=None, caustic_roughness=None, reflector_mode=None)
+                                   disk_radius=None, caustic_roughness=None, reflector_mode=None, pdf=None)
     print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
     return _command_render(arguments)
 
@@ -87,7 +87,7 @@ def _settings(scene, arguments):
                                else arguments.glossy_reflectors == "on"),
             disk_radius=getattr(arguments, "disk_radius", None),
             caustic_roughness=getattr(arguments, "caustic_roughness", None),
-            reflector_mode=getattr(arguments, "reflector_mode", None))
+            reflector_mode=getattr(arguments, "reflector_mode", None), pdf=getattr(arguments, "pdf", None))
     except SettingsError as error:
         raise UsageError(str(error)) from None
 
@@ -196,6 +196,7 @@ def _command_render(arguments) -> int:
         scene.vsgl.glossy_reflectors, scene.vsgl.disk_radius, scene.vsgl.caustic_roughness = (
             settings.glossy_reflectors, settings.disk_radius, settings.caustic_roughness)
         scene.vsgl.reflector_mode = REFLECTOR_MODES.named(settings.reflector_mode).identifier
+        scene.vsgl.pdf = PDFS.named(settings.pdf).identifier
         scene.render.engine = ENGINE_ID
         if arguments.resolution:
             scene.render.resolution_x, scene.render.resolution_y = arguments.resolution
@@ -308,6 +309,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="GGX alpha below which a planar reflector becomes a rectangle proxy (alpha_c)")
     render.add_argument("--reflector-mode", choices=REFLECTOR_MODES.names,
                         help="asg (001 Eq. 11, default) or sg (the faster Eq. 37)")
+    render.add_argument("--pdf", choices=PDFS.names,
+                        help="VSGL generation's PDF: light (the bounce power, default) or view (000 §5: also what "
+                             "the camera sees of it)")
     render.add_argument("--frame", type=int, metavar="F")
     render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")
     render.set_defaults(run=_command_render)

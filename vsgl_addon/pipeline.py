@@ -19,8 +19,9 @@ import numpy as np
 
 from .layouts import VSGL_TABLE
 from .passes.rsm import SceneGPU, render_rsm_views
-from .passes.vsgl_generation import VSGLGeneration
+from .passes.vsgl_generation import VSGLGeneration, upload_pdf
 from .planner import plan_frame, share_counts, view_power
+from .reference.vsgl import LUMINANCE_WEIGHTS
 from .reference.ism import shadow_origin
 from .scene_points import triangle_areas
 from .settings import VSGLSettings
@@ -133,8 +134,50 @@ class SceneVSGLs:
         self.views_by_light.clear()
 
 
+#: Camera G-buffer side (pixels, the longer side) and at most this many of its covered pixels as the
+#: receivers of the view PDF (reference/brsm.py): enough to tell where the view's light matters.
+VIEW_PDF_GBUFFER = 64
+VIEW_PDF_RECEIVERS = 256
+#: The view PDF's pole radius r, as a fraction of the scene's bounding diagonal.
+VIEW_PDF_RADIUS = 0.02
+
+
+def view_receivers(scene_gpu: SceneGPU, view_matrix, projection_matrix) -> dict:
+    """The view PDF's receivers: positions, normals and reflectances (lum of the base colour) of at
+    most VIEW_PDF_RECEIVERS covered pixels of a small G-buffer of the view, and the pole radius."""
+    from .passes import gbuffer as gbuffer_pass
+
+    gbuffer = gbuffer_pass.PASS.run(scene_gpu, view_matrix, projection_matrix,
+                                    (VIEW_PDF_GBUFFER, VIEW_PDF_GBUFFER * 3 // 4))
+    try:
+        arrays = gbuffer.to_numpy()
+    finally:
+        gbuffer.free()
+    covered = arrays["position"][..., 3].reshape(-1) > 0.5
+    index = np.flatnonzero(covered)
+    index = index[np.linspace(0, len(index) - 1, min(len(index), VIEW_PDF_RECEIVERS)).astype(np.int64)] \
+        if len(index) else index
+    base = arrays["base_color"].reshape(-1, 4)[index]
+    lo, hi = scene_gpu.bounds if scene_gpu.bounds is not None else (np.zeros(3), np.ones(3))
+    return {"position": arrays["position"].reshape(-1, 4)[index, :3].astype(np.float64),
+            "normal": arrays["normal"].reshape(-1, 4)[index, :3].astype(np.float64),
+            "weight": np.clip(base[:, :3], 0.0, 1.0).astype(np.float64) @ LUMINANCE_WEIGHTS,
+            "radius": VIEW_PDF_RADIUS * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))}
+
+
+def _view_pdf_texture(view, receivers):
+    """The defensive mixture of the view PDF and the light PDF for one RSM view (reference/brsm.py)."""
+    from .reference.brsm import view_importance, view_pdf
+
+    arrays = view.to_numpy()
+    weight = (arrays.rsm.flux_diffuse + arrays.rsm.flux_specular) @ LUMINANCE_WEIGHTS
+    importance = view_importance(arrays.rsm.position, arrays.rsm.normal, receivers["position"],
+                                 receivers["normal"], receivers["weight"], receivers["radius"])
+    return upload_pdf(view_pdf(np.where(arrays.coverage, weight, 0.0), importance), view.size)
+
+
 def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lobe: str = "all",
-                       proxies=(), plan=None) -> SceneVSGLs:
+                       proxies=(), plan=None, receivers=None) -> SceneVSGLs:
     """RSM views of the lights the frame plan gives them, then the frame's VSGLs (tables stay on the GPU).
 
     ``receiver_lobe`` (scene_description.RECEIVER_LOBES): the VSGLs of every reflector ("all"), or
@@ -143,7 +186,8 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
     ``proxies`` (with "glossy"): the rectangle proxies whose specular flux MRP-ASG carries to the
     receivers' glossy lobes instead (light-paths.md; passes/rsm.py). ``plan``: the frame's
     planner.FramePlan (made here when None); the views' measured powers share its N
-    (FramePlan.allocate, recorded in the plan under ``receiver_lobe``).
+    (FramePlan.allocate, recorded in the plan under ``receiver_lobe``). ``receivers``
+    (view_receivers): with the plan's view PDF, each view's kernels follow the view PDF (000 §5).
     """
     light_count = len(scene_gpu.scene.lights)
     if plan is None:
@@ -161,7 +205,9 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             for view_index, view in enumerate(views):
                 generation = VSGLGeneration()
                 pending.append((light_index, view_index, generation))
-                generation.build_mip_atlas(view.rsm_textures())
+                pdf = (_view_pdf_texture(view, receivers)
+                       if receivers is not None and plan.runs("view_pdf") else None)
+                generation.build_mip_atlas(view.rsm_textures(), pdf)
                 # One kernel is enough to read the view's total from the atlas's top level.
                 generation.generate(1 if not two_vsgl else 2, settings.k, settings.kernel)
                 totals.append(generation.read_table()["rsm_total_power"])

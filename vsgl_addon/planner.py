@@ -60,6 +60,7 @@ DECISIONS = {
     "mrp_asg": "MRP-ASG",
     "glossy_set": "Glossy VSGL set",
     "vpl_pass": "VPL pass",
+    "view_pdf": "View PDF",
 }
 
 #: Barycentric points per triangle of the CPU bounce estimate (centroid and the three points halfway
@@ -497,6 +498,17 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
         decisions["vpl_pass"] = Decision(False, f"{needed.reason}, but this frame has no VPL pass: VSGLs keep the cell")
     else:
         decisions["vpl_pass"] = needed
+    if settings.pdf != "view":
+        decisions["view_pdf"] = Decision(False, "the light PDF (settings)")
+    elif settings.kernel == "two-vsgl":
+        decisions["view_pdf"] = Decision(False, "two-vsgl samples no PDF (003)")
+    elif view_projection is None:
+        decisions["view_pdf"] = Decision(False, "no single view to weigh the texels by (the viewport): the light PDF")
+    elif not has_vsgls:
+        decisions["view_pdf"] = Decision(False, "no VSGL to place")
+    else:
+        decisions["view_pdf"] = Decision(True, "texels weighted by their form factor with G-buffer samples, mixed with "
+                                               "the light PDF (000 §5)")
     return FramePlan(settings.vsgl_count, settings.kernel, lights, decisions, proxies)
 
 

@@ -12,7 +12,7 @@ from bpy.types import PropertyGroup
 
 from . import overlay
 from .settings import (CAUSTIC_ROUGHNESS_RANGE, DISK_RADIUS_RANGE, ISM_POINTS_RANGE, ISM_SIZE_RANGE, K_RANGE,
-                       KERNELS, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES, REFLECTOR_MODES, RSM_SIZE_RANGE,
+                       KERNELS, OVERLAY_DISPLAYS, PDFS, POSITIONS, PROXY_OVERRIDES, REFLECTOR_MODES, RSM_SIZE_RANGE,
                        VIEWPORT_PASSES, VSGL_COUNT_RANGE)
 
 
@@ -62,6 +62,13 @@ class VSGLSceneSettings(PropertyGroup):
         description="How the reflective shadow map is clustered into VSGLs",
         items=enum_items(KERNELS),
         default="MODIFIED",
+    )
+    pdf: EnumProperty(
+        name="PDF",
+        description="Where VSGL generation places its kernels: by the light's bounce power, or by what the "
+                    "camera sees of it too (000 §5)",
+        items=enum_items(PDFS),
+        default="LIGHT",
     )
     positional_distribution: EnumProperty(
         name="Lobe Positions",

@@ -23,7 +23,7 @@ from .passes import READ_BACK, UPLOAD, direct_light, gbuffer as gbuffer_pass, is
 from .passes.contract import LIGHT_PASSES
 from .passes.gpu_util import finish
 from .passes.rsm import SceneGPU
-from .pipeline import build_visibility, render_scene_vsgls
+from .pipeline import build_visibility, render_scene_vsgls, view_receivers
 from .planner import PROXY_CACHE, RECEIVER_ALPHA_RANGE, kept_proxies, plan_frame
 from .proxies import ProxyCache
 from .reference.vsgl_shading import diffuse_mode_for_kernel
@@ -95,9 +95,11 @@ class SceneLights:
 
     @classmethod
     def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
-              view_projection=None) -> "SceneLights":
-        """``view_projection``: the one view the frame is seen from (4×4 world -> clip), when known,
-        so the plan can skip the work no receiver in it needs; None: any view (the viewport)."""
+              view=None) -> "SceneLights":
+        """``view``: (view matrix, projection matrix) of the one view the frame is seen from, when
+        known, so the plan can skip the work no receiver in it needs and weigh the RSM texels by it
+        (the view PDF); None: any view (the viewport)."""
+        view_projection = None if view is None else np.asarray(view[1]) @ np.asarray(view[0])
         plan = plan_frame(scene, settings, proxy_cache, view_projection)
         clock = time.perf_counter()
         scene_gpu = SceneGPU(scene)
@@ -109,9 +111,11 @@ class SceneLights:
             # The plan's VSGL sets: one, or one per receiver lobe when some object is hidden from
             # diffuse or glossy rays, or MRP-ASG runs (light-paths.md: the proxies' specular light
             # leaves the glossy set).
+            receivers = view_receivers(scene_gpu, *view) if plan.runs("view_pdf") else None
             for lobe in plan.receiver_sets:
                 sets.append(render_scene_vsgls(scene_gpu, settings, lobe,
-                                               [proxy for proxy, _ in proxies] if lobe == "glossy" else (), plan))
+                                               [proxy for proxy, _ in proxies] if lobe == "glossy" else (), plan,
+                                               receivers))
                 if sets[-1].generations:
                     _finish(sets[-1].generations[-1][2].table)
             timings[LIGHT_PASSES.name] = time.perf_counter() - clock
@@ -248,8 +252,7 @@ class FrameRenderer:
             if scene.camera is None:
                 raise ValueError("the scene has no camera")
             view_matrix, projection_matrix = scene.camera.view_matrix(), scene.camera.projection_matrix()
-        lights = SceneLights.build(scene, settings,
-                                   view_projection=np.asarray(projection_matrix) @ np.asarray(view_matrix))
+        lights = SceneLights.build(scene, settings, view=(view_matrix, projection_matrix))
         try:
             return self.render_view(lights, settings, width, height, view_matrix, projection_matrix)
         finally:

@@ -88,6 +88,19 @@ KERNELS = Choices(
            tag="TwoVSGL", ignores=("vsgl_count", "k", "positional_distribution")),
 )
 
+#: Which PDF VSGL generation samples the RSM with (000 §3-5; reference/brsm.py).
+PDFS = Choices(
+    Choice("light", "LIGHT", "Light (000 §4)",
+           "Kernel centres follow each texel's bounce power lum(Φ(Rd + Rs)): VSGLs go where the light "
+           "bounces, whether the camera sees that place or not"),
+    Choice("view", "VIEW", "View (BRSM, 000 §5)",
+           "Kernel centres follow the bounce power times each texel's importance to what the camera sees "
+           "(its unshadowed form factor with a few hundred G-buffer samples), mixed with the light PDF "
+           "(a quarter) so no lit texel is left out. For a light whose footprint is much larger than the "
+           "view (a sun over a large ground); costs a small G-buffer and a CPU sum per RSM view, and "
+           "needs the frame's camera (the viewport keeps the light PDF)"),
+)
+
 #: Where each VSGL's two lobes sit (reference.vsgl explains both): each lobe's own power
 #: centroid, or 000 app. B.2's one Gaussian for both.
 POSITIONS = Choices(
@@ -213,6 +226,8 @@ class VSGLSettings:
     disk_radius: float = 0.1
     caustic_roughness: float = 0.1
     reflector_mode: str = "asg"
+    # VSGL generation's PDF (PDFS): the light's (000 §4) or the view-dependent one (000 §5).
+    pdf: str = "light"
 
     def __post_init__(self):
         _check_range("VSGL count", self.vsgl_count, *VSGL_COUNT_RANGE)
@@ -237,6 +252,8 @@ class VSGLSettings:
             raise SettingsError("disk radius and caustic roughness must be finite numbers")
         _check_range("disk radius", self.disk_radius, *DISK_RADIUS_RANGE)
         _check_range("caustic roughness", self.caustic_roughness, *CAUSTIC_ROUGHNESS_RANGE)
+        if self.pdf not in PDFS.names:
+            raise SettingsError(f"PDF must be one of {', '.join(PDFS.names)}, got {self.pdf!r}")
         if self.reflector_mode not in REFLECTOR_MODES.names:
             raise SettingsError(f"reflector mode must be one of {', '.join(REFLECTOR_MODES.names)}, "
                                 f"got {self.reflector_mode!r}")
@@ -257,7 +274,8 @@ class VSGLSettings:
                    glossy_reflectors=bool(getattr(properties, "glossy_reflectors", True)),
                    disk_radius=float(getattr(properties, "disk_radius", 0.1)),
                    caustic_roughness=float(getattr(properties, "caustic_roughness", 0.1)),
-                   reflector_mode=REFLECTOR_MODES.identified(getattr(properties, "reflector_mode", "ASG")).name)
+                   reflector_mode=REFLECTOR_MODES.identified(getattr(properties, "reflector_mode", "ASG")).name,
+                   pdf=PDFS.identified(getattr(properties, "pdf", "LIGHT")).name)
 
     def overridden(self, **values) -> "VSGLSettings":
         """A copy with the given values (None means keep), validated."""

@@ -23,7 +23,7 @@ from .settings import KERNELS
 #: (heading, scene.vsgl property names), in pipeline order. Append an entry for a new pass's controls.
 PASS_SECTIONS = (
     ("Reflective Shadow Maps", ("rsm_size",)),
-    ("VSGL Generation", ("kernel", "vsgl_count", "k", "positional_distribution", "seed")),
+    ("VSGL Generation", ("kernel", "vsgl_count", "k", "pdf", "positional_distribution", "seed")),
     ("VSGL Visibility", ("visibility", "ism_size", "ism_points")),
     ("Glossy Reflectors (MRP-ASG)", ("glossy_reflectors", "disk_radius", "caustic_roughness", "reflector_mode")),
 )
