@@ -88,15 +88,28 @@ class SceneVSGLs:
             return [self.merged[0]]
         return [generation.read_table() for _, _, generation in self.generations]
 
-    def merge(self) -> None:
+    def merge(self, normalize: bool = False) -> None:
         """Every generation's VSGLs in one shading table: with N shared by many lights' views, one
         shading draw and one atlas of shadow maps instead of one per view (each pays a full-screen
-        pass; the sum over VSGLs is the same)."""
+        pass; the sum over VSGLs is the same). ``normalize``: scale each view's VSGL powers (both
+        lobes' amplitudes) so that their luminance sums to the view's RSM total exactly. 000 Eq. 5
+        gives that sum only where the PDF is smooth at the kernels' scale: with the view PDF
+        (reference/brsm.py) the few wide kernels over the dim part of a view read a filtered PDF
+        mass larger than theirs and the sum comes out low (12-19 % at N = 64 over a point light's
+        five views, 3 % at N = 1024; tests/test_reference_brsm.py's room), so the view PDF's frames
+        would be darker."""
         from .passes.vsgl_shading import upload_vsgl_table
 
-        if len(self.generations) < 2 or self.merged is not None:
+        if self.merged is not None or not self.generations or (len(self.generations) < 2 and not normalize):
             return
         tables = [generation.read_table() for _, _, generation in self.generations]
+        if normalize:
+            for table in tables:
+                total = float(np.asarray(table["rsm_total_power"]) @ LUMINANCE_WEIGHTS)
+                summed = float(np.sum(table["power"], axis=0) @ LUMINANCE_WEIGHTS)
+                scale = total / summed if summed > 0.0 and np.isfinite(total / summed) else 1.0
+                for name in ("power", "diffuse_amplitude", "specular_amplitude"):
+                    table[name] = table[name] * scale
         merged = {name: np.concatenate([table[name] for table in tables]) for name in VSGL_TABLE.record_fields()}
         merged["rsm_total_power"] = np.sum([table["rsm_total_power"] for table in tables], axis=0)
         self.merged = (merged, upload_vsgl_table(merged))
@@ -111,6 +124,8 @@ class SceneVSGLs:
             view_rows.append(np.full(generation.vsgl_count, view_index))
         merged = ({name: np.concatenate([t[name] for t in tables]) for name in VSGL_FIELDS}
                   if tables else _empty_table())
+        if self.merged is not None:  # the shading table, normalized where merge() normalized it
+            merged.update({name: np.asarray(self.merged[0][name]) for name in VSGL_FIELDS})
         merged["light_index"] = np.concatenate(light_rows) if light_rows else np.zeros(0, np.int64)
         merged["view_index"] = np.concatenate(view_rows) if view_rows else np.zeros(0, np.int64)
         light_count = len(self.rsm_total_power)
@@ -225,7 +240,7 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             generation.generate(count, settings.k, settings.kernel,
                                 _rotation(settings.seed, light_index, view_index),
                                 settings.positional_distribution)
-        result.merge()
+        result.merge(normalize=receivers is not None and plan.runs("view_pdf"))
     except BaseException:
         for _, _, generation in pending:
             generation.free()
