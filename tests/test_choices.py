@@ -12,7 +12,7 @@ import pytest
 from vsgl_addon import settings
 from vsgl_addon.cli import UsageError, build_parser
 from vsgl_addon.reference import vsgl as reference_vsgl
-from vsgl_addon.settings import (KERNELS, LOOKDEV_PASSES, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES,
+from vsgl_addon.settings import (KERNELS, LOOKDEV_PASSES, OVERLAY_DISPLAYS, PDFS, POSITIONS, PROXY_OVERRIDES,
                                 REFLECTOR_MODES, Choice, Choices,
                                  VSGLSettings)
 
@@ -23,6 +23,7 @@ STORED = {
                                         "COMBINED"]),
     "reflector_mode": (REFLECTOR_MODES, ["ASG", "SG"]),
     "vsgl_proxy": (PROXY_OVERRIDES, ["AUTO", "ALWAYS", "NEVER"]),
+    "pdf": (PDFS, ["LIGHT", "VIEW"]),
 }
 
 

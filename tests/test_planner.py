@@ -228,3 +228,24 @@ def test_mrp_asg_skipped_where_no_receiver_needs_it_changes_no_pixel(monkeypatch
     assert skipped.indirect.max() > 0.0
     np.testing.assert_allclose(skipped.indirect_diffuse, forced.indirect_diffuse, rtol=1e-5, atol=1e-8)
     np.testing.assert_allclose(skipped.indirect_specular, forced.indirect_specular, rtol=1e-4, atol=1e-7)
+
+
+def test_the_pdf_setting_and_its_command_line_flag():
+    from vsgl_addon.cli import build_parser
+    from vsgl_addon.settings import SettingsError
+
+    assert VSGLSettings().pdf == "light" and VSGLSettings(pdf="view").pdf == "view"
+    with pytest.raises(SettingsError, match="PDF must be one of light, view"):
+        VSGLSettings(pdf="eye")
+    arguments = build_parser().parse_args(["render", "s.blend", "--out", "o.exr", "--pdf", "view"])
+    assert arguments.pdf == "view"
+    # The view PDF needs the frame's one view; without it (the viewport) the plan keeps the light PDF.
+    light = point_light((0.0, 0.0, 2.0), power=500.0)
+    camera = _camera()
+    scene = _room([light])
+    settings = VSGLSettings(pdf="view")
+    assert not P.plan_frame(scene, settings, ProxyCache()).runs("view_pdf")
+    assert P.plan_frame(scene, settings, ProxyCache(),
+                        view_projection=camera.projection_matrix() @ camera.view_matrix()).runs("view_pdf")
+    assert not P.plan_frame(scene, VSGLSettings(pdf="view", kernel="two-vsgl"), ProxyCache(),
+                            view_projection=np.eye(4)).runs("view_pdf")
