@@ -32,7 +32,7 @@ them (``--skip-visibility-benchmarks`` leaves them out).
 
 Writes ``benchmarks/results/validation_suite.{md,json}`` (``_quick`` with --quick: two scenes, for
 the smoke test) and prints the markdown. With every truth cached a full run takes about 30 s
-(many_lights alone ~10 s: N VSGLs per light, 24 lights); rendering the suite's seven truths
+(many_lights alone ~10 s: 24 lights, each with its RSM views); rendering the suite's seven truths
 (--regenerate-reference, or a missing file) takes about 18 min here, the demo's 4 min more.
 """
 

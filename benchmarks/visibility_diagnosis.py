@@ -131,8 +131,8 @@ def diagnose(name, path, stride, settings_overrides, material=None):
             build_visibility(bench.scene_gpu, vsgls, settings)
             sums = {"off": 0.0, "ism": 0.0, "exact": 0.0, "exact_mean0": 0.0}
             over = under = 0.0
-            for (_, _, generation), atlas in zip(vsgls.generations, vsgls.isms):
-                table = {k: np.asarray(v, np.float64) for k, v in generation.read_table().items()}
+            for table, atlas in zip(vsgls.table_arrays(), vsgls.isms):
+                table = {k: np.asarray(v, np.float64) for k, v in table.items()}
                 maps = atlas.count // len(table["variance"])
                 _, _, terms = shade(table, position, normal, view, rd[pick], f0[pick], roughness,
                                     per_term=True)

@@ -13,7 +13,7 @@ import pytest
 from vsgl_addon import settings
 from vsgl_addon.cli import UsageError, build_parser
 from vsgl_addon.reference import vsgl as reference_vsgl
-from vsgl_addon.settings import (KERNELS, LOOKDEV_PASSES, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES,
+from vsgl_addon.settings import (KERNELS, LOOKDEV_PASSES, OVERLAY_DISPLAYS, PDFS, POSITIONS, PROXY_OVERRIDES,
                                 REFLECTOR_MODES, VIEWPORT_PASSES, Choice, Choices,
                                  VSGLSettings)
 
@@ -27,6 +27,7 @@ STORED = {
     "vpl_interleave": (settings.INTERLEAVE_CHOICES, ["AUTO", "N1", "N2", "N4", "N8"]),
     "reflector_mode": (REFLECTOR_MODES, ["ASG", "SG"]),
     "vsgl_proxy": (PROXY_OVERRIDES, ["AUTO", "ALWAYS", "NEVER"]),
+    "pdf": (PDFS, ["LIGHT", "VIEW"]),
 }
 
 

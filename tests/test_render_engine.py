@@ -95,6 +95,11 @@ def test_render_report_has_timings_counts_parameters_and_renderer(rendered):
     assert data["settings"]["positional_distribution"] == "per-lobe"
     assert data["resolution"] == [96, 72] and "llvmpipe" in data["gpu_renderer"]
     assert "vsgl_shading" in result.stdout
+    # The frame plan: N = 64 per receiver-lobe set, MRP-ASG on for the floor proxy, each decision's reason.
+    plan = data["plan"]
+    assert plan["vsgls"] == {"diffuse": 64, "glossy": 64} and plan["decisions"]["mrp_asg"]["run"]
+    assert all(decision["reason"] for decision in plan["decisions"].values())
+    assert "frame plan:" in result.stdout and plan["summary"][0] in result.stdout
 
 
 @pytest.mark.parametrize("arguments, says", [

@@ -134,7 +134,7 @@ def test_render_panels_only_with_the_vsgl_engine(registered):
 
 def test_pass_sections_name_real_properties_so_new_ones_slot_in(registered):
     names = [name for _heading, names in ui.PASS_SECTIONS for name in names]
-    assert set(names) == {"rsm_size", "vsgl_count", "k", "kernel", "positional_distribution", "seed", "visibility",
+    assert set(names) == {"rsm_size", "vsgl_count", "k", "kernel", "pdf", "positional_distribution", "seed", "visibility",
                           "ism_size", "ism_points", "glossy_reflectors", "disk_radius", "caustic_roughness",
                           "reflector_mode", "caustics", "delta_log10", "vpl_interleave", "vpl_filter_radius",
                           "vpl_samples", "vpl_visibility"}
@@ -145,10 +145,11 @@ def test_pass_sections_name_real_properties_so_new_ones_slot_in(registered):
 def test_statistics_and_warnings_are_shown(registered):
     scene = registered
     assert "Turn on the overlay or render to see timings" in draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
+    plan = {"summary": ["VSGLs: on — N = 256 for the frame", "MRP-ASG: off — no lit rectangle proxy"]}
     engine.last_frame_statistics.update(timings={"gbuffer": 0.012, "vsgl_shading": 0.5}, counts={"vsgls": 256},
                                         resolution=[96, 72], warnings=["VSGL: skipped lights: Sun"],
                                         proxies=[{"object": "Floor", "size": [4.0, 3.0], "roughness": 0.2,
-                                                  "lit_by": ["Spot", "Sun"]}])
+                                                  "lit_by": ["Spot", "Sun"]}], plan=plan)
     pipeline = overlay.views.pipeline(1)  # a viewport's pipeline whose last step was a coarse image
     pipeline.statistics = {"work": "lights", "level": "coarse", "seconds": 0.2, "size": (80, 60),
                            "light_seconds": 0.05, "view_seconds": 0.15, "counts": {"lights": 1}}
@@ -157,7 +158,8 @@ def test_statistics_and_warnings_are_shown(registered):
     labels = draw(ui.VIEW3D_PT_vsgl_statistics, scene)["labels"]
     for text in ("VSGL Shading", "500.0 ms", "150.0 ms", "Light passes", "50.0 ms", "VSGLs", "256",
                  "Last render 96×72", "Overlay: last step (coarse 80×60)", "Last step", "200.0 ms",
-                 "Rectangle proxies (MRP-ASG):", "Floor: 4.00 × 3.00 m, roughness 0.200, lit by Spot, Sun"):
+                 "Rectangle proxies (MRP-ASG):", "Floor: 4.00 × 3.00 m, roughness 0.200, lit by Spot, Sun",
+                 "Frame plan", *plan["summary"]):
         assert text in labels, text
     top = draw(ui.VIEW3D_PT_vsgl, scene)["labels"]
     assert "Overlay stopped: ShaderCompileError: broken" in top and "VSGL: skipped lights: Sun" in top

@@ -13,7 +13,7 @@ import tomllib
 from pathlib import Path
 
 from .gpu_context import GPUContextError
-from .settings import DELTA_RANGE, INTERLEAVE_CHOICES, KERNELS, POSITIONS, REFLECTOR_MODES
+from .settings import DELTA_RANGE, INTERLEAVE_CHOICES, KERNELS, PDFS, POSITIONS, REFLECTOR_MODES
 
 MANIFEST = Path(__file__).resolve().parent.parent / "blender_manifest.toml"
 
@@ -48,7 +48,7 @@ def _command_demo(arguments) -> int:
                                    ism_size=None, ism_points=None, frame=None, glossy_reflectors=None,
                                    disk_radius=None, caustic_roughness=None, reflector_mode=None, caustics=None,
                                    delta=None, vpl_interleave=None, vpl_filter_radius=None, vpl_samples=None,
-                                   vpl_visibility=None)
+                                   vpl_visibility=None, pdf=None)
     print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
     return _command_render(arguments)
 
@@ -96,7 +96,8 @@ def _settings(scene, arguments):
             vpl_filter_radius=getattr(arguments, "vpl_filter_radius", None),
             vpl_samples=getattr(arguments, "vpl_samples", None),
             vpl_visibility=(None if getattr(arguments, "vpl_visibility", None) is None
-                            else arguments.vpl_visibility == "on"))
+                            else arguments.vpl_visibility == "on"),
+            pdf=getattr(arguments, "pdf", None))
     except SettingsError as error:
         raise UsageError(str(error)) from None
 
@@ -231,6 +232,7 @@ def _command_render(arguments) -> int:
             settings.caustics, settings.vpl_filter_radius, settings.vpl_samples, settings.vpl_visibility)
         scene.vsgl.delta_log10 = math.log10(settings.delta)
         scene.vsgl.vpl_interleave = INTERLEAVE_CHOICES.named(settings.vpl_interleave).identifier
+        scene.vsgl.pdf = PDFS.named(settings.pdf).identifier
         scene.render.engine = ENGINE_ID
         if arguments.resolution:
             scene.render.resolution_x, scene.render.resolution_y = arguments.resolution
@@ -263,6 +265,10 @@ def _command_render(arguments) -> int:
           f"{statistics['counts'].get('lights', 0)} lights ({settings_line}): {seconds:.2f} s in all")
     for name, value in statistics["timings"].items():
         print(f"  {name:>24}: {value * 1000:9.1f} ms")
+    if statistics.get("plan"):
+        print("frame plan:")
+        for line in statistics["plan"]["summary"]:
+            print(f"  {line}")
     print(f"images: {out} (layers {', '.join(('Combined',) + tuple(RENDER_PASSES))}), {preview}")
     if report:
         print(f"report: {report}")
@@ -321,7 +327,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "flags override them for this run.")
     vsgl.add_argument("scene", metavar="SCENE.blend")
     vsgl.add_argument("--out", required=True, metavar="VSGLS.npz")
-    vsgl.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per light, 1 to 4096")
+    vsgl.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per frame, shared by the lights by bounce power, 1 to 4096")
     vsgl.add_argument("--k", type=_float, metavar="K", help="kernel size factor K, 0.25 to 16 (000 Eq. 3)")
     vsgl.add_argument("--kernel", choices=KERNELS.names)
     vsgl.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
@@ -342,7 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("scene", metavar="SCENE.blend")
     render.add_argument("--out", required=True, metavar="OUT.exr")
     render.add_argument("--resolution", type=_resolution, metavar="WxH")
-    render.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per light, 1 to 4096")
+    render.add_argument("--vsgl-count", type=_positive_int, metavar="N", help="VSGLs per frame, shared by the lights by bounce power, 1 to 4096")
     render.add_argument("--k", type=_float, metavar="K", help="kernel size factor K, 0.25 to 16 (000 Eq. 3)")
     render.add_argument("--kernel", choices=KERNELS.names)
     render.add_argument("--rsm-size", type=_positive_int, metavar="S", help="RSM side in texels, a power of two")
@@ -361,6 +367,9 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--reflector-mode", choices=REFLECTOR_MODES.names,
                         help="asg (001 Eq. 11, default) or sg (the faster Eq. 37)")
     _caustics_flags(render)
+    render.add_argument("--pdf", choices=PDFS.names,
+                        help="VSGL generation's PDF: light (the bounce power, default) or view (000 §5: also what "
+                             "the camera sees of it)")
     render.add_argument("--frame", type=int, metavar="F")
     render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")
     render.set_defaults(run=_command_render)

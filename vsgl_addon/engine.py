@@ -159,7 +159,8 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         last_frame_statistics.update(
             timings={"scene_extraction": extraction_seconds, **images.timings},
             counts=dict(images.counts), settings=settings.__dict__.copy(),
-            resolution=[width, height], warnings=list(description.warnings), proxies=list(images.proxies))
+            resolution=[width, height], warnings=list(description.warnings), proxies=list(images.proxies),
+            plan=images.plan.to_dict() if images.plan is not None else {})
 
 
 def _rows(image: np.ndarray) -> np.ndarray:

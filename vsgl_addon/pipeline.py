@@ -4,9 +4,10 @@
 Never touches bpy.context. Needs a GPU context (gpu_context.ensure_gpu_context), main thread.
 
 A light may have several RSM views (a point or area light: cube faces; a wide spot: cube faces).
-VSGL count N is per light (000 generates N VSGLs from one RSM): a light with several views shares
-its N among them in proportion to each view's power lum(Σ Φ(Rd + Rs)), by largest remainders, so
-the VSGLs go where the light's bounce is. Views with no power get none. In 003's two-VSGL mode
+VSGL count N is the frame's (planner.py): every view of every light the plan gives RSM views is
+rendered first, then N is shared among all of them in proportion to each view's power
+lum(Σ Φ(Rd + Rs)) (planner.allocate_vsgls), so the VSGLs go where the frame's bounce is, whichever
+light it comes from. Views with no power (or a negligible share) get none. In 003's two-VSGL mode
 every view gives its two VSGLs (meant for one spot view, 003).
 """
 
@@ -18,7 +19,8 @@ import numpy as np
 
 from .layouts import VSGL_TABLE
 from .passes.rsm import SceneGPU, render_rsm_views
-from .passes.vsgl_generation import VSGLGeneration
+from .passes.vsgl_generation import VSGLGeneration, upload_pdf
+from .planner import plan_frame, share_counts, view_power
 from .reference.vsgl import LUMINANCE_WEIGHTS
 from .reference.ism import shadow_origin
 from .scene_points import triangle_areas
@@ -37,15 +39,7 @@ def share_vsgl_count(vsgl_count: int, view_powers) -> np.ndarray:
 
     All views without power: none get any. N smaller than the number of lit views: the brightest get one.
     """
-    powers = np.maximum(np.asarray(view_powers, np.float64), 0.0)
-    total = powers.sum()
-    if not np.isfinite(total) or total <= 0.0:
-        return np.zeros(len(powers), np.int64)
-    quota = vsgl_count * powers / total
-    counts = np.floor(quota).astype(np.int64)
-    order = np.argsort(-(quota - counts), kind="stable")
-    counts[order[: vsgl_count - counts.sum()]] += 1
-    return counts
+    return share_counts(vsgl_count, view_powers)
 
 
 def _rotation(seed: int, light_index: int, view_index: int) -> np.ndarray:
@@ -69,9 +63,11 @@ class SceneVSGLs:
     generations: list[tuple[int, int, VSGLGeneration]]  # (light index, view index, its table)
     rsm_total_power: np.ndarray  # (L, 3)
     rsm_size: int
-    # The imperfect shadow maps of each generation's VSGLs (passes/ism.py), in the same order; empty
-    # without visibility.
+    # The imperfect shadow maps of each shading table's VSGLs (passes/ism.py), in the same order
+    # (table_arrays()); empty without visibility.
     isms: list = field(default_factory=list)
+    # (table dict, VSGLTable) of every generation's VSGLs in one table (merge()), or None.
+    merged: tuple | None = None
 
     @property
     def vsgl_count(self) -> int:
@@ -80,8 +76,43 @@ class SceneVSGLs:
     def tables(self) -> list:
         from .passes.vsgl_shading import VSGLTable
 
+        if self.merged is not None:
+            table = self.merged[1]
+            return [VSGLTable(table.texture, table.count, table.shared_positions, self.isms[0] if self.isms else None)]
         isms = self.isms or [None] * len(self.generations)
         return [VSGLTable.from_generation(generation, ism) for (_, _, generation), ism in zip(self.generations, isms)]
+
+    def table_arrays(self) -> list[dict]:
+        """The shading tables' VSGLs as numpy dicts, in the order of tables() (and of isms)."""
+        if self.merged is not None:
+            return [self.merged[0]]
+        return [generation.read_table() for _, _, generation in self.generations]
+
+    def merge(self, normalize: bool = False) -> None:
+        """Every generation's VSGLs in one shading table: with N shared by many lights' views, one
+        shading draw and one atlas of shadow maps instead of one per view (each pays a full-screen
+        pass; the sum over VSGLs is the same). ``normalize``: scale each view's VSGL powers (both
+        lobes' amplitudes) so that their luminance sums to the view's RSM total exactly. 000 Eq. 5
+        gives that sum only where the PDF is smooth at the kernels' scale: with the view PDF
+        (reference/brsm.py) the few wide kernels over the dim part of a view read a filtered PDF
+        mass larger than theirs and the sum comes out low (12-19 % at N = 64 over a point light's
+        five views, 3 % at N = 1024; tests/test_reference_brsm.py's room), so the view PDF's frames
+        would be darker."""
+        from .passes.vsgl_shading import upload_vsgl_table
+
+        if self.merged is not None or not self.generations or (len(self.generations) < 2 and not normalize):
+            return
+        tables = [generation.read_table() for _, _, generation in self.generations]
+        if normalize:
+            for table in tables:
+                total = float(np.asarray(table["rsm_total_power"]) @ LUMINANCE_WEIGHTS)
+                summed = float(np.sum(table["power"], axis=0) @ LUMINANCE_WEIGHTS)
+                scale = total / summed if summed > 0.0 and np.isfinite(total / summed) else 1.0
+                for name in ("power", "diffuse_amplitude", "specular_amplitude"):
+                    table[name] = table[name] * scale
+        merged = {name: np.concatenate([table[name] for table in tables]) for name in VSGL_TABLE.record_fields()}
+        merged["rsm_total_power"] = np.sum([table["rsm_total_power"] for table in tables], axis=0)
+        self.merged = (merged, upload_vsgl_table(merged))
 
     def read(self) -> dict[str, np.ndarray]:
         """The export table (see generate_scene_vsgls), read back from the GPU."""
@@ -93,6 +124,8 @@ class SceneVSGLs:
             view_rows.append(np.full(generation.vsgl_count, view_index))
         merged = ({name: np.concatenate([t[name] for t in tables]) for name in VSGL_FIELDS}
                   if tables else _empty_table())
+        if self.merged is not None:  # the shading table, normalized where merge() normalized it
+            merged.update({name: np.asarray(self.merged[0][name]) for name in VSGL_FIELDS})
         merged["light_index"] = np.concatenate(light_rows) if light_rows else np.zeros(0, np.int64)
         merged["view_index"] = np.concatenate(view_rows) if view_rows else np.zeros(0, np.int64)
         light_count = len(self.rsm_total_power)
@@ -106,6 +139,7 @@ class SceneVSGLs:
         for atlas in self.isms:
             atlas.free()
         self.isms.clear()
+        self.merged = None  # Blender frees a GPUTexture with its last reference
         for _, _, generation in self.generations:
             generation.free()
         self.generations.clear()
@@ -115,9 +149,51 @@ class SceneVSGLs:
         self.views_by_light.clear()
 
 
+#: Camera G-buffer side (pixels, the longer side) and at most this many of its covered pixels as the
+#: receivers of the view PDF (reference/brsm.py): enough to tell where the view's light matters.
+VIEW_PDF_GBUFFER = 64
+VIEW_PDF_RECEIVERS = 256
+#: The view PDF's pole radius r, as a fraction of the scene's bounding diagonal.
+VIEW_PDF_RADIUS = 0.02
+
+
+def view_receivers(scene_gpu: SceneGPU, view_matrix, projection_matrix) -> dict:
+    """The view PDF's receivers: positions, normals and reflectances (lum of the base colour) of at
+    most VIEW_PDF_RECEIVERS covered pixels of a small G-buffer of the view, and the pole radius."""
+    from .passes import gbuffer as gbuffer_pass
+
+    gbuffer = gbuffer_pass.PASS.run(scene_gpu, view_matrix, projection_matrix,
+                                    (VIEW_PDF_GBUFFER, VIEW_PDF_GBUFFER * 3 // 4))
+    try:
+        arrays = gbuffer.to_numpy()
+    finally:
+        gbuffer.free()
+    covered = arrays["position"][..., 3].reshape(-1) > 0.5
+    index = np.flatnonzero(covered)
+    index = index[np.linspace(0, len(index) - 1, min(len(index), VIEW_PDF_RECEIVERS)).astype(np.int64)] \
+        if len(index) else index
+    base = arrays["base_color"].reshape(-1, 4)[index]
+    lo, hi = scene_gpu.bounds if scene_gpu.bounds is not None else (np.zeros(3), np.ones(3))
+    return {"position": arrays["position"].reshape(-1, 4)[index, :3].astype(np.float64),
+            "normal": arrays["normal"].reshape(-1, 4)[index, :3].astype(np.float64),
+            "weight": np.clip(base[:, :3], 0.0, 1.0).astype(np.float64) @ LUMINANCE_WEIGHTS,
+            "radius": VIEW_PDF_RADIUS * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))}
+
+
+def _view_pdf_texture(view, receivers):
+    """The defensive mixture of the view PDF and the light PDF for one RSM view (reference/brsm.py)."""
+    from .reference.brsm import view_importance, view_pdf
+
+    arrays = view.to_numpy()
+    weight = (arrays.rsm.flux_diffuse + arrays.rsm.flux_specular) @ LUMINANCE_WEIGHTS
+    importance = view_importance(arrays.rsm.position, arrays.rsm.normal, receivers["position"],
+                                 receivers["normal"], receivers["weight"], receivers["radius"])
+    return upload_pdf(view_pdf(np.where(arrays.coverage, weight, 0.0), importance), view.size)
+
+
 def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lobe: str = "all",
-                       proxies=(), sharp_alpha: float = 0.0) -> SceneVSGLs:
-    """RSM views of every light of the uploaded scene, then their VSGLs (tables stay on the GPU).
+                       proxies=(), sharp_alpha: float = 0.0, plan=None, receivers=None) -> SceneVSGLs:
+    """RSM views of the lights the frame plan gives them, then the frame's VSGLs (tables stay on the GPU).
 
     ``receiver_lobe`` (scene_description.RECEIVER_LOBES): the VSGLs of every reflector ("all"), or
     only of those seen by diffuse or by glossy rays, for a scene where some object is hidden from one
@@ -125,36 +201,50 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
     ``proxies`` (with "glossy"): the rectangle proxies whose specular flux MRP-ASG carries to the
     receivers' glossy lobes instead (light-paths.md; passes/rsm.py). ``sharp_alpha`` > 0: no texel
     with GGX α below it keeps specular flux, which the glossy VPLs carry to diffuse receivers.
+    ``plan``: the frame's planner.FramePlan (made here when None); the views' measured powers share
+    its N (FramePlan.allocate, recorded in the plan under ``receiver_lobe``). ``receivers``
+    (view_receivers): with the plan's view PDF, each view's kernels follow the view PDF (000 §5).
     """
     light_count = len(scene_gpu.scene.lights)
+    if plan is None:
+        plan = plan_frame(scene_gpu.scene, settings)
     result = SceneVSGLs({}, [], np.zeros((light_count, 3)), settings.rsm_size)
     two_vsgl = settings.kernel == "two-vsgl"
+    pending = []  # (light index, view index, generation) with the view's total read, not yet sampled
     try:
-        for light_index in range(light_count):
-            views = render_rsm_views(scene_gpu, light_index, settings.rsm_size, receiver_lobe, proxies, sharp_alpha)
+        view_powers = {}
+        for light_index in plan.rsm_lights():
+            views = render_rsm_views(scene_gpu, light_index, plan.lights[light_index].rsm_size, receiver_lobe,
+                                     proxies, sharp_alpha)
             result.views_by_light[light_index] = views
-            generations = [VSGLGeneration() for _ in views]
             totals = []
-            for view, generation in zip(views, generations):
-                generation.build_mip_atlas(view.rsm_textures())
+            for view_index, view in enumerate(views):
+                generation = VSGLGeneration()
+                pending.append((light_index, view_index, generation))
+                pdf = (_view_pdf_texture(view, receivers)
+                       if receivers is not None and plan.runs("view_pdf") else None)
+                generation.build_mip_atlas(view.rsm_textures(), pdf)
                 # One kernel is enough to read the view's total from the atlas's top level.
                 generation.generate(1 if not two_vsgl else 2, settings.k, settings.kernel)
                 totals.append(generation.read_table()["rsm_total_power"])
             if totals:
                 result.rsm_total_power[light_index] = np.sum(totals, axis=0)
-            if two_vsgl:
-                counts = np.full(len(views), 2)
-            else:
-                counts = share_vsgl_count(settings.vsgl_count, [t @ LUMINANCE_WEIGHTS for t in totals])
-            for view_index, (generation, count) in enumerate(zip(generations, counts)):
-                if count == 0:
-                    generation.free()
-                    continue
-                generation.generate(int(count), settings.k, settings.kernel,
-                                    _rotation(settings.seed, light_index, view_index),
-                                    settings.positional_distribution)
-                result.generations.append((light_index, view_index, generation))
+            view_powers[light_index] = [view_power(total) for total in totals]
+        counts = plan.allocate(view_powers, receiver_lobe)
+        while pending:
+            light_index, view_index, generation = pending.pop(0)
+            count = int(counts[light_index][view_index])
+            if count == 0:
+                generation.free()
+                continue
+            result.generations.append((light_index, view_index, generation))
+            generation.generate(count, settings.k, settings.kernel,
+                                _rotation(settings.seed, light_index, view_index),
+                                settings.positional_distribution)
+        result.merge(normalize=receivers is not None and plan.runs("view_pdf"))
     except BaseException:
+        for _, _, generation in pending:
+            generation.free()
         result.free()
         raise
     return result
@@ -189,8 +279,7 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
     points = scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
     point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
     textures = ism_pass.upload_points(points) if vsgls.generations else None  # once for every table
-    for _, _, generation in vsgls.generations:
-        table = generation.read_table()
+    for table in vsgls.table_arrays():
         if MAPS_PER_VSGL == 1:
             origins = shadow_origin(table["diffuse_mean"], table["diffuse_variance"], table["diffuse_axis"]).reshape(-1, 3)
             sigma = np.sqrt(np.maximum(table["diffuse_variance"], 0.0)).reshape(-1)

@@ -14,8 +14,9 @@ from bpy.types import PropertyGroup
 
 from . import overlay
 from .settings import (CAUSTIC_ROUGHNESS_RANGE, DELTA_RANGE, DISK_RADIUS_RANGE, INTERLEAVE_CHOICES, ISM_POINTS_RANGE,
-                       ISM_SIZE_RANGE, K_RANGE, KERNELS, OVERLAY_DISPLAYS, POSITIONS, PROXY_OVERRIDES, REFLECTOR_MODES,
-                       RSM_SIZE_RANGE, VIEWPORT_PASSES, VPL_FILTER_RADIUS_RANGE, VPL_SAMPLES_RANGE, VSGL_COUNT_RANGE)
+                       ISM_SIZE_RANGE, K_RANGE, KERNELS, OVERLAY_DISPLAYS, PDFS, POSITIONS, PROXY_OVERRIDES,
+                       REFLECTOR_MODES, RSM_SIZE_RANGE, VIEWPORT_PASSES, VPL_FILTER_RADIUS_RANGE, VPL_SAMPLES_RANGE,
+                       VSGL_COUNT_RANGE)
 
 
 def enum_items(choices) -> tuple[tuple[str, str, str, int], ...]:
@@ -71,6 +72,13 @@ class VSGLSceneSettings(PropertyGroup):
         description="How the reflective shadow map is clustered into VSGLs",
         items=enum_items(KERNELS),
         default="MODIFIED",
+    )
+    pdf: EnumProperty(
+        name="PDF",
+        description="Where VSGL generation places its kernels: by the light's bounce power, or by what the "
+                    "camera sees of it too (000 §5)",
+        items=enum_items(PDFS),
+        default="LIGHT",
     )
     positional_distribution: EnumProperty(
         name="Lobe Positions",

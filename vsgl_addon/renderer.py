@@ -19,14 +19,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .layouts import GBUFFER
-from .light_paths import needs_glossy_vpls
 from .passes import (READ_BACK, UPLOAD, VPL_EXTRACTION, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg,
                      mrp_visibility, shading_inputs, vpl_culling, vsgl_shading)
 from .passes.contract import LIGHT_PASSES
 from .passes.gpu_util import finish, read_texture
 from .passes.rsm import SceneGPU
-from .pipeline import build_visibility, render_scene_vsgls
-from .proxies import ProxyCache, describe_proxies, lit_proxies
+from .pipeline import build_visibility, render_scene_vsgls, view_receivers
+from .planner import PROXY_CACHE, RECEIVER_ALPHA_RANGE, kept_proxies, plan_frame
+from .proxies import ProxyCache, describe_proxies
 from .reference.vsgl_shading import diffuse_mode_for_kernel
 from .settings import VSGLSettings
 
@@ -51,6 +51,7 @@ class FrameImages:
     # The rectangle proxies MRP-ASG shaded (proxies.describe_proxies rows: object, size, roughness,
     # lit by which lights), for the statistics panel and the render report.
     proxies: list = field(default_factory=list)
+    plan: object = None  # the planner.FramePlan the frame executed
 
     def __post_init__(self):
         if self.indirect_glossy_reflectors is None:
@@ -97,7 +98,7 @@ class SceneLights:
     # or MRP-ASG carries the proxies' specular light to glossy receivers: the VSGLs of the
     # reflectors glossy rays see (without the proxies' specular flux), for the receivers' specular lobes.
     glossy_vsgls: object = None
-    # MRP-ASG (001): (rectangle proxy, lit-by mask over scene.lights) of the proxies some light reaches.
+    # MRP-ASG (001): (rectangle proxy, lit-by mask over scene.lights) of the proxies the plan keeps.
     proxies: list = field(default_factory=list)
     # Glossy VPLs (004, passes/vpl_culling.py VPLSet) when the scene needs them (light_paths.py); then
     # `vsgls` holds no sharp reflector's specular flux (the VPLs carry it to diffuse receivers).
@@ -108,35 +109,39 @@ class SceneLights:
     # With visibility on: the proxies' mirror shadow maps (passes/mrp_visibility.py), MRP-ASG's
     # proxy-to-receiver shadows.
     mirror_maps: object = None
+    plan: object = None  # planner.FramePlan: what these light passes ran, and why
 
     @classmethod
-    def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None) -> "SceneLights":
+    def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
+              view=None) -> "SceneLights":
+        """``view``: (view matrix, projection matrix) of the one view the frame is seen from, when
+        known, so the plan can skip the work no receiver in it needs and weigh the RSM texels by it
+        (the view PDF); None: any view (the viewport)."""
+        view_projection = None if view is None else np.asarray(view[1]) @ np.asarray(view[0])
+        plan = plan_frame(scene, settings, proxy_cache, view_projection)
         clock = time.perf_counter()
         scene_gpu = SceneGPU(scene)
         timings = {UPLOAD.name: time.perf_counter() - clock}
-        proxies = scene_proxies(scene, settings, proxy_cache) if settings.glossy_reflectors else []
-        caustics = needs_glossy_vpls(scene, settings)
+        proxies = plan.proxies
+        caustics = plan.runs("vpl_pass")
         sets = []
         vpls = mirror_maps = None
         try:
             clock = time.perf_counter()
-            # light-paths.md: the receivers' diffuse lobes take the sharp reflectors' specular flux from
-            # the VPLs, their glossy lobes the proxies' from MRP-ASG, so each lobe gets its own VSGL set
-            # when either runs (or when Blender's ray visibility hides some object from one ray type).
-            split = bool(scene.receiver_lobe_split or proxies or caustics)
-            plan = [("diffuse" if split else "all", (), settings.caustic_roughness if caustics else 0.0)]
-            if split:
-                plan.append(("glossy", [proxy for proxy, _ in proxies], 0.0))
-            whole = caustics and bool(proxies) and not scene.receiver_lobe_split
-            if whole:
-                plan.append(("all", (), 0.0))
-            for lobe, cut_proxies, sharp_alpha in plan:
-                sets.append(render_scene_vsgls(scene_gpu, settings, lobe, cut_proxies, sharp_alpha))
+            # The plan's VSGL sets (light-paths.md): one, or one per receiver lobe when the VPLs take
+            # the sharp reflectors' specular flux from the diffuse receivers, MRP-ASG the proxies' from
+            # the glossy ones, or Blender's ray visibility hides some object from one ray type; with
+            # both passes and MRP-ASG gated by receiver roughness, a third of every reflector.
+            receivers = view_receivers(scene_gpu, *view) if plan.runs("view_pdf") else None
+            for lobe in plan.receiver_sets:
+                cut_proxies = [proxy for proxy, _ in proxies] if lobe == "glossy" else ()
+                sharp_alpha = settings.caustic_roughness if caustics and lobe == "diffuse" else 0.0
+                sets.append(render_scene_vsgls(scene_gpu, settings, lobe, cut_proxies, sharp_alpha, plan, receivers))
                 if sets[-1].generations:
                     _finish(sets[-1].generations[-1][2].table)
             timings[LIGHT_PASSES.name] = time.perf_counter() - clock
             clock = time.perf_counter()
-            if settings.visibility:
+            if plan.runs("visibility"):
                 first_map = 0  # each set's maps draw other point sets
                 starts = []
                 for index, table_set in enumerate(sets):
@@ -168,7 +173,7 @@ class SceneLights:
             scene_gpu.free()
             raise
         return cls(scene, scene_gpu, sets[0], timings, sets[1] if len(sets) > 1 else None, proxies, vpls,
-                   sets[2] if whole else None, mirror_maps)
+                   sets[2] if len(sets) > 2 else None, mirror_maps, plan)
 
     def free(self) -> None:
         for name in ("vsgls", "glossy_vsgls", "whole_vsgls", "vpls", "mirror_maps"):
@@ -180,37 +185,10 @@ class SceneLights:
             self.scene_gpu = None
 
 
-#: GGX α of the receivers MRP-ASG shades (both ends included); rougher ones take the proxies' light
-#: from the VSGLs. Measured: the receiver's SG (001 Eqs. 6, 8) fits a rough GGX NDF poorly (α ≥ 0.5
-#: worse than VSGLs in docs/accuracy.md's error table; on the caustic panel's α 0.64 walls MRP-ASG
-#: doubled the specular error, benchmarks/results/mrp_asg_suite.md). No lower bound: the table's
-#: sharp receiver (α 0.05) is worse, but the suite's mirror-like floors (α 0.02) gain the most.
-RECEIVER_ALPHA_RANGE = (0.0, 0.35)
-
-#: The proxies of the last scene geometry (rebuilt only when it changes, not when a light or the view
-#: moves), for callers that keep no cache of their own.
-PROXY_CACHE = ProxyCache()
-
-
 def scene_proxies(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None, overrides=None) -> list:
-    """(proxy, lit-by mask) of the rectangle proxies of ``scene`` that some light reaches on their
-    front side (vsgl_addon/proxies.py), without lights the proxy's object does not receive (light
-    linking) and proxies glossy rays do not see (ray visibility). ``overrides``: object name ->
-    proxies.PROXY_MODES (default: the scene description's ``proxy_overrides`` if it has them)."""
-    cache = PROXY_CACHE if proxy_cache is None else proxy_cache
-    if overrides is None:
-        overrides = getattr(scene, "proxy_overrides", None)
-    proxies = cache.get(scene, settings.caustic_roughness, overrides)
-    visibility = scene.visibility()
-    kept = []
-    for proxy, mask in lit_proxies(proxies, scene):
-        mask = mask.copy()
-        for index, light in enumerate(scene.lights):
-            if light.receivers is not None and not light.receivers[proxy.object_index]:
-                mask[index] = False
-        if mask.any() and visibility[proxy.object_index, 1]:
-            kept.append((proxy, mask))
-    return kept
+    """(proxy, lit-by mask) of the rectangle proxies of ``scene`` some light reaches
+    (planner.kept_proxies), from ``proxy_cache`` or the planner's."""
+    return kept_proxies(scene, settings, PROXY_CACHE if proxy_cache is None else proxy_cache, overrides)
 
 
 @dataclass
@@ -369,7 +347,7 @@ class FrameRenderer:
             if scene.camera is None:
                 raise ValueError("the scene has no camera")
             view_matrix, projection_matrix = scene.camera.view_matrix(), scene.camera.projection_matrix()
-        lights = SceneLights.build(scene, settings)
+        lights = SceneLights.build(scene, settings, view=(view_matrix, projection_matrix))
         try:
             return self.render_view(lights, settings, width, height, view_matrix, projection_matrix)
         finally:
@@ -394,4 +372,5 @@ class FrameRenderer:
         return FrameImages(_rgb(images["direct_diffuse"]), _rgb(images["direct_specular"]),
                            _rgb(images["indirect_diffuse"]), _rgb(images["indirect_specular"]),
                            np.clip(np.nan_to_num(GBUFFER.unpack_slots(images, ["coverage"])["coverage"]), 0.0, 1.0).astype(np.float32),
-                           timings, counts, **optional, proxies=describe_proxies(lights.proxies, lights.scene))
+                           timings, counts, **optional, proxies=describe_proxies(lights.proxies, lights.scene),
+                           plan=lights.plan)

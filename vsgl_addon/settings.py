@@ -88,6 +88,19 @@ KERNELS = Choices(
            tag="TwoVSGL", ignores=("vsgl_count", "k", "positional_distribution")),
 )
 
+#: Which PDF VSGL generation samples the RSM with (000 §3-5; reference/brsm.py).
+PDFS = Choices(
+    Choice("light", "LIGHT", "Light (000 §4)",
+           "Kernel centres follow each texel's bounce power lum(Φ(Rd + Rs)): VSGLs go where the light "
+           "bounces, whether the camera sees that place or not"),
+    Choice("view", "VIEW", "View (BRSM, 000 §5)",
+           "Kernel centres follow the bounce power times each texel's importance to what the camera sees "
+           "(its unshadowed form factor with a few hundred G-buffer samples), mixed with the light PDF "
+           "(a quarter) so no lit texel is left out. For a light whose footprint is much larger than the "
+           "view (a sun over a large ground); costs a small G-buffer and a CPU sum per RSM view, and "
+           "needs the frame's camera (the viewport keeps the light PDF)"),
+)
+
 #: Where each VSGL's two lobes sit (reference.vsgl explains both): each lobe's own power
 #: centroid, or 000 app. B.2's one Gaussian for both.
 POSITIONS = Choices(
@@ -277,6 +290,8 @@ class VSGLSettings:
     # clusters sit a few centimetres above it, and the floor's own splats shadow what stands on it
     # (polished_metal_floor's mean 1.02 -> 0.43 of Cycles').
     vpl_visibility: bool = False
+    # VSGL generation's PDF (PDFS): the light's (000 §4) or the view-dependent one (000 §5).
+    pdf: str = "light"
 
     def __post_init__(self):
         _check_range("VSGL count", self.vsgl_count, *VSGL_COUNT_RANGE)
@@ -301,6 +316,8 @@ class VSGLSettings:
             raise SettingsError("disk radius and caustic roughness must be finite numbers")
         _check_range("disk radius", self.disk_radius, *DISK_RADIUS_RANGE)
         _check_range("caustic roughness", self.caustic_roughness, *CAUSTIC_ROUGHNESS_RANGE)
+        if self.pdf not in PDFS.names:
+            raise SettingsError(f"PDF must be one of {', '.join(PDFS.names)}, got {self.pdf!r}")
         if self.reflector_mode not in REFLECTOR_MODES.names:
             raise SettingsError(f"reflector mode must be one of {', '.join(REFLECTOR_MODES.names)}, "
                                 f"got {self.reflector_mode!r}")
@@ -335,7 +352,8 @@ class VSGLSettings:
                    vpl_interleave=INTERLEAVE_CHOICES.identified(getattr(properties, "vpl_interleave", "AUTO")).name,
                    vpl_filter_radius=int(getattr(properties, "vpl_filter_radius", 8)),
                    vpl_samples=int(getattr(properties, "vpl_samples", 1)),
-                   vpl_visibility=bool(getattr(properties, "vpl_visibility", False)))
+                   vpl_visibility=bool(getattr(properties, "vpl_visibility", False)),
+                   pdf=PDFS.identified(getattr(properties, "pdf", "LIGHT")).name)
 
     def overridden(self, **values) -> "VSGLSettings":
         """A copy with the given values (None means keep), validated."""

@@ -24,7 +24,7 @@ from .settings import KERNELS
 #: (heading, scene.vsgl property names), in pipeline order. Append an entry for a new pass's controls.
 PASS_SECTIONS = (
     ("Reflective Shadow Maps", ("rsm_size",)),
-    ("VSGL Generation", ("kernel", "vsgl_count", "k", "positional_distribution", "seed")),
+    ("VSGL Generation", ("kernel", "vsgl_count", "k", "pdf", "positional_distribution", "seed")),
     ("VSGL Visibility", ("visibility", "ism_size", "ism_points")),
     ("Glossy Reflectors (MRP-ASG)", ("glossy_reflectors", "disk_radius", "caustic_roughness", "reflector_mode")),
     ("Caustics (VPL)", ("caustics", "delta_log10", "vpl_interleave", "vpl_filter_radius", "vpl_samples",
@@ -136,10 +136,25 @@ def overlay_statistics() -> dict:
     return {"timings": timings, "counts": dict(state.get("counts", {})), "proxies": proxies}
 
 
+def _draw_plan(layout, plan: dict) -> None:
+    """The frame plan (planner.py): one line per decision, then one per light."""
+    lines = plan.get("summary", ())
+    if not lines:
+        return
+    box = layout.box()
+    box.label(text="Frame plan")
+    column = box.column(align=True)
+    for line in lines:
+        column.label(text=line)
+
+
 def draw_statistics(layout) -> None:
     state = overlay.views.statistics
     if state:
         level = state.get("level", state.get("work", ""))
+        last = overlay.views.last
+        plan = getattr(last.lights, "plan", None) if last is not None and last.lights is not None else None
+        _draw_plan(layout, plan.to_dict() if plan is not None else {})
         size = state.get("size")
         what = f"{level} {size[0]}×{size[1]}" if size else f"{level}, sample {state.get('samples', 0)}"
         _draw_statistics_block(layout, f"Overlay: last step ({what})", overlay_statistics())
@@ -147,6 +162,7 @@ def draw_statistics(layout) -> None:
     if render:
         width, height = render.get("resolution", (0, 0))
         _draw_statistics_block(layout, f"Last render {width}×{height}", render)
+        _draw_plan(layout, render.get("plan", {}))
     if not state and not render:
         layout.label(text="Turn on the overlay or render to see timings")
 

@@ -1,0 +1,110 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The view-dependent PDF (vsgl_addon/reference/brsm.py, 000 §5): the importance against a direct
+double loop, the defensive mixture's bounds, and, on the GPU, that VSGL generation with it keeps
+every view's summed VSGL power equal to its RSM total (000 Eq. 5)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from vsgl_addon.reference import brsm
+
+
+def _loop_importance(p, n, rx, rn, rw, radius):
+    out = np.zeros(len(p))
+    for i in range(len(p)):
+        for j in range(len(rx)):
+            d = rx[j] - p[i]
+            dist = math.sqrt(d @ d)
+            w = d / dist
+            out[i] += rw[j] * max(n[i] @ w, 0.0) * max(-(rn[j] @ w), 0.0) / (dist * dist + radius * radius)
+    return out
+
+
+def test_importance_equals_the_double_loop_and_faces_matter():
+    rng = np.random.default_rng(3)
+    p = rng.normal(size=(40, 3))
+    n = rng.normal(size=(40, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    rx = rng.normal(size=(25, 3)) + [0.0, 0.0, 3.0]
+    rn = rng.normal(size=(25, 3))
+    rn /= np.linalg.norm(rn, axis=1, keepdims=True)
+    rw = rng.random(25)
+    for radius in (1e-3, 0.3, 10.0):
+        np.testing.assert_allclose(brsm.view_importance(p, n, rx, rn, rw, radius),
+                                   _loop_importance(p, n, rx, rn, rw, radius), rtol=1e-12, atol=1e-300)
+    # A texel facing away from every receiver, or receivers facing away, weigh nothing.
+    up, down = np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 0.0, -1.0]])
+    above = np.array([[0.0, 0.0, 2.0]])
+    assert brsm.view_importance([[0, 0, 0]], up, above, down, [1.0], 0.1)[0] == pytest.approx(1.0 / 4.01)
+    assert brsm.view_importance([[0, 0, 0]], down, above, down, [1.0], 0.1)[0] == 0.0
+    assert brsm.view_importance([[0, 0, 0]], up, above, up, [1.0], 0.1)[0] == 0.0
+    # No geometry (zero normal), a receiver on the texel, no receivers: finite, no NaN.
+    values = brsm.view_importance([[0, 0, 0], [1, 1, 1]], [[0, 0, 0], [0, 0, 1]], [[1, 1, 1]], down, [1.0], 1e-6)
+    assert np.all(np.isfinite(values)) and values[0] == 0.0
+    assert brsm.view_importance(p, n, np.zeros((0, 3)), np.zeros((0, 3)), [], 0.1).tolist() == [0.0] * 40
+
+
+def test_the_defensive_mixture_keeps_every_lit_texel_and_sums_to_one():
+    rng = np.random.default_rng(5)
+    w = rng.random((8, 8)) * (rng.random((8, 8)) > 0.3)
+    i = rng.random((8, 8)) * (rng.random((8, 8)) > 0.5)
+    p = brsm.view_pdf(w, i)
+    assert p.sum() == pytest.approx(1.0, abs=1e-12)
+    light = w / w.sum()
+    assert np.all(p >= brsm.DEFENSIVE_SHARE * light - 1e-15)  # no texel with bounce power at zero
+    assert np.all(p[w == 0] == 0.0)
+    np.testing.assert_allclose(brsm.view_pdf(w, i, 1.0), light)
+    # Nothing in view is lit: the light PDF; nothing lit at all: zeros.
+    np.testing.assert_allclose(brsm.view_pdf(w, np.zeros_like(w)), light)
+    assert brsm.view_pdf(np.zeros((4, 4)), np.ones((4, 4))).sum() == 0.0
+    assert np.all(np.isfinite(brsm.view_pdf([np.nan, 1.0, np.inf], [1.0, np.nan, 1.0])))
+
+
+@pytest.mark.gpu
+def test_generation_with_the_view_pdf_keeps_the_rsm_total():
+    """Summed VSGL power equals the RSM total with either PDF (000 Eq. 5; with the view PDF each view's
+    powers are normalized to it, Eq. 5 alone falls short there), and the view PDF moves the kernels
+    towards the reflectors that light what the camera sees."""
+    from test_planner import _camera, _room
+    from test_proxies import point_light
+    from vsgl_addon.passes.rsm import SceneGPU
+    from vsgl_addon.pipeline import render_scene_vsgls, view_receivers
+    from vsgl_addon.planner import plan_frame
+    from vsgl_addon.scene_description import SceneDescription
+    from vsgl_addon.settings import VSGLSettings
+
+    room = _room([point_light((0.0, 0.0, 3.5), power=800.0)])
+    camera = _camera(position=(2.5, -1.0, 0.6), looking=(1.0, 0.3, -0.4))  # a corner of the floor
+    scene = SceneDescription(room.geometry, room.materials, room.lights, camera, room.object_names)
+    view = (camera.view_matrix(), camera.projection_matrix())
+    scene_gpu = SceneGPU(scene)
+    try:
+        receivers = view_receivers(scene_gpu, *view)
+        assert len(receivers["weight"]) > 16
+        centres = {}
+        for pdf in ("light", "view"):
+            settings = VSGLSettings(vsgl_count=64, rsm_size=64, visibility=False, pdf=pdf)
+            plan = plan_frame(scene, settings, view_projection=view[1] @ view[0])
+            assert plan.runs("view_pdf") == (pdf == "view")
+            vsgls = render_scene_vsgls(scene_gpu, settings, plan=plan, receivers=receivers)
+            try:
+                table = vsgls.read()
+            finally:
+                vsgls.free()
+            assert len(table["power"]) == 64 and np.all(np.isfinite(table["power"]))
+            np.testing.assert_allclose(table["power"].sum(axis=0), table["rsm_total_power"][0], rtol=0.05)
+            if pdf == "view":  # each view normalized to its total's luminance (pipeline.SceneVSGLs.merge)
+                lum = np.array([0.2126, 0.7152, 0.0722])
+                assert table["power"].sum(axis=0) @ lum == pytest.approx(table["rsm_total_power"][0] @ lum, rel=1e-5)
+            # How much the VSGLs matter to the view's receivers (at their means, facing their diffuse axes).
+            centres[pdf] = brsm.view_importance(table["mean"], table["diffuse_axis"], receivers["position"],
+                                                receivers["normal"], receivers["weight"], receivers["radius"]).mean()
+    finally:
+        scene_gpu.free()
+    # The floor corner in view is lit by the wall above it, not by the floor around it: the view PDF
+    # moves the kernels to the texels that light what the camera sees.
+    assert centres["view"] > 1.5 * centres["light"]

@@ -1,0 +1,536 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The frame plan: what one frame of a scene needs, decided before any GPU work, and why.
+
+bpy-free and GPU-free: from a SceneDescription and VSGLSettings, :func:`plan_frame` decides
+
+* which lights get RSM views (a light whose views see no triangle it lights gets none; its views
+  also give the direct light's shadows, so every light that reaches geometry keeps them) and at
+  what size: a light expected to get the fraction s of the frame's VSGLs (from a CPU estimate of
+  its bounce power) gets the side √s × the settings' size (a power of two, at least MIN_RSM_SIZE),
+  so its texels per VSGL stay what the settings give one light alone (a lone light keeps the
+  settings' size; on llvmpipe a 64² view costs a fifth of a 128² one);
+* how the VSGL count N is spent: N is the frame's budget, not each light's. Once the RSM views
+  are rendered, :meth:`FramePlan.allocate` shares N among all views of all lights in proportion to
+  their bounce power lum(Σ Φ(Rd + Rs)) (the RSM total, the integral VSGL generation samples from,
+  000 Eq. 5), so every VSGL carries about the same power whichever light it came from, as 000's N
+  VSGLs of one light do. Each VSGL set of a view still sums to that view's RSM total (000 Eq. 5),
+  so the estimate of each light's bounce stays what it was; only views whose summed power is
+  negligible (at most NEGLIGIBLE_BOUNCE of the frame's bounce power, the dimmest first) get no
+  VSGL, and the plan reports the fraction dropped;
+* which passes run, from the cells of ../shared/reference/light-paths.md the scene fills: VSGL
+  visibility (000 §5), MRP-ASG (001: a lit rectangle proxy and a glossy receiver it can serve),
+  the glossy receivers' second VSGL set, the VPL caustics pass (004: a lit sharp reflector).
+
+Each decision carries a one-line reason; :meth:`FramePlan.summary_lines` are what the statistics
+panel and the command line print, :meth:`FramePlan.to_dict` what the JSON report holds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .light_paths import needs_glossy_vpls
+from .proxies import ProxyCache, lit_proxies, material_alpha, material_f0
+from .reference.lights import light_intensity
+from .reference.vsgl import LUMINANCE_WEIGHTS
+from .settings import VSGLSettings
+from .views import light_view_specs, scene_bounds, view_sees_triangles
+
+#: At most this fraction of the frame's bounce power (the dimmest views first) may go without
+#: VSGLs: its light is still drawn directly, its bounce is dropped (a bias of at most this much).
+NEGLIGIBLE_BOUNCE = 1e-3
+
+#: Smallest RSM side the plan gives a light: its views are also the direct light's shadow maps
+#: (003 finds 64² to 128² enough for VSGLs of a local light).
+MIN_RSM_SIZE = 64
+
+#: GGX α of the receivers MRP-ASG shades (both ends included); rougher ones take the proxies' light
+#: from the VSGLs. Measured: the receiver's SG (001 Eqs. 6, 8) fits a rough GGX NDF poorly (α ≥ 0.5
+#: worse than VSGLs in docs/accuracy.md's error table; on the caustic panel's α 0.64 walls MRP-ASG
+#: doubled the specular error, benchmarks/results/mrp_asg_suite.md). No lower bound: the table's
+#: sharp receiver (α 0.05) is worse, but the suite's mirror-like floors (α 0.02) gain the most.
+RECEIVER_ALPHA_RANGE = (0.0, 0.35)
+
+#: The plan's decisions, in the order the summary prints them: key -> label.
+DECISIONS = {
+    "vsgls": "VSGLs",
+    "visibility": "Visibility",
+    "mrp_asg": "MRP-ASG",
+    "glossy_set": "Glossy VSGL set",
+    "whole_set": "Whole VSGL set",
+    "vpl_pass": "VPL pass",
+    "view_pdf": "View PDF",
+}
+
+#: Barycentric points per triangle of the CPU bounce estimate (centroid and the three points halfway
+#: from it to the corners): enough to tell a lit triangle's order of magnitude, cheap for 10⁵ triangles.
+_ESTIMATE_BARYCENTRICS = np.array([[1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6],
+                                   [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
+
+
+@dataclass(frozen=True)
+class Decision:
+    """Whether one part of the frame runs, and why (one line)."""
+
+    run: bool
+    reason: str
+
+
+@dataclass
+class LightPlan:
+    """One light's part of the frame: its RSM views (culled), their size, the CPU estimate of its
+    bounce power, and, once allocated, its VSGLs per receiver-lobe set and the RSM's measured power."""
+
+    index: int
+    name: str
+    rsm_views: int
+    rsm_size: int
+    bounce_estimate: float  # lum W, CPU (no occlusion), before any GPU work
+    reason: str
+    rsm_power: dict = field(default_factory=dict)  # set -> lum Σ Φ(Rd + Rs) over its views, W
+    vsgls: dict = field(default_factory=dict)  # set -> VSGLs (sum over views)
+    view_vsgls: dict = field(default_factory=dict)  # set -> VSGLs per view
+
+    @property
+    def gets_rsm(self) -> bool:
+        return self.rsm_views > 0
+
+
+@dataclass
+class FramePlan:
+    vsgl_budget: int  # N: VSGLs per receiver-lobe set for the whole frame (two-vsgl: unused)
+    kernel: str
+    lights: list
+    decisions: dict  # DECISIONS key -> Decision
+    proxies: list = field(default_factory=list)  # (RectangleProxy, lit-by mask) MRP-ASG keeps
+    # set -> fraction of that set's RSM bounce power that got no VSGL (NEGLIGIBLE_BOUNCE at most,
+    # more only where N is smaller than the lights with bounce power)
+    dropped_bounce: dict = field(default_factory=dict)
+
+    def runs(self, name: str) -> bool:
+        return self.decisions[name].run
+
+    @property
+    def receiver_sets(self) -> tuple[str, ...]:
+        """The VSGL sets the frame generates (scene_description.RECEIVER_LOBES names)."""
+        if not self.runs("glossy_set"):
+            return ("all",)
+        # The third is every reflector's light, for the receivers MRP-ASG leaves when the first no
+        # longer holds it (the VPL split): renderer.SceneLights.whole_vsgls.
+        return ("diffuse", "glossy", "all") if self.runs("whole_set") else ("diffuse", "glossy")
+
+    def rsm_lights(self) -> list[int]:
+        return [light.index for light in self.lights if light.gets_rsm]
+
+    def allocate(self, view_powers: dict, receiver_set: str = "all") -> dict:
+        """light index -> VSGLs per view (int64 array) for one VSGL set, from each view's measured
+        bounce power lum(Σ Φ(Rd + Rs)) (``view_powers``: light index -> per-view powers); recorded
+        in the plan. two-vsgl: two per view (003; N unused)."""
+        if self.kernel == "two-vsgl":
+            counts = {index: np.full(len(powers), 2, np.int64) for index, powers in view_powers.items()}
+            dropped = 0.0
+        else:
+            counts, dropped = allocate_vsgls(self.vsgl_budget, view_powers)
+        by_index = {light.index: light for light in self.lights}
+        for index, powers in view_powers.items():
+            light = by_index[index]
+            light.rsm_power[receiver_set] = float(np.sum(powers))
+            light.view_vsgls[receiver_set] = [int(c) for c in counts[index]]
+            light.vsgls[receiver_set] = int(np.sum(counts[index]))
+        self.dropped_bounce[receiver_set] = dropped
+        return counts
+
+    def total_vsgls(self, receiver_set: str | None = None) -> int:
+        sets = self.receiver_sets if receiver_set is None else (receiver_set,)
+        return sum(light.vsgls.get(name, 0) for light in self.lights for name in sets)
+
+    def summary_lines(self) -> list[str]:
+        """One line per decision, then one per light: what the frame ran and why."""
+        lines = [f"{DECISIONS[name]}: {'on' if decision.run else 'off'} — {decision.reason}"
+                 for name, decision in self.decisions.items()]
+        return lines + [self.light_line(light) for light in self.lights]
+
+    def light_line(self, light: LightPlan) -> str:
+        if not light.gets_rsm:
+            return f"Light {light.name}: no RSM, no VSGL — {light.reason}"
+        sets = [name for name in self.receiver_sets if name in light.vsgls]
+        counts = ", ".join(f"{light.vsgls[name]} {'VSGLs' if len(sets) == 1 else name}" for name in sets)
+        share = ""
+        if sets:
+            total = sum(other.rsm_power.get(sets[0], 0.0) for other in self.lights)
+            if total > 0.0:
+                share = f", {100.0 * light.rsm_power[sets[0]] / total:.1f} % of the bounce"
+        views = f"{light.rsm_views} RSM view{'s' if light.rsm_views != 1 else ''} {light.rsm_size}²"
+        return f"Light {light.name}: {views}, {counts or 'VSGLs not allocated yet'}{share} — {light.reason}"
+
+    def to_dict(self) -> dict:
+        """The JSON report's ``plan``."""
+        return {
+            "vsgl_budget": self.vsgl_budget,
+            "kernel": self.kernel,
+            "receiver_sets": list(self.receiver_sets),
+            "vsgls": {name: self.total_vsgls(name) for name in self.receiver_sets},
+            "dropped_bounce_fraction": dict(self.dropped_bounce),
+            "decisions": {name: {"run": d.run, "reason": d.reason} for name, d in self.decisions.items()},
+            "lights": [{"index": light.index, "name": light.name, "rsm_views": light.rsm_views,
+                        "rsm_size": light.rsm_size, "bounce_estimate": light.bounce_estimate,
+                        "rsm_power": dict(light.rsm_power), "vsgls": dict(light.vsgls),
+                        "view_vsgls": dict(light.view_vsgls), "reason": light.reason}
+                       for light in self.lights],
+            "proxies": [{"object": int(proxy.object_index), "area": float(proxy.area),
+                         "alpha": float(proxy.alpha), "lit_by": [int(i) for i in np.flatnonzero(mask)]}
+                        for proxy, mask in self.proxies],
+            "summary": self.summary_lines(),
+        }
+
+
+def rsm_size_for_share(rsm_size: int, share: float) -> int:
+    """The RSM side of a light expected to get ``share`` of the frame's VSGLs: √share × ``rsm_size``
+    rounded up to a power of two, within [min(MIN_RSM_SIZE, rsm_size), rsm_size]."""
+    floor = min(MIN_RSM_SIZE, rsm_size)
+    if not share > 0.0:
+        return floor
+    side = rsm_size * math.sqrt(min(share, 1.0))
+    return int(min(max(2 ** math.ceil(math.log2(max(side, 1.0)) - 1e-9), floor), rsm_size))
+
+
+def allocate_vsgls(budget: int, view_powers: dict) -> tuple[dict, float]:
+    """Share ``budget`` VSGLs among every view of every light in proportion to its power.
+
+    ``view_powers``: light index -> per-view bounce powers (≥ 0). Returns (light index -> int64
+    counts per view, fraction of the total power left without VSGLs). Rules: the sum is at most
+    ``budget`` (exactly ``budget`` when any view has power); views with no power get none; the
+    dimmest views whose summed power is at most NEGLIGIBLE_BOUNCE of the total get none; every
+    other view gets at least one while the budget allows (when it does not, each light's brightest
+    view comes first, brightest lights first); above that one, counts follow the power (the views
+    held at one are taken out and the rest shared again, then largest remainders).
+    """
+    keys = [(index, view) for index, powers in view_powers.items() for view in range(len(powers))]
+    powers = np.array([max(float(view_powers[i][v]), 0.0) for i, v in keys], np.float64)
+    powers = np.where(np.isfinite(powers), powers, 0.0)
+    counts = np.zeros(len(keys), np.int64)
+    total = powers.sum()
+
+    def result():
+        by_light = {i: counts[[k for k, key in enumerate(keys) if key[0] == i]] for i in view_powers}
+        return by_light, (float(powers[counts == 0].sum() / total) if total > 0.0 else 0.0)
+
+    if total <= 0.0 or budget <= 0:
+        return result()
+    kept = powers > 0.0
+    order = np.argsort(powers, kind="stable")
+    negligible = np.cumsum(powers[order]) <= NEGLIGIBLE_BOUNCE * total
+    kept[order[negligible]] = False
+    if kept.sum() > budget:
+        # Not one VSGL each: each light's brightest view first (brightest lights first), then the rest.
+        brightest = {}
+        for k in np.flatnonzero(kept):
+            light = keys[k][0]
+            if light not in brightest or powers[k] > powers[brightest[light]]:
+                brightest[light] = k
+        firsts = sorted(brightest.values(), key=lambda k: -powers[k])
+        others = sorted(set(np.flatnonzero(kept)) - set(firsts), key=lambda k: -powers[k])
+        kept[:] = False
+        kept[(firsts + others)[:budget]] = True
+    floor = np.zeros(len(keys), bool)  # views held at one VSGL
+    while True:
+        free = kept & ~floor
+        remaining = budget - int(floor.sum())
+        quota = np.where(free, remaining * powers / max(powers[free].sum(), 1e-300), 0.0)
+        below = free & (quota < 1.0)
+        if not below.any():
+            break
+        floor |= below
+    counts[floor] = 1
+    free = kept & ~floor
+    if free.any():
+        counts[free] = share_counts(budget - int(floor.sum()), powers[free])
+    return result()
+
+
+def share_counts(count: int, powers) -> np.ndarray:
+    """Split ``count`` in proportion to ``powers`` (largest remainders, sums to ``count``); all
+    without power: none get any."""
+    powers = np.maximum(np.asarray(powers, np.float64), 0.0)
+    total = powers.sum()
+    if not np.isfinite(total) or total <= 0.0:
+        return np.zeros(len(powers), np.int64)
+    quota = count * powers / total
+    counts = np.floor(quota).astype(np.int64)
+    order = np.argsort(-(quota - counts), kind="stable")
+    counts[order[: count - counts.sum()]] += 1
+    return counts
+
+
+# --- What the scene holds (CPU, no occlusion) -----------------------------------------------------
+
+
+def _receives(scene, light) -> np.ndarray:
+    """(T,) bool: the triangles whose object receives ``light`` (light linking). Ray visibility is
+    not asked: an object hidden from diffuse and glossy rays still takes the light's direct light
+    and shadows, which need the RSM views (the RSM itself leaves out its bounce)."""
+    objects = scene.geometry.object_index
+    if light.receivers is None:
+        return np.ones(len(objects), bool)
+    return np.asarray(light.receivers, bool)[objects] if len(objects) else np.zeros(0, bool)
+
+
+def light_reach(scene, light, bounds=None) -> tuple[int, np.ndarray]:
+    """(RSM views that see a triangle, (T,) bool triangles inside some such view that can bounce the
+    light to a receiver). Conservative: a triangle not entirely outside one of a view's clip planes
+    counts, occlusion is not tested."""
+    positions = np.asarray(scene.geometry.positions, np.float64)
+    bounds = scene_bounds(scene) if bounds is None else bounds
+    reached = np.zeros(len(positions), bool)
+    views = 0
+    if bounds is None:
+        return 0, reached
+    receives = _receives(scene, light)
+    for spec in light_view_specs(scene, light, bounds):
+        if not view_sees_triangles(spec, positions, bounds):
+            continue
+        views += 1
+        clip = np.c_[positions.reshape(-1, 3), np.ones(positions.shape[0] * 3)] @ spec.view_projection.T
+        clip = clip.reshape(-1, 3, 4)
+        w = clip[..., 3]
+        outside = np.zeros(len(positions), bool)
+        for axis in range(3):
+            outside |= np.all(clip[..., axis] > w, axis=-1) | np.all(clip[..., axis] < -w, axis=-1)
+        reached |= ~outside
+    return views, reached & receives
+
+
+def _material_albedo(material) -> float:
+    """lum of the reflectance a texel's Φ(Rd + Rs) carries, roughly: the diffuse base colour's
+    (1 − metallic) share plus the Schlick F0 (a base colour image counts with its mean)."""
+    base = np.asarray(material.base_color, np.float64)
+    if material.base_color_image is not None:
+        base = np.asarray(material.base_color_image, np.float64)[..., :3].reshape(-1, 3).mean(axis=0)
+    metallic = float(np.clip(material.metallic, 0.0, 1.0))
+    rgb = (1.0 - metallic) * np.clip(base, 0.0, 1.0) + material_f0(material)
+    return float(np.clip(rgb, 0.0, 1.0) @ LUMINANCE_WEIGHTS)
+
+
+def bounce_estimate(scene, light, reached: np.ndarray) -> float:
+    """lum W of the light's flux times reflectance on the ``reached`` triangles (sampled at four
+    points each, two-sided, no occlusion): the order of magnitude of the RSM total before it is
+    rendered. A sun: its irradiance over the reached triangles' projected area."""
+    positions = np.asarray(scene.geometry.positions, np.float64)[reached]
+    if len(positions) == 0:
+        return 0.0
+    albedo = np.array([_material_albedo(m) for m in scene.materials])[scene.geometry.material_index[reached]]
+    edge1, edge2 = positions[:, 1] - positions[:, 0], positions[:, 2] - positions[:, 0]
+    cross = np.cross(edge1, edge2)
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    normal = cross / np.maximum(2.0 * area, 1e-30)[:, None]
+    colour = float(np.asarray(light.color, np.float64) @ LUMINANCE_WEIGHTS)
+    if light.type == "SUN":
+        direction = np.asarray(light.direction, np.float64)
+        direction = direction / np.linalg.norm(direction)
+        irradiance = light.power * np.abs(normal @ direction)
+        return float(colour * np.sum(irradiance * area * albedo))
+    points = np.einsum("sk,tkc->tsc", _ESTIMATE_BARYCENTRICS, positions)  # (T, S, 3)
+    offset = points - np.asarray(light.position, np.float64)
+    # A point closer than the triangle's own size is at least that far on average (the 1/d² pole).
+    distance2 = np.maximum(np.sum(offset * offset, axis=-1), area[:, None])
+    directions = offset / np.sqrt(np.maximum(np.sum(offset * offset, axis=-1), 1e-30))[..., None]
+    cosine = np.abs(np.sum(directions * normal[:, None, :], axis=-1))
+    irradiance = light_intensity(light, directions) * cosine / np.maximum(distance2, 1e-30)
+    return float(colour * np.sum(irradiance.mean(axis=1) * area * albedo))
+
+
+def _in_view(scene, view_projection) -> np.ndarray:
+    """(T,) bool: triangles not entirely outside one clip plane of ``view_projection`` (all
+    triangles without one)."""
+    positions = np.asarray(scene.geometry.positions, np.float64)
+    if view_projection is None:
+        return np.ones(len(positions), bool)
+    clip = (np.c_[positions.reshape(-1, 3), np.ones(positions.shape[0] * 3)]
+            @ np.asarray(view_projection, np.float64).T).reshape(-1, 3, 4)
+    w = clip[..., 3]
+    outside = np.zeros(len(positions), bool)
+    for axis in range(3):
+        outside |= np.all(clip[..., axis] > w, axis=-1) | np.all(clip[..., axis] < -w, axis=-1)
+    return ~outside
+
+
+def _material_alphas(scene) -> tuple[np.ndarray, np.ndarray]:
+    """(GGX α, whether it has a specular lobe) per material."""
+    alphas = np.array([material_alpha(m) for m in scene.materials])
+    specular = np.array([float(np.max(material_f0(m))) > 0.0 for m in scene.materials])
+    return alphas, specular
+
+
+def glossy_receivers_in_view(scene, view_projection=None, alpha_range=RECEIVER_ALPHA_RANGE) -> int:
+    """Triangles in view (all of them without a view) whose material has a specular lobe with GGX α
+    in ``alpha_range``: the receivers MRP-ASG can serve."""
+    if scene.geometry.triangle_count == 0:
+        return 0
+    alphas, specular = _material_alphas(scene)
+    ok = specular & (alphas >= alpha_range[0]) & (alphas <= alpha_range[1])
+    visible = scene.visibility()[:, :2].any(axis=1)[scene.geometry.object_index]
+    return int(np.count_nonzero(ok[scene.geometry.material_index] & visible & _in_view(scene, view_projection)))
+
+
+def lit_sharp_reflectors(scene, caustic_roughness: float, reached=None) -> int:
+    """Triangles some light reaches whose material's specular lobe is sharp (GGX α below
+    ``caustic_roughness``, light-paths.md's α_c): the reflectors of the VPL pass's cell (004).
+    ``reached``: per light, light_reach's triangle masks when already known."""
+    if scene.geometry.triangle_count == 0 or not scene.lights:
+        return 0
+    alphas, specular = _material_alphas(scene)
+    sharp = (specular & (alphas < caustic_roughness))[scene.geometry.material_index]
+    if not sharp.any():
+        return 0
+    if reached is None:
+        bounds = scene_bounds(scene)
+        reached = [light_reach(scene, light, bounds)[1] for light in scene.lights]
+    lit = np.zeros(scene.geometry.triangle_count, bool)
+    for mask in reached:
+        lit |= mask
+    return int(np.count_nonzero(sharp & lit))
+
+
+def vpl_pass_needed(scene, settings: VSGLSettings, reached=None) -> Decision:
+    """Whether the VPL caustics pass (004) has a cell to fill (light-paths.md: a sharp reflector's
+    specular lobe, α < α_c, lighting diffuse receivers): light_paths.needs_glossy_vpls, the test the
+    renderer's pass is gated by, with the lit sharp triangles counted for the reason."""
+    if not settings.caustics:
+        return Decision(False, "caustics off in the settings")
+    if needs_glossy_vpls(scene, settings):
+        count = lit_sharp_reflectors(scene, settings.caustic_roughness, reached)
+        return Decision(True, f"{count} lit triangles with GGX α < α_c = {settings.caustic_roughness:g}: the "
+                              "VPLs carry their specular light to diffuse receivers")
+    return Decision(False, f"no lit reflector with GGX α < α_c = {settings.caustic_roughness:g}")
+
+
+def kept_proxies(scene, settings: VSGLSettings, proxy_cache: ProxyCache, overrides=None) -> list:
+    """(proxy, lit-by mask) of the rectangle proxies of ``scene`` that some light reaches on their
+    front side (vsgl_addon/proxies.py), without lights the proxy's object does not receive (light
+    linking) and proxies glossy rays do not see (ray visibility). ``overrides``: object name ->
+    proxies.PROXY_MODES (default: the scene description's ``proxy_overrides`` if it has them)."""
+    if overrides is None:
+        overrides = getattr(scene, "proxy_overrides", None)
+    proxies = proxy_cache.get(scene, settings.caustic_roughness, overrides)
+    visibility = scene.visibility()
+    kept = []
+    for proxy, mask in lit_proxies(proxies, scene):
+        mask = mask.copy()
+        for index, light in enumerate(scene.lights):
+            if light.receivers is not None and not light.receivers[proxy.object_index]:
+                mask[index] = False
+        if mask.any() and visibility[proxy.object_index, 1]:
+            kept.append((proxy, mask))
+    return kept
+
+
+# --- The plan -------------------------------------------------------------------------------------
+
+
+def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
+               view_projection=None) -> FramePlan:
+    """The plan of one frame of ``scene`` (a SceneDescription) with ``settings``.
+
+    ``view_projection``: the (4, 4) world -> clip matrix of the one view the frame is rendered from
+    (F12); None when the light passes serve any view (the viewport), so "in view" means "in the
+    scene"."""
+    bounds = scene_bounds(scene)
+    lights, reached = [], []
+    for index, light in enumerate(scene.lights):
+        views, mask = light_reach(scene, light, bounds)
+        reached.append(mask)
+        estimate = bounce_estimate(scene, light, mask)
+        if views == 0:
+            reason = "its views see no triangle"
+        elif not mask.any():
+            views, reason = 0, "lights no object that receives it (light linking)"
+        elif estimate <= 0.0:
+            reason = "RSM for the direct light's shadows; no reflectance in reach, no bounce expected"
+        else:
+            reason = f"bounce ≈ {estimate:.3g} W (CPU estimate, no occlusion)"
+        lights.append(LightPlan(index, light.name, views, settings.rsm_size, estimate, reason))
+    if settings.kernel != "two-vsgl":
+        total = sum(light.bounce_estimate for light in lights if light.gets_rsm)
+        for light in lights:
+            if light.gets_rsm and total > 0.0:
+                light.rsm_size = rsm_size_for_share(settings.rsm_size, light.bounce_estimate / total)
+    rsm_lights = sum(light.gets_rsm for light in lights)
+    decisions = {}
+    if settings.kernel == "two-vsgl":
+        decisions["vsgls"] = Decision(rsm_lights > 0, f"two per RSM view (003); N unused, {rsm_lights} lights with RSMs")
+    elif rsm_lights:
+        decisions["vsgls"] = Decision(True, f"N = {settings.vsgl_count} for the frame, shared by the RSM views of "
+                                            f"{rsm_lights} lights in proportion to their bounce power")
+    else:
+        decisions["vsgls"] = Decision(False, "no light reaches a reflector")
+    has_vsgls = decisions["vsgls"].run
+    if not settings.visibility:
+        decisions["visibility"] = Decision(False, "off in the settings")
+    elif not has_vsgls:
+        decisions["visibility"] = Decision(False, "no VSGL to shadow")
+    else:
+        decisions["visibility"] = Decision(True, f"one {settings.ism_size}² imperfect shadow map per VSGL (000 §5)")
+    proxies = []
+    lobe_split = scene.receiver_lobe_split
+    if not settings.glossy_reflectors:
+        decisions["mrp_asg"] = Decision(False, "glossy reflectors off in the settings")
+    elif not has_vsgls:
+        decisions["mrp_asg"] = Decision(False, "no light reaches a reflector")
+    else:
+        proxies = kept_proxies(scene, settings, PROXY_CACHE if proxy_cache is None else proxy_cache)
+        receivers = glossy_receivers_in_view(scene, view_projection,
+                                             RECEIVER_ALPHA_RANGE if not lobe_split else (0.0, 1.0))
+        where = "in view" if view_projection is not None else "in the scene"
+        if not proxies:
+            decisions["mrp_asg"] = Decision(False, f"no lit rectangle proxy (planar, GGX α < "
+                                                   f"{settings.caustic_roughness:g}): its cell stays with VSGLs")
+        elif not receivers:
+            proxies = []
+            decisions["mrp_asg"] = Decision(False, f"no glossy receiver (GGX α ≤ {RECEIVER_ALPHA_RANGE[1]:g}) "
+                                                   f"{where}: the proxies' light stays with VSGLs")
+        else:
+            decisions["mrp_asg"] = Decision(True, f"{len(proxies)} lit proxies kept, {receivers} glossy receiver "
+                                                  f"triangles {where}")
+    vpl_pass = vpl_pass_needed(scene, settings, reached) if has_vsgls else Decision(False, "no light reaches a reflector")
+    if lobe_split and has_vsgls:
+        decisions["glossy_set"] = Decision(True, "some object is hidden from diffuse or glossy rays")
+    elif proxies:
+        decisions["glossy_set"] = Decision(True, "the glossy receivers' VSGLs leave the proxies' specular flux "
+                                                 "to MRP-ASG")
+    elif vpl_pass.run:
+        decisions["glossy_set"] = Decision(True, "the diffuse receivers' VSGLs leave the sharp reflectors' "
+                                                 "specular flux to the VPLs")
+    else:
+        decisions["glossy_set"] = Decision(False, "one VSGL set serves both receiver lobes")
+    decisions["vpl_pass"] = vpl_pass
+    if vpl_pass.run and proxies and not lobe_split:
+        decisions["whole_set"] = Decision(True, "the receivers MRP-ASG leaves (GGX α above the range) take "
+                                                "every reflector's specular light from a third set")
+    else:
+        decisions["whole_set"] = Decision(False, "the two receiver sets hold every path" if decisions["glossy_set"].run
+                                          else "one VSGL set")
+    if settings.pdf != "view":
+        decisions["view_pdf"] = Decision(False, "the light PDF (settings)")
+    elif settings.kernel == "two-vsgl":
+        decisions["view_pdf"] = Decision(False, "two-vsgl samples no PDF (003)")
+    elif view_projection is None:
+        decisions["view_pdf"] = Decision(False, "no single view to weigh the texels by (the viewport): the light PDF")
+    elif not has_vsgls:
+        decisions["view_pdf"] = Decision(False, "no VSGL to place")
+    else:
+        decisions["view_pdf"] = Decision(True, "texels weighted by their form factor with G-buffer samples, mixed with "
+                                               "the light PDF (000 §5)")
+    return FramePlan(settings.vsgl_count, settings.kernel, lights, decisions, proxies)
+
+
+#: The proxies of the last scene geometry (rebuilt only when it changes, not when a light or the view
+#: moves), for callers that keep no cache of their own.
+PROXY_CACHE = ProxyCache()
+
+
+def view_power(totals) -> float:
+    """lum of one view's RSM total Σ Φ(Rd + Rs) (RGB, W): what the budget is shared by."""
+    return float(np.asarray(totals, np.float64) @ LUMINANCE_WEIGHTS)
