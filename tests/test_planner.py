@@ -157,7 +157,8 @@ def test_each_decision_has_a_reason_and_follows_the_cells_the_scene_fills():
     view = looking_up.projection_matrix() @ looking_up.view_matrix()
     unseen = P.plan_frame(rough_walls, VSGLSettings(), ProxyCache(), view_projection=view)
     assert not unseen.runs("mrp_asg") and "no glossy receiver" in unseen.decisions["mrp_asg"].reason
-    assert unseen.proxies == [] and unseen.receiver_sets == ("all",)
+    # The floor stays a sharp reflector for the VPLs: the diffuse receivers' set leaves it to them.
+    assert unseen.proxies == [] and unseen.runs("vpl_pass") and unseen.receiver_sets == ("diffuse", "glossy")
     seen = P.plan_frame(rough_walls, VSGLSettings(), ProxyCache(),
                         view_projection=camera.projection_matrix() @ camera.view_matrix())
     assert seen.runs("mrp_asg")  # the floor (α 0.01) is a glossy receiver in the scene camera's view

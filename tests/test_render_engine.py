@@ -95,9 +95,10 @@ def test_render_report_has_timings_counts_parameters_and_renderer(rendered):
     assert data["settings"]["positional_distribution"] == "per-lobe"
     assert data["resolution"] == [96, 72] and "llvmpipe" in data["gpu_renderer"]
     assert "vsgl_shading" in result.stdout
-    # The frame plan: N = 64 per receiver-lobe set, MRP-ASG on for the floor proxy, each decision's reason.
+    # The frame plan: N = 64 per VSGL set, MRP-ASG and the VPLs on for the floor, each decision's reason.
     plan = data["plan"]
-    assert plan["vsgls"] == {"diffuse": 64, "glossy": 64} and plan["decisions"]["mrp_asg"]["run"]
+    assert plan["vsgls"] == {"diffuse": 64, "glossy": 64, "all": 64} and plan["decisions"]["mrp_asg"]["run"]
+    assert plan["decisions"]["vpl_pass"]["run"] and plan["decisions"]["whole_set"]["run"]
     assert all(decision["reason"] for decision in plan["decisions"].values())
     assert "frame plan:" in result.stdout and plan["summary"][0] in result.stdout
 
