@@ -105,6 +105,10 @@ def setup():
     scene.render.engine = "VSGL"
     scene.vsgl.viewport_samples = SAMPLES
     scene.vsgl.viewport_resolution_scale = 0.25
+    # The viewport's mechanics, not the caustics: the demo's VPL pass (thousands of glossy VPLs)
+    # would triple each full-resolution sample on llvmpipe; F12 below renders with the same setting,
+    # and the pass reaches the viewport through the same renderer (tests/test_view_pipeline_gpu.py).
+    scene.vsgl.caustics = False
     for obj in scene.objects:  # no selection outline over the comparison with F12
         obj.select_set(False)
     _window, area, _region, space = viewport()

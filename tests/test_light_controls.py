@@ -441,12 +441,24 @@ def _check_mixed_truth(scene_name, measurements):
 @pytest.mark.parametrize("factor", [0.0, 0.5])
 def test_light_diffuse_factor_scales_direct_diffuse_and_the_diffuse_bounce(factor):
     """Diffuse factor f: the diffuse floor's direct light and its bounce, seen in the metal wall,
-    are f times the baseline's; the metal wall's direct (glossy) light stays."""
+    are f times the baseline's; the metal wall's direct (glossy) light stays.
+
+    The bounce is compared as a change against the baseline (ours control/baseline against Cycles'),
+    not in absolute terms: since the VSGLs' diffuse lobes are normalised over the hemisphere
+    (reference/sg.py DIFFUSE_HEMISPHERE_SCALE) the floor's bounce on this wall leaning over it is
+    15 % brighter than Cycles' in the baseline already (the SG is 15.6 % above the cosine at the
+    normal; docs/accuracy.md), which says nothing about the control."""
     measurements = [("direct_diffuse", "floor"), ("indirect_specular", "wall"), ("direct_specular", "wall")]
     _check_mixed_truth("glossy_receiver", measurements)
-    *changed, kept = measure("glossy_receiver", None, f"light diffuse factor {factor:g}", measurements,
-                             factors=(factor, 1.0))
-    check(changed, kept=[kept])  # kept: the wall's own glossy reflection of the light
+    direct, bounce, kept = measure("glossy_receiver", None, f"light diffuse factor {factor:g}", measurements,
+                                   factors=(factor, 1.0))
+    check([direct], kept=[kept])  # kept: the wall's own glossy reflection of the light
+    if bounce.vanished:
+        check([bounce])
+    else:
+        change = abs(bounce.ratio / bounce.base_ratio - 1.0)
+        assert bounce.cycles_change > MIN_CYCLES_CHANGE, bounce.line()
+        assert change <= TOLERANCE, f"the bounce's change is off by {change:.3f}: {bounce.line()}"
 
 
 @pytest.mark.gpu
