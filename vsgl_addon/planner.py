@@ -375,35 +375,15 @@ def glossy_receivers_in_view(scene, view_projection=None, alpha_range=RECEIVER_A
     return int(np.count_nonzero(ok[scene.geometry.material_index] & visible & _in_view(scene, view_projection)))
 
 
-def lit_sharp_reflectors(scene, caustic_roughness: float, reached=None) -> int:
-    """Triangles some light reaches whose material's specular lobe is sharp (GGX α below
-    ``caustic_roughness``, light-paths.md's α_c): the reflectors of the VPL pass's cell (004).
-    ``reached``: per light, light_reach's triangle masks when already known."""
-    if scene.geometry.triangle_count == 0 or not scene.lights:
-        return 0
-    alphas, specular = _material_alphas(scene)
-    sharp = (specular & (alphas < caustic_roughness))[scene.geometry.material_index]
-    if not sharp.any():
-        return 0
-    if reached is None:
-        bounds = scene_bounds(scene)
-        reached = [light_reach(scene, light, bounds)[1] for light in scene.lights]
-    lit = np.zeros(scene.geometry.triangle_count, bool)
-    for mask in reached:
-        lit |= mask
-    return int(np.count_nonzero(sharp & lit))
-
-
-def vpl_pass_needed(scene, settings: VSGLSettings, reached=None) -> Decision:
+def vpl_pass_needed(scene, settings: VSGLSettings) -> Decision:
     """Whether the VPL caustics pass (004) has a cell to fill (light-paths.md: a sharp reflector's
-    specular lobe, α < α_c, lighting diffuse receivers): light_paths.needs_glossy_vpls, the test the
-    renderer's pass is gated by, with the lit sharp triangles counted for the reason."""
+    specular lobe, α < α_c, lighting diffuse receivers): light_paths.needs_glossy_vpls, the one test
+    of that cell, which the renderer's pass is gated by."""
     if not settings.caustics:
         return Decision(False, "caustics off in the settings")
     if needs_glossy_vpls(scene, settings):
-        count = lit_sharp_reflectors(scene, settings.caustic_roughness, reached)
-        return Decision(True, f"{count} lit triangles with GGX α < α_c = {settings.caustic_roughness:g}: the "
-                              "VPLs carry their specular light to diffuse receivers")
+        return Decision(True, f"a lit reflector with GGX α < α_c = {settings.caustic_roughness:g}: the "
+                              "VPLs carry its specular light to diffuse receivers")
     return Decision(False, f"no lit reflector with GGX α < α_c = {settings.caustic_roughness:g}")
 
 
@@ -438,10 +418,9 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
     (F12); None when the light passes serve any view (the viewport), so "in view" means "in the
     scene"."""
     bounds = scene_bounds(scene)
-    lights, reached = [], []
+    lights = []
     for index, light in enumerate(scene.lights):
         views, mask = light_reach(scene, light, bounds)
-        reached.append(mask)
         estimate = bounce_estimate(scene, light, mask)
         if views == 0:
             reason = "its views see no triangle"
@@ -494,7 +473,7 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
         else:
             decisions["mrp_asg"] = Decision(True, f"{len(proxies)} lit proxies kept, {receivers} glossy receiver "
                                                   f"triangles {where}")
-    vpl_pass = vpl_pass_needed(scene, settings, reached) if has_vsgls else Decision(False, "no light reaches a reflector")
+    vpl_pass = vpl_pass_needed(scene, settings) if has_vsgls else Decision(False, "no light reaches a reflector")
     if lobe_split and has_vsgls:
         decisions["glossy_set"] = Decision(True, "some object is hidden from diffuse or glossy rays")
     elif proxies:

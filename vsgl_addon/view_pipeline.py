@@ -375,12 +375,16 @@ class ViewPipeline:
                 + sum(getattr(self, name) is not None for name in ("target", "sample_target")))
 
 
+def has_work(pipeline) -> bool:
+    """The glue has handed `pipeline` its step arguments and something is pending for them."""
+    return getattr(pipeline, "step_args", None) is not None and pipeline.pending(*pipeline.step_args) is not None
+
+
 def step_next(pipelines, describe_scene) -> ViewPipeline | None:
     """One step of the pipeline whose turn it is among those with work (their `step_args` set by
     the glue: settings, scale, samples): round robin by steps done, so several viewports refine
     together. Returns the pipeline stepped, or None when none had work."""
-    busy = [p for p in list(pipelines)
-            if getattr(p, "step_args", None) is not None and p.pending(*p.step_args) is not None]
+    busy = [p for p in list(pipelines) if has_work(p)]
     if not busy:
         return None
     pipeline = min(busy, key=lambda p: p.steps)
@@ -504,8 +508,7 @@ class ViewportSet:
         return stepped
 
     def busy(self) -> bool:
-        return not self.settings_error and any(p.step_args is not None and p.pending(*p.step_args) is not None
-                   for p in self.pipelines.values())
+        return not self.settings_error and any(has_work(p) for p in self.pipelines.values())
 
     @property
     def error(self) -> str | None:
