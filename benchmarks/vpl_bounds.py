@@ -1,14 +1,21 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """False positives of tiled VPL culling per bounding volume (004 Fig. 9) on caustic_panel (not a test).
 
-    .venv/bin/python benchmarks/vpl_bounds.py [--delta 1e-3]
+    .venv/bin/python benchmarks/vpl_bounds.py [--delta 1e-3 ...] [--size W H] [--vpl-stride K]
 
-The scene's glossy VPLs (benchmarks/vpl_caustics.py collect_vpls) and camera G-buffer (240x180),
+The scene's glossy VPLs (benchmarks/vpl_caustics.py collect_vpls) and camera G-buffer (240x180, or
+--size; --vpl-stride K keeps every K-th VPL, an unbiased subsample of the counts for large sizes),
 16x16 tiles with their depth ranges; per tile the VPLs listed by the ellipsoid-frustum test
 (reference.vpl_culling, float64) with three volumes: the GGX spheroid (Eqs. 13-15), the sphere
 centred on the VPL that bounds the same range (radius |c - q| + r_u), and the spheroid's enclosing
 sphere (centre c, radius r_u). A false positive is a VPL listed for a pixel's tile that the pixel
-does not accept (p <= xi). Prints false positives per pixel for each and the spheroid's reduction.
+does not accept (p <= xi). Prints false positives per pixel for each and the spheroid's reduction,
+per δ (one ξ per VPL, shared by every δ, as the pass draws it).
+
+The reduction depends on how far the light ranges reach compared with the tiles' extent in the
+scene: δ is in Blender's radiometric units (p = I/(δ l²), Eq. 2), so the same δ gives longer ranges
+in a brighter scene, and a tile covers more of the scene at a lower resolution. Both spheres and
+the spheroid then list the same far tiles, and the ratio falls; hence the sweep.
 """
 
 from __future__ import annotations
@@ -25,10 +32,15 @@ for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
 
 from vpl_caustics import HEIGHT, WIDTH, collect_vpls  # noqa: E402
 
+TILE = 16
+VOLUMES = ("spheroid", "vpl_sphere", "enclosing_sphere")
+
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--delta", type=float, default=1e-3)
+    parser.add_argument("--delta", type=float, nargs="+", default=[1e-3])
+    parser.add_argument("--size", type=int, nargs=2, default=[WIDTH, HEIGHT], metavar=("W", "H"))
+    parser.add_argument("--vpl-stride", type=int, default=1)
     args = parser.parse_args(argv)
     import bpy
 
@@ -45,7 +57,8 @@ def main(argv=None) -> int:
     bpy.ops.wm.open_mainfile(filepath=str(scene_path("caustic_panel")), load_ui=False)
     settings = VSGLSettings.from_properties(bpy.context.scene.vsgl)
     description = extract_scene(bpy.context.evaluated_depsgraph_get())
-    bench = Bench(description, WIDTH, HEIGHT)
+    width, height = args.size
+    bench = Bench(description, width, height)
     try:
         vpls = collect_vpls(bench, description, settings)
         arrays = bench.gbuffer.to_numpy()
@@ -53,29 +66,37 @@ def main(argv=None) -> int:
         bench.free()
     position = arrays["position"].astype(np.float64)
     normal = arrays["normal"][..., :3].astype(np.float64)
-    count = len(vpls["roughness"])
-    xi = vc.vpl_xi(np.arange(count), 0, 0)
+    generated = len(vpls["roughness"])
+    # ξ of every generated VPL (Eq. 3's one draw per light), then the subsample.
+    keep = np.arange(0, generated, max(args.vpl_stride, 1))
+    xi = vc.vpl_xi(np.arange(generated), 0, 0)[keep]
+    vpls = {key: np.asarray(value)[keep] for key, value in vpls.items()}
+    count = len(keep)
     w2v = np.asarray(description.camera.view_matrix(), np.float64)
     proj = np.asarray(description.camera.projection_matrix(), np.float64)
     inv_proj, v2w = np.linalg.inv(proj), np.linalg.inv(w2v)
-    centre, axes, rotation = vc.glossy_bounding_volumes(vpls, args.delta, xi)
-    offset = np.linalg.norm(centre - vpls["position"], axis=-1)
     identity = np.broadcast_to(np.eye(3), (count, 3, 3))
-    volumes = {"spheroid": (centre, axes, rotation),
-               "vpl_sphere": (vpls["position"], np.repeat((axes[:, 0] + offset)[:, None], 3, 1), identity),
-               "enclosing_sphere": (centre, np.repeat(axes[:, :1], 3, 1), identity)}
-    false_pos = dict.fromkeys(volumes, 0)
-    accepted_total = 0
+    volumes = {}
+    for delta in args.delta:
+        centre, axes, rotation = vc.glossy_bounding_volumes(vpls, delta, xi)
+        offset = np.linalg.norm(centre - vpls["position"], axis=-1)
+        # 004 §7: the VPL-centred sphere of radius r_α (the NDF's maximum in Eq. 9), which is the
+        # spheroid's farthest point from q, |c − q| + r_u = r/α; the enclosing sphere (c, r_u).
+        volumes[delta] = {"spheroid": (centre, axes, rotation),
+                          "vpl_sphere": (vpls["position"], np.repeat((axes[:, 0] + offset)[:, None], 3, 1), identity),
+                          "enclosing_sphere": (centre, np.repeat(axes[:, :1], 3, 1), identity)}
+    false_pos = {delta: dict.fromkeys(VOLUMES, 0) for delta in args.delta}
+    accepted_total = dict.fromkeys(args.delta, 0)
     pixels = 0
     depth = -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
-    for ty in range(0, HEIGHT, 16):
-        for tx in range(0, WIDTH, 16):
-            sl = (slice(ty, min(ty + 16, HEIGHT)), slice(tx, min(tx + 16, WIDTH)))
+    for ty in range(0, height, TILE):
+        for tx in range(0, width, TILE):
+            sl = (slice(ty, min(ty + TILE, height)), slice(tx, min(tx + TILE, width)))
             cov = position[sl][..., 3].reshape(-1) > 0.0
             if not cov.any():
                 continue
-            lo = np.array([tx / WIDTH, ty / HEIGHT]) * 2 - 1
-            hi = np.array([min(tx + 16, WIDTH) / WIDTH, min(ty + 16, HEIGHT) / HEIGHT]) * 2 - 1
+            lo = np.array([tx / width, ty / height]) * 2 - 1
+            hi = np.array([min(tx + TILE, width) / width, min(ty + TILE, height) / height]) * 2 - 1
             d = depth[sl].reshape(-1)[cov]
             planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, d.min(), d.max())
             pts = position[sl][..., :3].reshape(-1, 3)[cov]
@@ -83,22 +104,28 @@ def main(argv=None) -> int:
             _, intensity, l2 = vc.glossy_vpl_radiance(
                 pts[:, None], nrm[:, None], np.ones((len(pts), 1, 3)), vpls["position"][None], vpls["normal"][None],
                 vpls["incoming"][None], vpls["roughness"][None], vpls["flux"][None], vpls["rs"][None])
-            accepted = vc.acceptance_probability(intensity, l2, args.delta) > xi[None]
-            accepted_total += int(accepted.sum())
             pixels += len(pts)
-            for name, volume in volumes.items():
-                listed = vc.ellipsoid_frustum_overlap(planes[None], *volume)
-                if np.any(accepted & ~listed[None]):
-                    raise AssertionError(f"{name} culled an accepted VPL")
-                false_pos[name] += int(np.sum(listed[None] & ~accepted))
-    print(f"caustic_panel 240x180, {count} VPLs, delta {args.delta:g}: accepted per pixel "
-          f"{accepted_total / pixels:.2f}")
-    for name, value in false_pos.items():
-        print(f"  {name}: false positives per pixel {value / pixels:.2f}")
-    reduction = 1.0 - false_pos["spheroid"] / max(false_pos["vpl_sphere"], 1)
-    print(f"  spheroid vs VPL-centred sphere: {100 * reduction:.1f} % fewer false positives "
-          f"(target >= 90 %: {'met' if reduction >= 0.9 else 'missed'}); vs enclosing sphere "
-          f"{100 * (1 - false_pos['spheroid'] / max(false_pos['enclosing_sphere'], 1)):.1f} % fewer")
+            for delta in args.delta:
+                accepted = vc.acceptance_probability(intensity, l2, delta) > xi[None]
+                accepted_total[delta] += int(accepted.sum())
+                for name, volume in volumes[delta].items():
+                    listed = vc.ellipsoid_frustum_overlap(planes[None], *volume)
+                    if np.any(accepted & ~listed[None]):
+                        raise AssertionError(f"{name} culled an accepted VPL at delta {delta:g}")
+                    false_pos[delta][name] += int(np.sum(listed[None] & ~accepted))
+    scale = max(args.vpl_stride, 1)
+    print(f"caustic_panel {width}x{height}, {generated} VPLs ({count} counted, every {scale}th; counts "
+          f"below are scaled to all), tiles {TILE}x{TILE}")
+    print("| delta | accepted / px | spheroid FP / px | VPL sphere FP / px | enclosing sphere FP / px "
+          "| fewer than VPL sphere | fewer than enclosing |")
+    print("|---|---|---|---|---|---|---|")
+    for delta in args.delta:
+        fp = {name: scale * value / pixels for name, value in false_pos[delta].items()}
+        reduction = 1.0 - fp["spheroid"] / max(fp["vpl_sphere"], 1e-30)
+        enclosing = 1.0 - fp["spheroid"] / max(fp["enclosing_sphere"], 1e-30)
+        print(f"| {delta:g} | {scale * accepted_total[delta] / pixels:.2f} | {fp['spheroid']:.1f} | "
+              f"{fp['vpl_sphere']:.1f} | {fp['enclosing_sphere']:.1f} | {100 * reduction:.1f} % "
+              f"({'met' if reduction >= 0.9 else 'missed'}: target >= 90 %) | {100 * enclosing:.1f} % |")
     return 0
 
 
