@@ -18,11 +18,13 @@
   - point: the six 90° faces of a world-aligned cube;
   - area: a Lambertian emitter; the five faces of a cube in the light's frame that can receive
     flux (the back face, behind the emitter, is skipped);
-  - sun: one orthographic view along the sun, fitted to the part of the scene the camera and the
-    sun both see: the rectangle (in the light's X/Y) bounding the intersection of the scene's
-    bounding box with the camera frustum (exact convex-polytope intersection,
-    :func:`convex_hex_intersection`); its depth range spans the whole scene so that occluders
-    outside the camera's view still cast shadows. No camera: the scene box.
+  - sun: one orthographic view along the sun, fitted to the reflectors that can bounce light into
+    the camera's view (:func:`sun_fit_region`): the intersection of the scene's bounding box with
+    the camera frustum (exact convex-polytope intersection, :func:`convex_hex_intersection`), its
+    bounding box grown by the reach :func:`sun_reach` and cut to the scene's box, and the rectangle
+    bounding that in the light's X/Y; its depth range spans the whole scene so that occluders
+    outside the camera's view still cast shadows. No camera: the scene box; a camera that sees
+    none of the scene box: no view.
 
   A view whose frustum contains no triangle (:func:`view_sees_triangles`: every triangle lies
   outside one frustum plane) is not rendered at all: a light that hits nothing costs a numpy test
@@ -46,6 +48,10 @@ SPOT_SINGLE_VIEW_MAX_HALF_ANGLE = math.radians(60.0)
 #: Near plane of perspective views as a fraction of the far plane (geometry closer than that to the
 #: light is clipped); depth is 32-bit float.
 NEAR_FRACTION = 1e-4
+
+#: The fraction of a receiver's one-bounce light from a lit ground that the sun's view may leave
+#: out beyond its reach (:func:`sun_reach`): 10 %, half the suite's sun-wall tolerance.
+SUN_REACH_TOLERANCE = 0.1
 
 
 # --- Camera ------------------------------------------------------------------------------------
@@ -357,13 +363,54 @@ def light_view_specs(scene, light, bounds=None) -> list[RSMViewSpec]:
     raise ValueError(f"unknown light type {light.type!r}")
 
 
+def sun_reach(seen: np.ndarray) -> float:
+    """How far from the part of the scene the camera sees (``seen``: (k, 3) points) the sun's view
+    reaches for reflectors that bounce light into it, in metres: (4/π) · H / SUN_REACH_TOLERANCE,
+    H the smallest side of ``seen``'s bounding box (its height over a ground, its thinnest extent).
+
+    Why this distance: for a receiver at height h above a lit plane, the part of the plane farther
+    than R gives (4/π) · h/R of the plane's one-bounce irradiance on a vertical receiver (the
+    point-to-plane form factor cos θ_x cos θ_y / (π d²) integrated beyond R: (2h/π) ∫_R^∞ ρ² /
+    (ρ² + h²)² dρ ≈ 2h/(πR), of a total 1/2) and (h / R)² on one facing the plane; every receiver
+    in view lies within H of the box's lowest face, so the reflectors left out give it at most
+    SUN_REACH_TOLERANCE of that light. A flat view (H = 0, a lit plane alone) bounces nothing onto
+    itself and reaches nowhere. Geometry outside the reach that stands tall (a wall farther than R)
+    is left out; its solid angle from the receivers is then small unless it is much higher than H."""
+    seen = np.asarray(seen, np.float64).reshape(-1, 3)
+    if len(seen) == 0:
+        return 0.0
+    return 4.0 / math.pi * float(np.ptp(seen, axis=0).min()) / SUN_REACH_TOLERANCE
+
+
+def sun_fit_region(camera_corners, bounds) -> np.ndarray:
+    """(k, 3) points whose rectangle in the sun's X/Y its view covers: the scene's box ``bounds``
+    (lo, hi) cut to the part of it within :func:`sun_reach` of what the camera sees (its frustum,
+    ``camera_corners`` in the :func:`box_corners` layout, inside the box); (0, 3) when the camera
+    sees none of the box. The receivers are in view, their reflectors need not be: a sun behind a
+    courtyard's wall lights the wall behind the camera, which bounces light onto what the camera
+    sees (000 Eq. 1's integral runs over every lit surface, not the visible ones). Growing the
+    seen part's bounding box by the reach R in world space holds every point within R of it, and
+    its rectangle in the sun's X/Y (an orthographic projection, which shortens no distance) holds
+    theirs."""
+    lo, hi = (np.asarray(v, np.float64) for v in bounds)
+    box = box_corners(lo, hi)
+    if camera_corners is None:
+        return box
+    seen = convex_hex_intersection(np.asarray(camera_corners, np.float64), box)
+    if len(seen) == 0:
+        return seen
+    reach = sun_reach(seen)
+    grown_lo = np.maximum(seen.min(axis=0) - reach, lo)
+    grown_hi = np.minimum(seen.max(axis=0) + reach, hi)
+    return box_corners(grown_lo, np.maximum(grown_hi, grown_lo))
+
+
 def _sun_specs(scene, light, bounds) -> list[RSMViewSpec]:
     box = box_corners(*bounds)
-    region = box
-    if scene.camera is not None:
-        region = convex_hex_intersection(camera_frustum_corners(scene.camera), box)
-        if len(region) == 0:
-            return []
+    frustum = camera_frustum_corners(scene.camera) if scene.camera is not None else None
+    region = sun_fit_region(frustum, bounds)
+    if len(region) == 0:
+        return []
     direction = np.asarray(light.direction, np.float64)
     direction = direction / np.linalg.norm(direction)
     frame = _orthonormal_frame(light.matrix_world)
