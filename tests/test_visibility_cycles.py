@@ -19,7 +19,7 @@ tools/build_validation_scenes.py; tests/test_validation_scenes.py checks they st
   excess off, and the front must get Cycles' light within 20 %. Both are missed (strict xfails:
   they fail the run once they are met, so that the markers go): with visibility the front gets
   2.1× Cycles' light, 2.8× without. The sun's RSM holds every reflector that can bounce light into
-  the view (views.sun_fit_region: the courtyard's south wall behind the camera included), so
+  the view (views.sun_fit_rectangle: the courtyard's south wall behind the camera included), so
   brute-force VPLs of its texels with exact ray-cast visibility give the image 1.04 of Cycles'
   light (benchmarks/energy_budget.py --only sun_courtyard --stride 12 --samples 128 --counts 256
   4096; 0.47 when the RSM was fitted to the camera's frustum alone, which also kept these two

@@ -19,12 +19,11 @@
   - area: a Lambertian emitter; the five faces of a cube in the light's frame that can receive
     flux (the back face, behind the emitter, is skipped);
   - sun: one orthographic view along the sun, fitted to the reflectors that can bounce light into
-    the camera's view (:func:`sun_fit_region`): the intersection of the scene's bounding box with
-    the camera frustum (exact convex-polytope intersection, :func:`convex_hex_intersection`), its
-    bounding box grown by the reach :func:`sun_reach` and cut to the scene's box, and the rectangle
-    bounding that in the light's X/Y; its depth range spans the whole scene so that occluders
-    outside the camera's view still cast shadows. No camera: the scene box; a camera that sees
-    none of the scene box: no view.
+    the camera's view (:func:`sun_fit_rectangle`): the intersection of the scene's bounding box with
+    the camera frustum (exact convex-polytope intersection, :func:`convex_hex_intersection`), grown
+    by the reach :func:`sun_reach` and cut to the scene's box, as a rectangle in the light's X/Y;
+    its depth range spans the whole scene so that occluders outside the camera's view still cast
+    shadows. No camera: the scene box; a camera that sees none of the scene box: no view.
 
   A view whose frustum contains no triangle (:func:`view_sees_triangles`: every triangle lies
   outside one frustum plane) is not rendered at all: a light that hits nothing costs a numpy test
@@ -382,35 +381,38 @@ def sun_reach(seen: np.ndarray) -> float:
     return 4.0 / math.pi * float(np.ptp(seen, axis=0).min()) / SUN_REACH_TOLERANCE
 
 
-def sun_fit_region(camera_corners, bounds) -> np.ndarray:
-    """(k, 3) points whose rectangle in the sun's X/Y its view covers: the scene's box ``bounds``
-    (lo, hi) cut to the part of it within :func:`sun_reach` of what the camera sees (its frustum,
-    ``camera_corners`` in the :func:`box_corners` layout, inside the box); (0, 3) when the camera
-    sees none of the box. The receivers are in view, their reflectors need not be: a sun behind a
-    courtyard's wall lights the wall behind the camera, which bounces light onto what the camera
-    sees (000 Eq. 1's integral runs over every lit surface, not the visible ones). Growing the
-    seen part's bounding box by the reach R in world space holds every point within R of it, and
-    its rectangle in the sun's X/Y (an orthographic projection, which shortens no distance) holds
-    theirs."""
+def sun_fit_rectangle(camera_corners, bounds, x_axis, y_axis):
+    """(lo, hi) (2,) each: the rectangle in the sun's X/Y (``x_axis``, ``y_axis``, world unit
+    vectors) that its view covers, or None when the camera sees none of the scene's box ``bounds``
+    (lo, hi). ``camera_corners``: the camera frustum (:func:`box_corners` layout), None for no
+    camera (the whole box).
+
+    The receivers are in view, their reflectors need not be: a sun behind a courtyard's wall lights
+    the wall behind the camera, which bounces light onto what the camera sees (the one-bounce
+    integral, 000 Eq. 1, runs over every lit surface, not the visible ones). So the view holds the
+    scene's box within :func:`sun_reach` R of the part of it the camera sees (``seen``: the frustum
+    inside the box): the points within R of ``seen`` project (orthographically, which shortens no
+    distance) into ``seen``'s own rectangle grown by R, and lie in ``seen``'s bounding box grown by
+    R, cut to the scene's box; the view is the intersection of those two rectangles. R = 0 (a flat
+    view) leaves ``seen``'s rectangle, the camera's footprint alone."""
     lo, hi = (np.asarray(v, np.float64) for v in bounds)
+    axes = np.stack([np.asarray(x_axis, np.float64), np.asarray(y_axis, np.float64)], axis=1)
     box = box_corners(lo, hi)
     if camera_corners is None:
-        return box
+        projected = box @ axes
+        return projected.min(axis=0), projected.max(axis=0)
     seen = convex_hex_intersection(np.asarray(camera_corners, np.float64), box)
     if len(seen) == 0:
-        return seen
+        return None
     reach = sun_reach(seen)
-    grown_lo = np.maximum(seen.min(axis=0) - reach, lo)
-    grown_hi = np.minimum(seen.max(axis=0) + reach, hi)
-    return box_corners(grown_lo, np.maximum(grown_hi, grown_lo))
+    projected = seen @ axes
+    grown = box_corners(np.maximum(seen.min(axis=0) - reach, lo), np.minimum(seen.max(axis=0) + reach, hi)) @ axes
+    return (np.maximum(projected.min(axis=0) - reach, grown.min(axis=0)),
+            np.minimum(projected.max(axis=0) + reach, grown.max(axis=0)))
 
 
 def _sun_specs(scene, light, bounds) -> list[RSMViewSpec]:
     box = box_corners(*bounds)
-    frustum = camera_frustum_corners(scene.camera) if scene.camera is not None else None
-    region = sun_fit_region(frustum, bounds)
-    if len(region) == 0:
-        return []
     direction = np.asarray(light.direction, np.float64)
     direction = direction / np.linalg.norm(direction)
     frame = _orthonormal_frame(light.matrix_world)
@@ -418,12 +420,16 @@ def _sun_specs(scene, light, bounds) -> list[RSMViewSpec]:
     if frame[:, 2] @ direction > 0.0:
         frame = frame * np.array([1.0, -1.0, -1.0])
     x_axis, y_axis = frame[:, 0], frame[:, 1]
-    u, v = region @ x_axis, region @ y_axis
+    frustum = camera_frustum_corners(scene.camera) if scene.camera is not None else None
+    rectangle = sun_fit_rectangle(frustum, bounds, x_axis, y_axis)
+    if rectangle is None:
+        return []
+    (u0, v0), (u1, v1) = rectangle
     extent = float(np.ptp(box, axis=0).max())
     floor = 1e-6 * max(extent, 1e-3)
-    hx = max(0.5 * float(np.ptp(u)), floor)
-    hy = max(0.5 * float(np.ptp(v)), floor)
-    centre = 0.5 * (u.min() + u.max()) * x_axis + 0.5 * (v.min() + v.max()) * y_axis
+    hx = max(0.5 * float(u1 - u0), floor)
+    hy = max(0.5 * float(v1 - v0), floor)
+    centre = 0.5 * (u0 + u1) * x_axis + 0.5 * (v0 + v1) * y_axis
     depth = box @ direction  # the whole scene along the sun: occluders outside the camera count
     margin = 0.01 * max(extent, 1e-3)
     origin = centre + (depth.min() - margin) * direction - ((centre @ direction) * direction)
