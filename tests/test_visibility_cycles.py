@@ -30,7 +30,7 @@ tools/build_validation_scenes.py; tests/test_validation_scenes.py checks they st
   bare segment to each VSGL's mean); without visibility the VSGLs give the image 2.0× Cycles'
   light where their brute-force VPLs give 1.4× (energy_budget: the clusters' Gaussians mix the
   sunlit ground, the wall's back and top, and float in the courtyard's air; the SG lobes add
-  1.2×). At N = 4096 the front gets 1.48× with visibility.
+  1.2×).
 
 Cycles: 256 samples at 120×90, filter width 0.01 px (every sample at the pixel centre, as our
 rasteriser); both seeds' means agree within NOISE there.
