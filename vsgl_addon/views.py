@@ -368,9 +368,9 @@ def sun_reach(seen: np.ndarray) -> float:
     H the smallest side of ``seen``'s bounding box (its height over a ground, its thinnest extent).
 
     Why this distance: for a receiver at height h above a lit plane, the part of the plane farther
-    than R gives (4/π) · h/R of the plane's one-bounce irradiance on a vertical receiver (the
+    than R gives at most (4/π) · h/R of the plane's one-bounce irradiance on a vertical receiver (the
     point-to-plane form factor cos θ_x cos θ_y / (π d²) integrated beyond R: (2h/π) ∫_R^∞ ρ² /
-    (ρ² + h²)² dρ ≈ 2h/(πR), of a total 1/2) and (h / R)² on one facing the plane; every receiver
+    (ρ² + h²)² dρ ≤ 2h/(πR), of a total 1/2) and (h / R)² on one facing the plane; every receiver
     in view lies within H of the box's lowest face, so the reflectors left out give it at most
     SUN_REACH_TOLERANCE of that light. A flat view (H = 0, a lit plane alone) bounces nothing onto
     itself and reaches nowhere. Geometry outside the reach that stands tall (a wall farther than R)
@@ -388,8 +388,8 @@ def sun_fit_rectangle(camera_corners, bounds, x_axis, y_axis):
     camera (the whole box).
 
     The receivers are in view, their reflectors need not be: a sun behind a courtyard's wall lights
-    the wall behind the camera, which bounces light onto what the camera sees (the one-bounce
-    integral, 000 Eq. 1, runs over every lit surface, not the visible ones). So the view holds the
+    the wall behind the camera, which bounces light onto what the camera sees (one bounce sums the
+    VPL of every lit RSM texel, formulas.md §4 after 000 §4, seen by the camera or not). So the view holds the
     scene's box within :func:`sun_reach` R of the part of it the camera sees (``seen``: the frustum
     inside the box): the points within R of ``seen`` project (orthographically, which shortens no
     distance) into ``seen``'s own rectangle grown by R, and lie in ``seen``'s bounding box grown by
