@@ -18,11 +18,12 @@
   - point: the six 90° faces of a world-aligned cube;
   - area: a Lambertian emitter; the five faces of a cube in the light's frame that can receive
     flux (the back face, behind the emitter, is skipped);
-  - sun: one orthographic view along the sun, fitted to the part of the scene the camera and the
-    sun both see: the rectangle (in the light's X/Y) bounding the intersection of the scene's
-    bounding box with the camera frustum (exact convex-polytope intersection,
-    :func:`convex_hex_intersection`); its depth range spans the whole scene so that occluders
-    outside the camera's view still cast shadows. No camera: the scene box.
+  - sun: one orthographic view along the sun, fitted to the reflectors that can bounce light into
+    the camera's view (:func:`sun_fit_rectangle`): the intersection of the scene's bounding box with
+    the camera frustum (exact convex-polytope intersection, :func:`convex_hex_intersection`), grown
+    by the reach :func:`sun_reach` and cut to the scene's box, as a rectangle in the light's X/Y;
+    its depth range spans the whole scene so that occluders outside the camera's view still cast
+    shadows. No camera: the scene box; a camera that sees none of the scene box: no view.
 
   A view whose frustum contains no triangle (:func:`view_sees_triangles`: every triangle lies
   outside one frustum plane) is not rendered at all: a light that hits nothing costs a numpy test
@@ -46,6 +47,10 @@ SPOT_SINGLE_VIEW_MAX_HALF_ANGLE = math.radians(60.0)
 #: Near plane of perspective views as a fraction of the far plane (geometry closer than that to the
 #: light is clipped); depth is 32-bit float.
 NEAR_FRACTION = 1e-4
+
+#: The fraction of a receiver's one-bounce light from a lit ground that the sun's view may leave
+#: out beyond its reach (:func:`sun_reach`): 10 %, half the suite's sun-wall tolerance.
+SUN_REACH_TOLERANCE = 0.1
 
 
 # --- Camera ------------------------------------------------------------------------------------
@@ -357,13 +362,57 @@ def light_view_specs(scene, light, bounds=None) -> list[RSMViewSpec]:
     raise ValueError(f"unknown light type {light.type!r}")
 
 
+def sun_reach(seen: np.ndarray) -> float:
+    """How far from the part of the scene the camera sees (``seen``: (k, 3) points) the sun's view
+    reaches for reflectors that bounce light into it, in metres: (4/π) · H / SUN_REACH_TOLERANCE,
+    H the smallest side of ``seen``'s bounding box (its height over a ground, its thinnest extent).
+
+    Why this distance: for a receiver at height h above a lit plane, the part of the plane farther
+    than R gives at most (4/π) · h/R of the plane's one-bounce irradiance on a vertical receiver (the
+    point-to-plane form factor cos θ_x cos θ_y / (π d²) integrated beyond R: (2h/π) ∫_R^∞ ρ² /
+    (ρ² + h²)² dρ ≤ 2h/(πR), of a total 1/2) and (h / R)² on one facing the plane; every receiver
+    in view lies within H of the box's lowest face, so the reflectors left out give it at most
+    SUN_REACH_TOLERANCE of that light. A flat view (H = 0, a lit plane alone) bounces nothing onto
+    itself and reaches nowhere. Geometry outside the reach that stands tall (a wall farther than R)
+    is left out; its solid angle from the receivers is then small unless it is much higher than H."""
+    seen = np.asarray(seen, np.float64).reshape(-1, 3)
+    if len(seen) == 0:
+        return 0.0
+    return 4.0 / math.pi * float(np.ptp(seen, axis=0).min()) / SUN_REACH_TOLERANCE
+
+
+def sun_fit_rectangle(camera_corners, bounds, x_axis, y_axis):
+    """(lo, hi) (2,) each: the rectangle in the sun's X/Y (``x_axis``, ``y_axis``, world unit
+    vectors) that its view covers, or None when the camera sees none of the scene's box ``bounds``
+    (lo, hi). ``camera_corners``: the camera frustum (:func:`box_corners` layout), None for no
+    camera (the whole box).
+
+    The receivers are in view, their reflectors need not be: a sun behind a courtyard's wall lights
+    the wall behind the camera, which bounces light onto what the camera sees (one bounce sums the
+    VPL of every lit RSM texel, formulas.md §4 after 000 §4, seen by the camera or not). So the view holds the
+    scene's box within :func:`sun_reach` R of the part of it the camera sees (``seen``: the frustum
+    inside the box): the points within R of ``seen`` project (orthographically, which shortens no
+    distance) into ``seen``'s own rectangle grown by R, and lie in ``seen``'s bounding box grown by
+    R, cut to the scene's box; the view is the intersection of those two rectangles. R = 0 (a flat
+    view) leaves ``seen``'s rectangle, the camera's footprint alone."""
+    lo, hi = (np.asarray(v, np.float64) for v in bounds)
+    axes = np.stack([np.asarray(x_axis, np.float64), np.asarray(y_axis, np.float64)], axis=1)
+    box = box_corners(lo, hi)
+    if camera_corners is None:
+        projected = box @ axes
+        return projected.min(axis=0), projected.max(axis=0)
+    seen = convex_hex_intersection(np.asarray(camera_corners, np.float64), box)
+    if len(seen) == 0:
+        return None
+    reach = sun_reach(seen)
+    projected = seen @ axes
+    grown = box_corners(np.maximum(seen.min(axis=0) - reach, lo), np.minimum(seen.max(axis=0) + reach, hi)) @ axes
+    return (np.maximum(projected.min(axis=0) - reach, grown.min(axis=0)),
+            np.minimum(projected.max(axis=0) + reach, grown.max(axis=0)))
+
+
 def _sun_specs(scene, light, bounds) -> list[RSMViewSpec]:
     box = box_corners(*bounds)
-    region = box
-    if scene.camera is not None:
-        region = convex_hex_intersection(camera_frustum_corners(scene.camera), box)
-        if len(region) == 0:
-            return []
     direction = np.asarray(light.direction, np.float64)
     direction = direction / np.linalg.norm(direction)
     frame = _orthonormal_frame(light.matrix_world)
@@ -371,12 +420,16 @@ def _sun_specs(scene, light, bounds) -> list[RSMViewSpec]:
     if frame[:, 2] @ direction > 0.0:
         frame = frame * np.array([1.0, -1.0, -1.0])
     x_axis, y_axis = frame[:, 0], frame[:, 1]
-    u, v = region @ x_axis, region @ y_axis
+    frustum = camera_frustum_corners(scene.camera) if scene.camera is not None else None
+    rectangle = sun_fit_rectangle(frustum, bounds, x_axis, y_axis)
+    if rectangle is None:
+        return []
+    (u0, v0), (u1, v1) = rectangle
     extent = float(np.ptp(box, axis=0).max())
     floor = 1e-6 * max(extent, 1e-3)
-    hx = max(0.5 * float(np.ptp(u)), floor)
-    hy = max(0.5 * float(np.ptp(v)), floor)
-    centre = 0.5 * (u.min() + u.max()) * x_axis + 0.5 * (v.min() + v.max()) * y_axis
+    hx = max(0.5 * float(u1 - u0), floor)
+    hy = max(0.5 * float(v1 - v0), floor)
+    centre = 0.5 * (u0 + u1) * x_axis + 0.5 * (v0 + v1) * y_axis
     depth = box @ direction  # the whole scene along the sun: occluders outside the camera count
     margin = 0.01 * max(extent, 1e-3)
     origin = centre + (depth.min() - margin) * direction - ((centre @ direction) * direction)
