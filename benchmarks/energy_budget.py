@@ -26,7 +26,7 @@ stage's indirect light over those pixels, as a ratio to Cycles' on the same pixe
 * VSGL ref, no visibility: the GPU's VSGL table (N = the scene's) shaded by the float64 reference
   (reference/vsgl_shading.shade): the lobe fit, clustering into Gaussians (000 app. B) and the
   shading approximations, with 000 app. C's diffuse (cosine pulled out of the integral) and with
-  the incoming SG's clamped-cosine integral (Tokuyoshi et al. 2024, the default); also at larger N
+  the incoming SG's clamped-cosine integral (Tokuyoshi et al. 2024); also at larger N
   (--counts);
 * GPU off / on: the GPU's shading pass on the same VSGLs without and with visibility, in the
   scene's diffuse mode (reference/vsgl_shading.diffuse_mode_for_kernel).

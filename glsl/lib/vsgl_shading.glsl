@@ -13,7 +13,7 @@
 // illuminate; vsgl_accumulate_lobe() is one lobe), which adds per lobe
 //   diffuse   += c_in * A(lam_in)/pi * <xi_in, n>                    (cosine pulled out, 000 app. C)
 //             or c_in * int G(xi_in, lam_in) G(n, lam_d) / A(lam_d)   (003's 2-VSGL mode)
-//             or c_in * 1/pi int G(xi_in, lam_in) max(<w, n>, 0) dw   (clamped cosine, the default)
+//             or c_in * 1/pi int G(xi_in, lam_in) max(<w, n>, 0) dw   (clamped cosine)
 //   specular  += c_in * k * (1 - m^5)   and   fresnel += c_in * k * m^5,
 // k = D(1) <xi_in, n> / ((c_i + s_i)(c_o + s_o)) * pi / sqrt((eta_x + nu)(eta_y + nu))
 //     * exp(-eta_x' (xi_in.x)^2 - eta_y' (xi_in.y)^2), m = 1 - xi_in.h (Schlick), so that the

@@ -19,13 +19,19 @@ lobes in the paper's "shared" form, 000 app. B.2). Then, per lobe:
   ``Ld = cin Rd/π · A(λin) ⟨ξin, n_p⟩`` with the exact A(λ) (``sg.sg_integral``), not its
   large-λ form 2π/λ. Mode ``"sg-convolution"`` (003's simplified 2-VSGL mode, formulas §6):
   ``Ld = cin Rd ∫ G(ω; ξin, λin) G(ω; n_p, λd)/A(λd) dω`` (``sg.sg_product_integral``, λd = 2).
-  Mode ``"clamped-cosine"`` (the default of every kernel but the 2-VSGL one):
-  ``Ld = cin Rd/π ∫ G(ω; ξin, λin) max(⟨ω, n_p⟩, 0) dω`` (``sg.sg_clamped_cosine_integral``, the
-  closed form of Tokuyoshi et al. 2024, within 1e-3 of its peak of the exact integral). 000's form
-  is its limit for sharp lobes far above the horizon; for broad incoming lobes (λin ~ 1-10, a VSGL
-  near the receiver or a wide cluster) it overestimates light from straight above (×1.73 at λ = 2)
-  and drops every lobe whose axis is below the horizon, although part of it is above: in the
-  suite's rooms that nets 6-7 % too little light (benchmarks/energy_budget.py).
+  Mode ``"clamped-cosine"``: ``Ld = cin Rd/π ∫ G(ω; ξin, λin) max(⟨ω, n_p⟩, 0) dω``
+  (``sg.sg_clamped_cosine_integral``, the closed form of Tokuyoshi et al. 2024, within 1e-3 of its
+  peak of the exact integral). 000's form is its limit for sharp lobes far above the horizon; for
+  broad incoming lobes (λin ~ 1-10: a VSGL near the receiver, a wide cluster) it overestimates the
+  light from straight above (×1.73 at λ = 2) and drops every lobe whose axis is below the horizon.
+  Integrating Eq. 12's SG exactly is not the default all the same, because that SG is wrong where
+  000's form hides it: a receiver on or near a flat VSGL's own surface sees Eq. 12's lobe centred
+  below its horizon (the isotropic Gaussian of positions and the diffuse lobe's tail behind its
+  plane, which the hemisphere normalization counts as absent), whose upper part the exact integral
+  turns into light the surface gives itself; Lambert's reflector gives it none
+  (tests/test_reference_vsgl_shading.py: 44 % of a wall's light on a lit floor patch; in the suite the
+  occluder scene's mean goes from 0.94 to 2.04 of Cycles, while the closed room's goes from 0.84 to
+  0.90 and its relative RMSE from 0.23 to 0.18).
 * **Specular** (000 app. C): the receiver's GGX lobe ρs⟨ω,n⟩ ≈ C(ω) Ǵ(ω) with the ASG of 003 at
   the shading point (``asg.asg_specular_lobe``: bandwidths ηx = λh/(8 cos²θo), ηy = λh/8,
   λh = 2/α², i.e. D(ω_h) ≈ D(1) · exp(−ηx (ω·ξx)² − ηy (ω·ξy)²)), and
@@ -90,9 +96,9 @@ VSGL_KEYS = ("diffuse_mean", "diffuse_variance", "diffuse_amplitude", "diffuse_a
 
 
 def diffuse_mode_for_kernel(kernel: str) -> str:
-    """003's 2-VSGL mode shades with the diffuse SG convolution, the others with the incoming SG's
-    clamped-cosine integral (``sg.sg_clamped_cosine_integral``)."""
-    return "sg-convolution" if kernel == "two-vsgl" else "clamped-cosine"
+    """003's 2-VSGL mode shades with the diffuse SG convolution, the others pull the cosine out
+    (000 app. C; why not the clamped-cosine integral: the module documentation)."""
+    return "sg-convolution" if kernel == "two-vsgl" else "cosine"
 
 
 def vsgl_incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
