@@ -25,8 +25,11 @@ stage's indirect light over those pixels, as a ratio to Cycles' on the same pixe
   carry);
 * VSGL ref, no visibility: the GPU's VSGL table (N = the scene's) shaded by the float64 reference
   (reference/vsgl_shading.shade): the lobe fit, clustering into Gaussians (000 app. B) and the
-  shading approximations (000 app. C); also at larger N (--counts);
-* GPU off / on: the GPU's shading pass on the same VSGLs without and with visibility.
+  shading approximations, with 000 app. C's diffuse (cosine pulled out of the integral) and with
+  the incoming SG's clamped-cosine integral (Tokuyoshi et al. 2024); also at larger N
+  (--counts);
+* GPU off / on: the GPU's shading pass on the same VSGLs without and with visibility, in the
+  scene's diffuse mode (reference/vsgl_shading.diffuse_mode_for_kernel).
 
 Writes ``benchmarks/results/energy_budget.md``. The near-field share: the part of the exact unshadowed VPL sum from VPLs nearer the receiver than
 two texel footprints (sqrt of the texel's area on its surface), where a point VPL is a poor model of
@@ -187,7 +190,7 @@ def budget(name, path, stride, samples, counts, seed=0):
     from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.pipeline import build_visibility
     from vsgl_addon.renderer import FrameRenderer
-    from vsgl_addon.reference.vsgl_shading import shade
+    from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel, shade
     from vsgl_addon.scene import extract_scene
     from vsgl_addon.settings import VSGLSettings
 
@@ -240,20 +243,22 @@ def budget(name, path, stride, samples, counts, seed=0):
         figures["vpl_sg_sphere"] = float((sg.sum() - sg_diffuse.sum() * (1.0 - 1.0 / DIFFUSE_HEMISPHERE_SCALE)) / cycles)
         figures["vpl_seconds"] = time.perf_counter() - start
 
+        mode = diffuse_mode_for_kernel(settings.kernel)
         for count in counts:
             vsgls, _ = bench.vsgls(settings.overridden(vsgl_count=count, visibility=False))
             try:
-                ref = np.zeros(len(position))
-                for _, _, generation in vsgls.generations:
-                    table = {k: np.asarray(v, np.float64) for k, v in generation.read_table().items()}
-                    d, s = shade(table, position, normal, view, rd, f0, alpha)
-                    ref += (d + s) @ LUMINANCE
-                figures[f"vsgl_ref_{count}"] = float(ref.sum() / cycles)
+                for ref_mode, key in (("cosine", "vsgl_ref"), ("clamped-cosine", "vsgl_ref_clamped")):
+                    ref = np.zeros(len(position))
+                    for _, _, generation in vsgls.generations:
+                        table = {k: np.asarray(v, np.float64) for k, v in generation.read_table().items()}
+                        d, s = shade(table, position, normal, view, rd, f0, alpha, diffuse_mode=ref_mode)
+                        ref += (d + s) @ LUMINANCE
+                    figures[f"{key}_{count}"] = float(ref.sum() / cycles)
                 if count == settings.vsgl_count:
-                    d, s, _ = bench.shade(vsgls.tables())
+                    d, s, _ = bench.shade(vsgls.tables(), mode)
                     figures["gpu_off"] = float(((d + s)[pick] @ LUMINANCE).sum() / cycles)
                     build_visibility(bench.scene_gpu, vsgls, settings)
-                    d, s, _ = bench.shade(vsgls.tables())
+                    d, s, _ = bench.shade(vsgls.tables(), mode)
                     figures["gpu_on"] = float(((d + s)[pick] @ LUMINANCE).sum() / cycles)
             finally:
                 vsgls.free()
@@ -268,13 +273,15 @@ def budget(name, path, stride, samples, counts, seed=0):
 def markdown(rows):
     lines = ["| scene | pixels | direct ours/Cycles | VPL exact, visible | VPL exact, no vis. | near-field share | "
              "VPL SG lobes (Eq. 6 sphere-normalized), no vis. | VPL SG lobes (hemisphere), no vis. | "
-             "VSGL ref, no vis. | GPU off | GPU on | frame off |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "VSGL ref, cosine pulled out, no vis. | VSGL ref, clamped cosine, no vis. | GPU off | GPU on | frame off |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, f in rows.items():
-        refs = ", ".join(f"{f[k]:.3f} (N = {k.rsplit('_', 1)[1]})" for k in f if k.startswith("vsgl_ref_"))
+        refs = ", ".join(f"{f[k]:.3f} (N = {k.rsplit('_', 1)[1]})" for k in f
+                         if k.startswith("vsgl_ref_") and not k.startswith("vsgl_ref_clamped"))
+        clamped = ", ".join(f"{f[k]:.3f} (N = {k.rsplit('_', 1)[1]})" for k in f if k.startswith("vsgl_ref_clamped_"))
         lines.append(f"| {name} | {f['pixels']} | {f['direct']:.3f} | {f['vpl_exact_visible']:.3f} ± "
                      f"{f['vpl_exact_visible_se']:.3f} | {f['vpl_exact']:.3f} | {f['vpl_near_share']:.3f} | "
-                     f"{f['vpl_sg_sphere']:.3f} | {f['vpl_sg']:.3f} | {refs} | {f['gpu_off']:.3f} | {f['gpu_on']:.3f} | {f['frame_off']:.3f} |")
+                     f"{f['vpl_sg_sphere']:.3f} | {f['vpl_sg']:.3f} | {refs} | {clamped} | {f['gpu_off']:.3f} | {f['gpu_on']:.3f} | {f['frame_off']:.3f} |")
     return "\n".join(lines) + "\n"
 
 

@@ -639,3 +639,41 @@ def test_harness_rejects_bad_inputs_and_reports_compile_errors():
         evaluate_glsl("no_such_function(s)", {"s": np.zeros(3)})
     assert "no_such_function" in str(caught.value)
     assert any("generated stage" in note for note in caught.value.__notes__)
+
+
+def test_erfc():
+    """Relative error where erfc is a float32 normal (x < 9.1), erfc(−x) = 2 − erfc(x)."""
+    x = as_gpu_floats(np.concatenate(([0.0], np.linspace(-10.0, 9.0, 3801), np.logspace(-30.0, 0.9, 200),
+                                      -np.logspace(-30.0, 0.9, 200))))
+    gpu = evaluate_glsl("erfc(x)", {"x": x}, libraries=["lib/math.glsl"])
+    reference = np.array([math.erfc(v) for v in x])
+    assert np.all(np.isfinite(gpu))
+    # Numerical Recipes' fit: 1.2e-7; the float32 exponent −x² − 1.27 + … carries ~x² ulp on top.
+    normal = reference > 1e-37
+    relative = np.abs(gpu[normal] / reference[normal] - 1.0)
+    assert np.all(relative <= 4e-7 * (1.0 + x[normal] ** 2)), float(np.max(relative / (1.0 + x[normal] ** 2)))
+    assert np.all(gpu[~normal] < 1e-36)
+
+
+def test_sg_clamped_cosine_integral():
+    """sg.glsl's twin of reference sg_clamped_cosine_integral over sharpness 0, 1e-6 … 1e20 (the
+    switches at λ = 0.5 and 1 on both sides) and cosines −1 … 1 (grazing, below the horizon): per
+    sharpness relative error ≤ 1e-4 above 1e-6 of its peak S(1, λ) (glsl_harness.Accuracy), and its
+    pieces Su, Sl, t to 1e-5."""
+    lam = np.concatenate(([0.0], np.logspace(-6.0, 6.0, 49), [1e10, 1e20], np.nextafter(np.float32([0.5, 1.0]), 0),
+                          np.nextafter(np.float32([0.5, 1.0]), 2)))
+    mu = np.concatenate((np.linspace(-1.0, 1.0, 81), COSINES))
+    grid_lam, grid_mu = (a.ravel() for a in np.meshgrid(lam, mu, indexing="ij"))
+    inputs = {"cosine": as_gpu_floats(grid_mu), "sharpness": as_gpu_floats(grid_lam)}
+    body = ("result = sg_clamped_cosine_integral(cosine, sharpness);\n"
+            "parts = vec3(sg_upper_clamped_cosine(sharpness), sg_lower_clamped_cosine(sharpness), "
+            "sg_clamped_cosine_steepness(sharpness));")
+    gpu = evaluate_glsl(body, inputs, {"result": 1, "parts": 3}, libraries=["lib/sg.glsl"])
+    assert np.all(np.isfinite(gpu["result"])) and np.all(np.isfinite(gpu["parts"]))
+    reference = sg.sg_clamped_cosine_integral(inputs["cosine"], inputs["sharpness"])
+    accuracy = Accuracy(gpu["result"], reference, inputs["sharpness"])
+    assert accuracy.ok, accuracy.report(inputs)
+    parts = np.stack((sg.sg_upper_clamped_cosine(inputs["sharpness"]), sg.sg_lower_clamped_cosine(inputs["sharpness"]),
+                      sg.sg_clamped_cosine_steepness(inputs["sharpness"])), -1)
+    significant = parts > 1e-30
+    np.testing.assert_allclose(gpu["parts"][significant], parts[significant], rtol=1e-5)

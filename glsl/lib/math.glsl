@@ -31,6 +31,19 @@ float one_minus_exp_ratio(float x)
   return x > 0.0 ? -expm1(-x) / x : 1.0;
 }
 
+// erfc(x) = 1 - erf(x) (GLSL has none): the Chebyshev fit of Press et al., Numerical Recipes
+// (2nd ed., section 6.2, erfcc), fractional error below 1.2e-7 for every x; erfc(-x) = 2 - erfc(x).
+// Underflows to 0 beyond x ~ 9.2 (float32), where erfc is below 1e-38.
+float erfc(float x)
+{
+  float z = abs(x);
+  float t = 1.0 / (1.0 + 0.5 * z);
+  float r = t * exp(-z * z - 1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 +
+            t * (-0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587 +
+            t * (-0.82215223 + t * 0.17087277)))))))));
+  return x >= 0.0 ? r : 2.0 - r;
+}
+
 // v / |v|, or `fallback` when v is 0 (or denormal: the GPU flushes those to 0) and v / |v| would
 // be NaN. Scaled by the largest component first so that dot(v, v) neither underflows (|v| < 1e-19)
 // nor overflows (|v| > 1.8e19).

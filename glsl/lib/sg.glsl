@@ -141,3 +141,84 @@ float specular_lobe(vec3 omega, vec3 incoming, vec3 normal, float roughness)
   }
   return exp(-0.5 * sharpness * dot(d, d)) / sg_integral(sharpness);
 }
+
+// S(mu, lam) = 1/pi int G(w; xi, lam) max(w.n, 0) dw, mu = xi.n: the diffuse light of a unit SG on a
+// unit-albedo Lambert receiver (reference/sg.py, section "SG times the clamped cosine", which gives
+// the formula, its sources and its measured error): Tokuyoshi, Ikeda, Kulkarni and Harada,
+// "Hierarchical light sampling with accurate spherical Gaussian lighting" (SIGGRAPH Asia 2024,
+// supplementary document, Listings 6-7), after Tokuyoshi, "Accurate diffuse lighting from spherical
+// Gaussian lights" (HPG 2022 posters):
+//   S = 2 (Sl + s (Su - Sl)), Su, Sl its exact values at mu = 1 and -1 over 2, s the clamped cosine
+//   smoothed by a Gaussian of width 1/t(lam).
+const float CLAMPED_COSINE_SERIES_LIMIT = 0.5;
+const float CLAMPED_COSINE_T_A = 2.7360831611272558;
+const float CLAMPED_COSINE_T_B = 17.021297781741875;
+const float CLAMPED_COSINE_T_C = 4.0100826728510421;
+const float CLAMPED_COSINE_T_D = 15.219156263147211;
+const float CLAMPED_COSINE_T_E = 76.087896272360737;
+
+// Sum over k = 0..8 of (x^k / (k + 2)!): the series of both hemisphere integrals below
+// CLAMPED_COSINE_SERIES_LIMIT (truncation < 0.5^9 / 11! = 5e-11 relative), where their closed forms
+// cancel.
+float sg_clamped_cosine_series(float x)
+{
+  return 1.0 / 2.0 + x * (1.0 / 6.0 + x * (1.0 / 24.0 + x * (1.0 / 120.0 + x * (1.0 / 720.0 +
+         x * (1.0 / 5040.0 + x * (1.0 / 40320.0 + x * (1.0 / 362880.0 + x * (1.0 / 3628800.0))))))));
+}
+
+// Su(lam) = 1/(2 pi) int G(w; n, lam) max(w.n, 0) dw = (lam - 1 + e^-lam) / lam^2.
+float sg_upper_clamped_cosine(float sharpness)
+{
+  if (sharpness > CLAMPED_COSINE_SERIES_LIMIT) {
+    return (1.0 - one_minus_exp_ratio(sharpness)) / sharpness;
+  }
+  return sg_clamped_cosine_series(-sharpness);
+}
+
+// Sl(lam) = 1/(2 pi) int G(w; -n, lam) max(w.n, 0) dw = e^-lam (1 - e^-lam (1 + lam)) / lam^2.
+float sg_lower_clamped_cosine(float sharpness)
+{
+  float e = exp(-sharpness);
+  if (sharpness > CLAMPED_COSINE_SERIES_LIMIT) {
+    return e * (one_minus_exp_ratio(sharpness) - e) / sharpness;
+  }
+  return e * e * sg_clamped_cosine_series(sharpness);
+}
+
+// t(lam) = lam sqrt(1/2 (lam^2 + A lam + B) / (lam^3 + C lam^2 + D lam + E)), in 1/lam above lam = 1 so
+// that lam^3 never forms (lam reaches 1e20).
+float sg_clamped_cosine_steepness(float sharpness)
+{
+  float ratio;
+  if (sharpness < 1.0) {
+    ratio = ((sharpness + CLAMPED_COSINE_T_A) * sharpness + CLAMPED_COSINE_T_B) /
+            (((sharpness + CLAMPED_COSINE_T_C) * sharpness + CLAMPED_COSINE_T_D) * sharpness + CLAMPED_COSINE_T_E);
+  }
+  else {
+    float inv = 1.0 / sharpness;
+    ratio = inv * ((CLAMPED_COSINE_T_B * inv + CLAMPED_COSINE_T_A) * inv + 1.0) /
+            (((CLAMPED_COSINE_T_E * inv + CLAMPED_COSINE_T_D) * inv + CLAMPED_COSINE_T_C) * inv + 1.0);
+  }
+  return sharpness * sqrt(0.5 * ratio);
+}
+
+// s(mu, t) = 1/2 (mu erfc(-t mu) + erfc(t)) - e^(-t^2 mu^2) expm1(t^2 (mu^2 - 1)) / (2 sqrt(pi) t), in [0, 1].
+float sg_clamped_cosine_lerp(float cosine, float steepness)
+{
+  float mu = clamp(cosine, -1.0, 1.0);
+  float t = steepness;
+  float tz = t * mu;
+  float s = 0.5 * (mu * erfc(-tz) + erfc(t));
+  if (t > 0.0) {
+    s -= exp(-tz * tz) * expm1(t * t * (mu * mu - 1.0)) * (0.28209479177387814 / t);
+  }
+  return clamp(s, 0.0, 1.0);
+}
+
+float sg_clamped_cosine_integral(float cosine, float sharpness)
+{
+  float upper = sg_upper_clamped_cosine(sharpness);
+  float lower = sg_lower_clamped_cosine(sharpness);
+  float s = sg_clamped_cosine_lerp(cosine, sg_clamped_cosine_steepness(sharpness));
+  return 2.0 * (lower + s * (upper - lower));
+}

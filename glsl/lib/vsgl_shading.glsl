@@ -13,6 +13,7 @@
 // illuminate; vsgl_accumulate_lobe() is one lobe), which adds per lobe
 //   diffuse   += c_in * A(lam_in)/pi * <xi_in, n>                    (cosine pulled out, 000 app. C)
 //             or c_in * int G(xi_in, lam_in) G(n, lam_d) / A(lam_d)   (003's 2-VSGL mode)
+//             or c_in * 1/pi int G(xi_in, lam_in) max(<w, n>, 0) dw   (clamped cosine)
 //   specular  += c_in * k * (1 - m^5)   and   fresnel += c_in * k * m^5,
 // k = D(1) <xi_in, n> / ((c_i + s_i)(c_o + s_o)) * pi / sqrt((eta_x + nu)(eta_y + nu))
 //     * exp(-eta_x' (xi_in.x)^2 - eta_y' (xi_in.y)^2), m = 1 - xi_in.h (Schlick), so that the
@@ -31,6 +32,7 @@ const float VSGL_ALPHA_MIN = 1e-3;
 
 const int VSGL_DIFFUSE_COSINE = 0;          // 000 app. C
 const int VSGL_DIFFUSE_SG_CONVOLUTION = 1;  // 003's 2-VSGL mode
+const int VSGL_DIFFUSE_CLAMPED_COSINE = 2;  // Tokuyoshi et al. 2024 (sg.glsl sg_clamped_cosine_integral)
 
 // Incoming radiance SG of one VSGL lobe at `position` (000 Eq. 12), without c_v:
 // xi_mu = (mu_v - y_p)/|mu_v - y_p|, lam_sigma = |mu_v - y_p|^2 / sigma_v^2,
@@ -53,6 +55,9 @@ void vsgl_incoming_sg(vec3 position, vec3 mean, float variance, vec3 lobe_axis, 
 // Ld / (c_in Rd) (reference diffuse_factor).
 float vsgl_diffuse_factor(vec3 axis_in, float sharpness_in, vec3 normal, int mode)
 {
+  if (mode == VSGL_DIFFUSE_CLAMPED_COSINE) {
+    return sg_clamped_cosine_integral(dot(axis_in, normal), sharpness_in);
+  }
   if (mode == VSGL_DIFFUSE_SG_CONVOLUTION) {
     return sg_product_integral(axis_in, sharpness_in, normal, DIFFUSE_SHARPNESS) /
            sg_integral(DIFFUSE_SHARPNESS);

@@ -38,7 +38,8 @@ added by blending (float32 adds).
 ``indirect_specular`` (F0 × Σs + Σf), alpha = coverage; background pixels 0. Radiance in the units
 of the VSGL amplitudes (Blender's W/(m² sr) when the RSM carries Blender's light units).
 
-``diffuse_mode``: "cosine" (000 app. C, cosine pulled out) or "sg-convolution" (003's 2-VSGL mode;
+``diffuse_mode``: "cosine" (000 app. C, cosine pulled out), "sg-convolution" (003's 2-VSGL mode) or
+"clamped-cosine" (the incoming SG times the clamped cosine, Tokuyoshi et al. 2024;
 ``reference.vsgl_shading.diffuse_mode_for_kernel``). One shader per mode, compiled once per
 process. :class:`VSGLShading` keeps its output textures between frames (reallocated when the size
 changes); :meth:`VSGLShading.free` drops them.
@@ -59,7 +60,7 @@ from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, texture_from_array
 from .vsgl_generation import MAX_VSGL_COUNT
 
-_MODE_INDEX = {"cosine": 0, "sg-convolution": 1}
+_MODE_INDEX = {"cosine": 0, "sg-convolution": 1, "clamped-cosine": 2}
 
 
 #: Largest radius in texels of the visibility filter (its cost grows with (2r + 1)²).
