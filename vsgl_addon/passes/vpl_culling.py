@@ -344,10 +344,10 @@ def extract_vpls(scene_gpu, rsm_size: int, caustic_roughness: float) -> VPLSet:
     from .rsm import render_rsm_views, visible_view_specs
 
     lights = scene_gpu.scene.lights
-    views = sum(len(visible_view_specs(scene_gpu, light)) for light in lights)
-    vpl_set = empty_vpl_set(views * int(rsm_size) ** 2)
+    specs = [visible_view_specs(scene_gpu, light) for light in lights]
+    vpl_set = empty_vpl_set(sum(map(len, specs)) * int(rsm_size) ** 2)
     for index, light in enumerate(lights):
-        for view in render_rsm_views(scene_gpu, index, rsm_size, "diffuse"):
+        for view in render_rsm_views(scene_gpu, index, rsm_size, "diffuse", specs=specs[index]):
             extract_view(vpl_set, view.textures, rsm_size, light_vector(light), caustic_roughness)
             view.free()
     return vpl_set
