@@ -466,8 +466,8 @@ def render_caustics(position, normal, albedo, vpls, world_to_view, projection, d
     return (total / max(int(samples), 1)).astype(np.float32)
 
 
-#: The VPLs' extraction from the RSM (read back, once per scene state: not a GPU pass; the renderer's
-#: SceneLights.build times it), and the count it is the source of.
+#: The VPLs' extraction from the RSM (extract_vpls, once per scene state, a light pass rather than a
+#: pass of the frame's list; the renderer's SceneLights.build times it), and the count it is the source of.
 EXTRACTION = Step("vpl_extraction", "VPL Extraction + Shadow Maps", {"vpls": "VPLs"})
 
 
