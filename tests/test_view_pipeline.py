@@ -57,7 +57,6 @@ class FakeBackend:
     def __init__(self, clock):
         self.clock = clock
         self.renders = []  # (width, height) of every view render
-        self.bands = []  # the band (first, end, height) of every view render, None for a whole image
         self.light_builds = []  # seeds
         self.displayed = []
 
@@ -69,9 +68,8 @@ class FakeBackend:
         self.light_builds.append(settings.seed)
         return Thing(seed=settings.seed, timings={})
 
-    def render_view(self, renderer, lights, settings, width, height, view, projection, band=None):
+    def render_view(self, renderer, lights, settings, width, height, view, projection):
         assert not lights.freed and settings.seed == lights.seed
-        self.bands.append(band)
         self.clock.now += FIXED_SECONDS + SECONDS_PER_PIXEL * width * height
         self.renders.append((width, height))
         return View(value=float(lights.seed), size=(width, height), counts={"vsgls": 16},
@@ -161,16 +159,6 @@ def test_every_step_keeps_within_the_budget(pipeline):
     assert max(seconds for _, seconds in done[1:]) <= STEP_BUDGET * 1.05, done
     rows = [entry["rows"] for entry in pipeline.history if entry.get("rows") and entry["rows"][1] > entry["rows"][0]]
     assert len(rows) >= 3 * 4
-
-
-def test_bands_tell_the_renderer_their_rows(pipeline):
-    """A sample's band renders pass (first, end, image height), the rows they stand for (the VPL pass
-    filters over them and their apron); the coarse, whole-image render passes none."""
-    run(pipeline, samples=2)
-    rows = [entry["rows"] for entry in pipeline.history if entry.get("rows") and entry["rows"][1] > entry["rows"][0]]
-    assert pipeline.backend.bands[0] is None
-    assert [band for band in pipeline.backend.bands if band is not None] == [tuple(r) for r in rows]
-    assert len(rows) >= 2
 
 
 def test_a_view_change_restarts_from_a_coarse_image_without_the_light_passes(pipeline):

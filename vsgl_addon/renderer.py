@@ -29,7 +29,6 @@ from .planner import PROXY_CACHE, RECEIVER_ALPHA_RANGE, kept_proxies, plan_frame
 from .proxies import ProxyCache, describe_proxies
 from .reference.vsgl_shading import diffuse_mode_for_kernel
 from .settings import VSGLSettings
-from .views import band_projection
 
 
 @dataclass
@@ -243,14 +242,10 @@ class FrameRenderer:
             self._glossy_shading = None
 
     def render_view_textures(self, lights: SceneLights, settings: VSGLSettings, width: int, height: int,
-                             view_matrix, projection_matrix, timings: dict | None = None,
-                             band: tuple[int, int, int] | None = None) -> ViewTextures:
+                             view_matrix, projection_matrix, timings: dict | None = None) -> ViewTextures:
         """One view's passes, with nothing read back: the images stay textures (the viewport draws
         them, render_view reads them). Without ``timings`` no wait for the GPU either (the caller
-        finishes what it times); with it, each pass is finished and its seconds stored under its step.
-        ``band``: (first, end, image height) when the view is rows [first, end) of an image
-        (views.band_projection): the VPL pass then filters over the band and its apron, so the rows
-        equal the whole image's."""
+        finishes what it times); with it, each pass is finished and its seconds stored under its step."""
         scene = lights.scene
         clock = time.perf_counter()
 
@@ -296,23 +291,8 @@ class FrameRenderer:
             if lights.vpls is not None:
                 # The glossy VPLs' cell (light-paths.md): sharp reflectors' specular light on the
                 # receivers' diffuse lobes, added to the diffuse VSGLs, which leave it out.
-                vpl_band = apron = None
-                vpl_inputs, vpl_projection = inputs, projection_matrix
-                if band is not None:
-                    vpl_band, below, above = vpl_culling.VPLBand.of_rows(*band, settings.vpl_filter_radius)
-                    if below or above:
-                        # The cross-bilateral filter's apron: the G-buffer of the band's rows and the
-                        # filter radius's rows around it, within the image.
-                        vpl_projection = band_projection(projection_matrix, -below, height + above, height)
-                        apron = gbuffer_pass.PASS.run(lights.scene_gpu, view_matrix, vpl_projection,
-                                                      (width, height + below + above))
-                        vpl_inputs = shading_inputs.PASS.run(apron)
-                try:
-                    vpls_per_pixel = self._vpls.render(vpl_inputs, lights.vpls, view_matrix, vpl_projection, settings,
-                                                       diffuse, count=timings is not None, band=vpl_band)
-                finally:
-                    if apron is not None:
-                        apron.free()
+                vpls_per_pixel = self._vpls.render(inputs, lights.vpls, view_matrix, projection_matrix, settings,
+                                                   diffuse, count=timings is not None)
                 diffuse, caustics = self._vpls.diffuse, self._vpls.caustics
                 lap(vpl_culling.PASS.step, diffuse)
             elif timings is not None:

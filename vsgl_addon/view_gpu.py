@@ -232,10 +232,8 @@ class GPUViewBackend:
 
         return SceneLights.build(description, settings)
 
-    def render_view(self, renderer, lights, settings, width, height, view_matrix, projection_matrix, band=None):
-        """``band``: (first, end, height) of the rows a band view renders (renderer.render_view_textures)."""
-        return renderer.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix,
-                                             band=band)
+    def render_view(self, renderer, lights, settings, width, height, view_matrix, projection_matrix):
+        return renderer.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix)
 
     def guide(self, renderer, lights, width, height, view_matrix, projection_matrix):
         return renderer.guide(lights, width, height, view_matrix, projection_matrix)

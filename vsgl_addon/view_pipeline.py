@@ -287,8 +287,7 @@ class ViewPipeline:
         clock = self.clock()
         view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, end - first,
                                         request.view_matrix, band_projection(request.projection_matrix,
-                                                                             first, end, height),
-                                        band=(first, end, height))
+                                                                             first, end, height))
         try:
             self.backend.resolve(view, self.backend.guide_of(view), sample, (first, end), 1.0, add=False)
         finally:

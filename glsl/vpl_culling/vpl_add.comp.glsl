@@ -1,8 +1,6 @@
 // add_out = add_weights.x add_a + add_weights.y add_b (RGB; add_a's alpha), one invocation per
-// pixel, add_b read add_offset.xy texels further (the rows of a band inside the image the VPL pass
-// filtered with its apron): the VPL pass's progressive mean over its samples, and the indirect
-// diffuse image with the VPL image added (vsgl_addon/passes/vpl_culling.py add_textures), without a
-// read-back.
+// pixel: the VPL pass's progressive mean over its samples, and the indirect diffuse image with the
+// VPL image added (vsgl_addon/passes/vpl_culling.py add_textures), without a read-back.
 void main()
 {
   ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
@@ -10,6 +8,6 @@ void main()
     return;
   }
   vec4 a = texelFetch(add_a, pixel, 0);
-  vec3 b = texelFetch(add_b, pixel + add_offset.xy, 0).rgb;
+  vec3 b = texelFetch(add_b, pixel, 0).rgb;
   imageStore(add_out, pixel, vec4(add_weights.x * a.rgb + add_weights.y * b, a.a));
 }

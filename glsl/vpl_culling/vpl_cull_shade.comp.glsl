@@ -16,7 +16,7 @@
 //    VPL and its own diffuse lobe, weighted 1/p where p > xi (Eqs. 2-3). Chunking keeps the shared
 //    list from overflowing, so the result is exact whatever the list capacity.
 // Interleaved sampling (004 section 6): with vpl_interleave.x = N > 1 the pixel shades only the
-// VPLs i with i % N^2 = its sub-image ((x % N) + N ((y + row offset) % N) + offset) % N^2, weighted N^2: each
+// VPLs i with i % N^2 = its sub-image ((x % N) + N (y % N) + offset) % N^2, weighted N^2: each
 // sub-image sees a different subset, and the mean over the N^2 offsets is the full estimate.
 // Table rows per VPL (record k of VPL i at texel (i % W, 4 (i / W) + k)): position + roughness,
 // normal + scalar flux, incoming, Phi Rs + the VPL's shadow map.
@@ -121,10 +121,8 @@ void main()
 
   uint interleave = uint(max(vpl_interleave.x, 1));
   uint subsets = interleave * interleave;
-  // Rows count from the whole image's (vpl_interleave.w: this image's first row there), so a band of
-  // rows shades each pixel with the subset the whole image gives it.
-  uint subset = (uint(pixel.x) % interleave + interleave * (uint(pixel.y + vpl_interleave.w) % interleave)
-                 + uint(vpl_interleave.y)) % subsets;
+  uint subset = (uint(pixel.x) % interleave + interleave * (uint(pixel.y) % interleave) + uint(vpl_interleave.y))
+                % subsets;
   vec3 radiance = vec3(0.0);
   // tile_used is the same for the whole group (read after a barrier), so an empty tile skips the
   // chunks, barriers included, without breaking uniform control flow.

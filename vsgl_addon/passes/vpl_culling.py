@@ -88,17 +88,16 @@ def denoise(radiance, position, normal, radius: int, eye):
 
 def _add_interface() -> ShaderInterface:
     return ShaderInterface(
-        push_constants=[("VEC4", "add_weights"), ("IVEC4", "add_offset")],
+        push_constants=[("VEC4", "add_weights")],
         samplers=[("FLOAT_2D", "add_a"), ("FLOAT_2D", "add_b")],
         images=[("RGBA32F", "FLOAT_2D", "add_out")],
         local_group_size=(8, 8, 1),
     )
 
 
-def add_textures(a, b, weight_a: float, weight_b: float, out=None, offset=(0, 0)):
-    """``out`` (a new texture when None, a's size) = weight_a a + weight_b b in RGB, a's alpha, b read
-    ``offset`` texels further (glsl/vpl_culling/vpl_add.comp.glsl): the progressive mean and the
-    diffuse composite, on the GPU."""
+def add_textures(a, b, weight_a: float, weight_b: float, out=None):
+    """``out`` (a new texture when None) = weight_a a + weight_b b in RGB, a's alpha
+    (glsl/vpl_culling/vpl_add.comp.glsl): the progressive mean and the diffuse composite, on the GPU."""
     import gpu
 
     if out is None:
@@ -106,7 +105,6 @@ def add_textures(a, b, weight_a: float, weight_b: float, out=None, offset=(0, 0)
     shader = PASS.shader("add")
     shader.bind()
     shader.uniform_float("add_weights", (float(weight_a), float(weight_b), 0.0, 0.0))
-    shader.uniform_int("add_offset", (int(offset[0]), int(offset[1]), 0, 0))
     shader.uniform_sampler("add_a", a)
     shader.uniform_sampler("add_b", b)
     shader.image("add_out", out)
@@ -409,11 +407,10 @@ INTERLEAVE_FACTORS = (1, 2, 4, 8)
 
 
 def run(position, normal, albedo, vpls, world_to_view, projection, delta: float, seed: int = 0,
-        frame: int = 0, interleave: int = 1, interleave_offset: int = 0, row_offset: int = 0) -> VPLCullingResult:
+        frame: int = 0, interleave: int = 1, interleave_offset: int = 0) -> VPLCullingResult:
     """Cull and shade ``vpls`` for the receivers in the three (width, height) textures; ``seed`` and
     ``frame`` draw the VPLs' xi, ``interleave`` N and ``interleave_offset`` choose each pixel's
-    subset (progressive rendering steps both); ``row_offset``: the textures' first row in the whole
-    image (a band's), which the subsets count rows from."""
+    subset (progressive rendering steps both)."""
     if interleave not in INTERLEAVE_FACTORS:
         raise ValueError(f"interleave must be one of {INTERLEAVE_FACTORS}, got {interleave}")
     import gpu
@@ -439,7 +436,7 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
         shader.uniform_sampler("vpl_map_origins", vpl_set.map_origins)
     shader.uniform_float("vpl_params", (float(delta), 0.0, float(seed), float(frame)))
     shader.uniform_int("vpl_sizes", (TABLE_WIDTH, LIST_CAPACITY, tiles[0], tiles[1]))
-    shader.uniform_int("vpl_interleave", (int(interleave), int(interleave_offset), vpl_set.capacity, int(row_offset)))
+    shader.uniform_int("vpl_interleave", (int(interleave), int(interleave_offset), vpl_set.capacity, 0))
     shader.uniform_sampler("vpl_count", vpl_set.count_texture)
     shader.uniform_sampler("gbuffer_position", position)
     shader.uniform_sampler("gbuffer_normal", normal)
@@ -486,28 +483,23 @@ class VPLCaustics:
         self.caustics = self.diffuse = None
 
     def render(self, inputs, vpl_set: VPLSet, world_to_view, projection, settings, vsgl_diffuse,
-               count: bool = False, band: "VPLBand | None" = None) -> float | None:
+               count: bool = False) -> float | None:
         """Cull and shade ``vpl_set`` for ``inputs`` (a vsgl_shading.ShadingGBuffer): the mean of
         ``settings.vpl_samples`` draws (xi from the seed and the sample's number, the interleave
         offset stepping with them), then the cross-bilateral filter, into ``self.caustics``; and
         ``vsgl_diffuse`` + caustics into ``self.diffuse``, all on the GPU. ``count``: returns the VPLs
-        each pixel shaded after culling (tile lists read back, divided by N²), else None.
-
-        ``band``: ``inputs`` are a band of a whole image's rows with an apron (:class:`VPLBand`): the
-        interleave factor and subsets are the whole image's, the filter sees the apron's rows, and the
-        images keep the band's rows (``vsgl_diffuse``'s size), so they equal the whole image's rows."""
+        each pixel shaded after culling (tile lists read back, divided by N²), else None."""
         from ..settings import interleave_factor
 
         width, height = inputs.width, inputs.height
-        band = band or VPLBand(0, 0, height)
-        factor = interleave_factor(settings.vpl_interleave, width, band.image_height)
+        factor = interleave_factor(settings.vpl_interleave, width, height)
         samples = max(int(settings.vpl_samples), 1)
         total = None
         listed = 0.0
         for step in range(samples):
             result = run(inputs.position, inputs.normal, inputs.diffuse_reflectance, vpl_set, world_to_view,
                          projection, settings.delta, settings.seed, step, factor,
-                         (settings.seed * samples + step) % (factor * factor), band.first_row)
+                         (settings.seed * samples + step) % (factor * factor))
             if count:
                 listed += float((result.read_counts() * _tile_pixels(width, height)).sum()) / (width * height)
             total = (result.radiance if samples == 1 else
@@ -515,31 +507,9 @@ class VPLCaustics:
                      add_textures(total, result.radiance, 1.0, 1.0 / samples))
             result.free()
         eye = np.linalg.inv(np.asarray(world_to_view, np.float64))[:3, 3]
-        caustics = denoise(total, inputs.position, inputs.normal, settings.vpl_filter_radius, eye)
-        if band.apron_below or vsgl_diffuse.height != height:
-            # The band's rows of the filtered image (vsgl_diffuse's size; its alpha, which no reader uses).
-            caustics = add_textures(vsgl_diffuse, caustics, 0.0, 1.0, offset=(0, band.apron_below))
-        self.caustics = caustics
-        self.diffuse = add_textures(vsgl_diffuse, caustics, 1.0, 1.0)
+        self.caustics = denoise(total, inputs.position, inputs.normal, settings.vpl_filter_radius, eye)
+        self.diffuse = add_textures(vsgl_diffuse, self.caustics, 1.0, 1.0)
         return listed / samples / (factor * factor) if count else None
-
-
-@dataclass(frozen=True)
-class VPLBand:
-    """Where the VPL pass's inputs lie in the whole image: their first row, the number of rows
-    below the kept band (its apron there: the filter's radius, clamped to the image) and the whole
-    image's height. The apron above is what the inputs hold beyond."""
-
-    first_row: int
-    apron_below: int
-    image_height: int
-
-    @classmethod
-    def of_rows(cls, first: int, end: int, height: int, radius: int) -> tuple["VPLBand", int, int]:
-        """The band for rows [first, end) of an image ``height`` rows high and a filter ``radius``:
-        (band, rows below, rows above) of the apron."""
-        below, above = min(int(radius), int(first)), min(int(radius), int(height) - int(end))
-        return cls(int(first) - below, below, int(height)), below, above
 
 
 def _tile_pixels(width: int, height: int) -> np.ndarray:
