@@ -1,14 +1,16 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Cross-bilateral filter (reference/bilateral.py, glsl/lib/bilateral.glsl): constant images stay
-constant, light does not cross a depth or normal edge, the interleaving pattern of N x N sub-images
-is removed, and the GLSL twin matches the reference on llvmpipe."""
+"""Cross-bilateral filter (reference/bilateral.py, glsl/lib/bilateral.glsl): its weights are the
+documented ones (a brute-force loop), constant images stay constant, light does not cross a depth or
+normal edge, the interleaving pattern of N x N sub-images is removed, and the GLSL twin matches the
+reference on llvmpipe. The range weight both filters of the library share, at its two settings: the
+upsampler's (tangential 1: the whole distance) and the denoiser's (tangential 0: off the plane)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from vsgl_addon.reference.bilateral import cross_bilateral
+from vsgl_addon.reference.bilateral import bilateral_range_weight, cross_bilateral
 
 EYE = np.array([0.0, 0.0, 5.0])
 
@@ -26,6 +28,53 @@ def two_planes(h=24, w=32):
     normal[right] = [1.0, 0.0, 0.0, 0.0]
     position[2:4, 2:4, 3] = 0.0
     return position, normal, right
+
+
+def test_range_weight_at_both_settings():
+    rng = np.random.default_rng(2)
+    normal = rng.normal(size=(200, 3))
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    neighbour_normal = normal + 0.5 * rng.normal(size=(200, 3))
+    neighbour_normal /= np.linalg.norm(neighbour_normal, axis=-1, keepdims=True)
+    position = rng.normal(size=(200, 3))
+    neighbour = np.concatenate([position + 0.3 * rng.normal(size=(200, 3)), np.ones((200, 1))], -1)
+    neighbour[:10, 3] = 0.0  # background
+    scale = rng.uniform(0.1, 2.0, 200)
+    d = (neighbour[:, :3] - position) / scale[:, None]
+    c = np.sum(normal * neighbour_normal, -1)
+    wn = np.where(c > 0.0, np.maximum(c, 0.0) ** 8.0, 0.0) * (neighbour[:, 3] > 0.0)
+    whole = bilateral_range_weight(position, normal, neighbour, neighbour_normal, scale, 1.0, 8.0)
+    np.testing.assert_allclose(whole, np.exp(-0.5 * np.sum(d * d, -1)) * wn, rtol=1e-12, atol=1e-300)
+    plane = bilateral_range_weight(position, normal, neighbour, neighbour_normal, scale, 0.0, 8.0)
+    np.testing.assert_allclose(plane, np.exp(-0.5 * np.sum(normal * d, -1) ** 2) * wn, rtol=1e-12, atol=1e-300)
+    assert np.all(plane >= whole) and np.all(whole[:10] == 0.0) and np.any(plane > whole)
+
+
+def test_weights_are_the_documented_ones():
+    """A brute-force loop of the weight exp(-|q - p|² / (2 s²)) · exp(-(n_p · (x_q - x_p) /
+    (σ_plane |x_p - eye|))²) · max(n_p · n_q, 0)^power, s = radius / 2, for a few pixels."""
+    rng = np.random.default_rng(4)
+    position, normal, _ = two_planes(12, 16)
+    position[..., :3] += 0.02 * rng.normal(size=position[..., :3].shape)
+    normal[..., :3] += 0.2 * rng.normal(size=normal[..., :3].shape)
+    normal[..., :3] /= np.linalg.norm(normal[..., :3], axis=-1, keepdims=True)
+    image = rng.uniform(0.0, 1.0, position.shape[:2] + (3,))
+    radius, sigma, power = 3, 0.05, 4.0
+    out = cross_bilateral(image, position, normal, radius, EYE, sigma, power)
+    for y, x in ((5, 5), (0, 0), (11, 15), (6, 8)):
+        n, p = normal[y, x, :3], position[y, x, :3]
+        total, weights = np.zeros(3), 0.0
+        for qy in range(max(0, y - radius), min(12, y + radius + 1)):
+            for qx in range(max(0, x - radius), min(16, x + radius + 1)):
+                if position[qy, qx, 3] <= 0.0:
+                    continue
+                plane = n @ (position[qy, qx, :3] - p) / (sigma * np.linalg.norm(p - EYE))
+                facing = n @ normal[qy, qx, :3]
+                weight = (np.exp(-((qx - x) ** 2 + (qy - y) ** 2) / (2 * (radius / 2) ** 2) - plane**2)
+                          * max(facing, 0.0) ** power if facing > 0.0 else 0.0)
+                total += weight * image[qy, qx]
+                weights += weight
+        np.testing.assert_allclose(out[y, x], total / weights, rtol=1e-12)
 
 
 def test_constant_preserved_edges_kept_pattern_removed():

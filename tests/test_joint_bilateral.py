@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Joint bilateral upsampling: the float64 twin (vsgl_addon/reference/joint_bilateral.py) against a
+"""Joint bilateral upsampling: the float64 twin (vsgl_addon/reference/bilateral.py) against a
 brute-force scalar loop and the properties the viewport relies on (identity at equal resolution,
-partition of unity, edges kept, no NaN at the parameters' ends), and glsl/lib/joint_bilateral.glsl
+partition of unity, edges kept, no NaN at the parameters' ends), and glsl/lib/bilateral.glsl
 against the twin on llvmpipe."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from glsl_harness import as_gpu_floats, evaluate_glsl
-from vsgl_addon.reference.joint_bilateral import (JBU_MIN_WEIGHT, jbu_footprint, jbu_range_weight,
-                                                  joint_bilateral_upsample)
+from vsgl_addon.reference.bilateral import (JBU_MIN_WEIGHT, jbu_footprint, jbu_range_weight,
+                                            joint_bilateral_upsample)
 
 
 def _brute_force(low, low_position, low_normal, uv, position, normal, footprint, sigma, power):
@@ -164,7 +164,7 @@ def test_glsl_matches_reference():
     out = evaluate_glsl("joint_bilateral_upsample(low_image, low_position_image, low_normal_image, uv, "
                         "position, normal, footprint, 1.0, 8.0)",
                         {"uv": uv, "position": position, "normal": normal, "footprint": footprint}, 4,
-                        libraries=["lib/joint_bilateral.glsl"],
+                        libraries=["lib/bilateral.glsl"],
                         images={"low_image": low, "low_position_image": low_position, "low_normal_image": low_normal})
     expected = joint_bilateral_upsample(low, low_position, low_normal, uv, position, normal, footprint)
     assert np.isfinite(out).all()

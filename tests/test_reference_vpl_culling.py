@@ -289,6 +289,49 @@ def test_vpls_from_rsm_select_lit_sharp_texels():
     assert ggx.microfacet_brdf(one["incoming"], one["normal"], one["normal"], 0.05, 1.0).shape == (1,)
 
 
+def test_texel_records_are_the_rsm_vpls():
+    """extract_glossy_vpls (the GPU extraction's twin, from the RSM's slots and a light vector) gives
+    glossy_vpls_from_rsm's VPLs with reference.rsm's w_i, in texel order: alpha = principled_alpha of
+    the slot's roughness, kept below alpha_c and where Phi Rs > 0, floored at VPL_ALPHA_MIN; a sun's
+    w_i is its direction; no sharp texel gives none; a light on the texel stays finite."""
+    from types import SimpleNamespace
+
+    from vsgl_addon.reference.principled import principled_alpha
+    from vsgl_addon.reference.rsm import incoming_directions
+
+    rng = np.random.default_rng(RNG_SEED)
+    size = 8
+    position = np.concatenate([rng.normal(size=(size, size, 3)), np.zeros((size, size, 1))], -1)
+    roughness = rng.uniform(0.0, 1.0, (size, size))
+    roughness[0, 0] = 0.0  # a mirror: alpha 1e-6, floored
+    normal = np.concatenate([random_unit(rng, (size, size)), roughness[..., None]], -1)
+    flux = np.concatenate([rng.uniform(0.0, 2.0, (size, size, 3)), np.ones((size, size, 1))], -1)
+    flux[1, :, :3] = 0.0  # unlit
+    point = SimpleNamespace(type="POINT", position=np.array([0.5, -1.0, 3.0]), direction=np.array([0.0, 0.0, -1.0]))
+    sun = SimpleNamespace(type="SUN", position=np.zeros(3), direction=np.array([0.3, 0.0, -1.0]) / np.hypot(0.3, 1.0))
+    for light in (point, sun):
+        records, texels = vc.extract_glossy_vpls(position, normal, flux, vc.light_vector(light), 0.1)
+        alpha = principled_alpha(roughness)
+        vpls = vc.glossy_vpls_from_rsm(position[..., :3], normal[..., :3],
+                                       incoming_directions(light, position[..., :3]), flux[..., :3],
+                                       np.ones((size, size, 3)), alpha, 0.1)
+        assert 0 < len(texels) < size * size
+        np.testing.assert_array_equal(texels, vpls["texel"])
+        np.testing.assert_array_equal(records[:, 0, :3], vpls["position"])
+        np.testing.assert_array_equal(records[:, 0, 3], np.maximum(vpls["roughness"], vc.VPL_ALPHA_MIN))
+        np.testing.assert_array_equal(records[:, 1, :3], vpls["normal"])
+        np.testing.assert_array_equal(records[:, 1, 3], np.max(vpls["flux"], axis=-1))
+        np.testing.assert_allclose(records[:, 2, :3], vpls["incoming"], atol=1e-15)
+        np.testing.assert_array_equal(records[:, 3, :3], vpls["flux"])
+        assert 0 in texels and not np.isin(texels, np.arange(size, 2 * size)).any()
+    none, texels = vc.extract_glossy_vpls(position, np.concatenate([normal[..., :3], np.ones((size, size, 1))], -1),
+                                          flux, vc.light_vector(point), 0.1)
+    assert none.shape == (0, 4, 4) and texels.shape == (0,)
+    _, on_light = vc.glossy_vpl_from_texel(np.append(point.position, 0.0), normal[0, 0], flux[0, 0],
+                                           vc.light_vector(point), 0.1)
+    assert np.all(np.isfinite(on_light)) and np.isclose(np.linalg.norm(on_light[2, :3]), 1.0)
+
+
 def orthographic(half, near, far):
     return np.array([[1 / half, 0, 0, 0], [0, 1 / half, 0, 0],
                      [0, 0, -2 / (far - near), -(far + near) / (far - near)], [0, 0, 0, 1]])

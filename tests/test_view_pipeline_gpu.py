@@ -103,8 +103,10 @@ def test_view_updates_make_no_cpu_round_trip(demo):
             moved[0, 3] += shift
             pipeline.request_view(moved, projection, REGION)
             read_backs, upload_bytes = RoundTrips.read_backs, RoundTrips.upload_bytes
+            steps = pipeline.steps
             _run(pipeline, lambda: demo, 0.25, 1)  # coarse, then one sample in bands (same seed)
-            renders = sum(1 for entry in list(pipeline.history)[-20:] if entry.get("level"))
+            # Every render of this update (a loaded machine makes the bands many and small).
+            renders = sum(1 for entry in list(pipeline.history)[-(pipeline.steps - steps):] if entry.get("level"))
             assert RoundTrips.read_backs == read_backs
             image_bytes = REGION[0] * REGION[1] * 16
             # Per render: the direct light's and MRP-ASG's per-light tables (proxies, constants),

@@ -278,7 +278,8 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
 
     points = scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
     point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
-    textures = ism_pass.upload_points(points) if vsgls.generations else None  # once for every table
+    # Uploaded once for every table and every VSGL set of the frame.
+    textures = scene_gpu.point_textures(settings.ism_points, POINT_SETS, settings.seed) if vsgls.generations else None
     for table in vsgls.table_arrays():
         if MAPS_PER_VSGL == 1:
             origins = shadow_origin(table["diffuse_mean"], table["diffuse_variance"], table["diffuse_axis"]).reshape(-1, 3)

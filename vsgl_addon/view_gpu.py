@@ -3,7 +3,7 @@
 bilateral upsampling into a viewport's accumulation images, and the draw of those images.
 
 Everything stays on the GPU: a view render's textures (renderer.FrameRenderer.render_view_textures)
-are resampled by ``glsl/view/resolve.frag.glsl`` (``glsl/lib/joint_bilateral.glsl``, guided by the
+are resampled by ``glsl/view/resolve.frag.glsl`` (``glsl/lib/bilateral.glsl``, guided by the
 full-resolution G-buffer) straight into RGBA32F accumulation textures, finished samples are added by
 blending (``glsl/view/accumulate.frag.glsl``), and ``glsl/view/display.frag.glsl`` draws the average
 into the bound framebuffer. No image is read back or uploaded per update
@@ -29,7 +29,7 @@ from .shaders import ShaderInterface
 #: Glossy Reflectors), kept apart only to be shown alone.
 IMAGES = ("direct", "indirect_diffuse", "indirect_specular", "indirect_caustics", "indirect_glossy_reflectors")
 #: Joint bilateral range parameters: positions compared in low-resolution texel footprints, and the
-#: power of the normals' cosine (reference/joint_bilateral.py has the same defaults).
+#: power of the normals' cosine (reference/bilateral.py has the same defaults).
 SIGMA_POSITION = 1.0
 NORMAL_POWER = 8.0
 

@@ -9,7 +9,7 @@ STEP_BUDGET seconds, so the interface stays responsive:
 * after a scene change (:meth:`~ViewPipeline.mark_scene_dirty`, or other pass settings) the
   **light passes** (RSMs, VSGL tables) and, in the same step, a **coarse** image: the view passes at
   the resolution scale, upsampled to the viewport's pixels by the joint bilateral filter guided by
-  the full-resolution G-buffer (glsl/lib/joint_bilateral.glsl), so edges stay sharp;
+  the full-resolution G-buffer (glsl/lib/bilateral.glsl), so edges stay sharp;
 * after a view-only change, the coarse image alone: the light passes are kept;
 * then, while nothing changes, **samples** at full resolution, each in bands of rows sized to the
   budget from the measured time per pixel; every sample after the first one has light passes of a

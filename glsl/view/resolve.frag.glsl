@@ -1,4 +1,4 @@
-// @require lib/joint_bilateral.glsl
+// @require lib/bilateral.glsl
 // One view sample (vsgl_addon/view_gpu.py) into the viewport's accumulation images: each image of a
 // view render, upsampled to the guide's pixels by the joint bilateral filter (the identity when the
 // render has the guide's resolution), times `weight`. Outputs rgb = radiance (Blender's units),

@@ -53,7 +53,9 @@ void main()
   ivec2 tile = ivec2(gl_WorkGroupID.xy);
   uint local = gl_LocalInvocationIndex;
   int tile_index = tile.y * vpl_sizes.z + tile.x;
-  uint count = uint(vpl_params.y);
+  // The VPLs in the table: counted on the GPU by the extraction (vpl_extract_scan.comp.glsl), at
+  // most the table's capacity (vpl_interleave.z).
+  uint count = min(texelFetch(vpl_count, ivec2(0), 0).x, uint(vpl_interleave.z));
   uint seed = uint(vpl_params.z);
   uint frame = uint(vpl_params.w);
   float delta = vpl_params.x;

@@ -241,8 +241,14 @@ def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int,
     return framebuffer, constants
 
 
+def visible_view_specs(scene_gpu: SceneGPU, light) -> list[RSMViewSpec]:
+    """The views of ``light`` that render_rsm_views renders: those whose frustum holds a triangle."""
+    return [spec for spec in light_view_specs(scene_gpu.scene, light, scene_gpu.bounds)
+            if view_sees_triangles(spec, scene_gpu.positions, scene_gpu.bounds)]
+
+
 def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: str = "all",
-                     proxies=(), sharp_alpha: float = 0.0) -> list[RSMView]:
+                     proxies=(), sharp_alpha: float = 0.0, specs=None) -> list[RSMView]:
     """Render the RSM views of ``scene.lights[light_index]`` at ``size`` x ``size`` texels.
 
     ``scene`` is a :class:`SceneGPU` (reuse it for every light) or a SceneDescription (uploaded for
@@ -254,6 +260,7 @@ def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: st
     to the receivers' glossy lobes (light-paths.md). ``sharp_alpha`` > 0: texels whose GGX α
     (principled_alpha) is below it keep no specular flux either, the glossy VPLs (passes/vpl_culling.py)
     carry it to the receivers' diffuse lobes (the diffuse receivers' VSGLs with the VPL pass on).
+    ``specs``: the light's :func:`visible_view_specs`, when the caller has them already.
     """
     import gpu
 
@@ -263,9 +270,7 @@ def render_rsm_views(scene, light_index: int, size: int = 256, receiver_lobe: st
     scene_gpu = scene if isinstance(scene, SceneGPU) else SceneGPU(scene)
     light = scene_gpu.scene.lights[light_index]
     views = []
-    for spec in light_view_specs(scene_gpu.scene, light, scene_gpu.bounds):
-        if not view_sees_triangles(spec, scene_gpu.positions, scene_gpu.bounds):
-            continue
+    for spec in visible_view_specs(scene_gpu, light) if specs is None else specs:
         textures = {name: gpu.types.GPUTexture((size, size), format="RGBA32F") for name in RSM_LAYOUT.slot_names}
         textures["depth"] = gpu.types.GPUTexture((size, size), format="DEPTH_COMPONENT32F")
         framebuffer, constants = _render(scene_gpu, light_index, spec, size, textures, receiver_lobe, proxies,

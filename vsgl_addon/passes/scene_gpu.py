@@ -101,6 +101,7 @@ class SceneGPU:
         self._light_links = None
         self._non_blockers = None
         self._points: dict = {}
+        self._point_textures: dict = {}
 
     def material_image(self, material_index: int):
         """The base colour texture of a material, or a 1x1 white one (uploaded once)."""
@@ -132,6 +133,16 @@ class SceneGPU:
             self._points[key] = cached_scene_point_sets(self.scene.geometry, *key)
         return self._points[key]
 
+    def point_textures(self, points_per_set: int, set_count: int, seed: int) -> tuple:
+        """passes/ism.py upload_points of :meth:`scene_points`, uploaded once per upload and settings:
+        every VSGL set of a frame (up to three) splats the same point sets."""
+        from .ism import upload_points
+
+        key = (int(points_per_set), int(set_count), int(seed))
+        if key not in self._point_textures:
+            self._point_textures[key] = upload_points(self.scene_points(*key))
+        return self._point_textures[key]
+
     def has_non_blockers(self, light_index: int) -> bool:
         """Whether some object does not block light ``light_index`` (shadow linking, or an object
         that casts no shadow): its RSM then takes two draws."""
@@ -162,6 +173,7 @@ class SceneGPU:
         self.batch = None
         self.vertex_buffer = None
         self._images.clear()
+        self._point_textures.clear()
         self._white = None
         self._light_links = None
 

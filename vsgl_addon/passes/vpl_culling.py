@@ -10,7 +10,8 @@ the tile's list with the exact GGX BRDF at the VPL and the receiver's diffuse lo
     counts = result.read_counts()    # (tiles_y, tiles_x) VPLs listed per tile
     result.free()
 
-``vpls`` is the dict of :func:`vsgl_addon.reference.vpl_culling.glossy_vpls_from_rsm`. Receivers:
+``vpls`` is a :class:`VPLSet` (:func:`extract_vpls`: the VPLs made from the RSM on the GPU, or
+:func:`upload_vpls` of a dict as :func:`scene_vpls` reads them back). Receivers:
 world position (w = coverage > 0), world normal and diffuse reflectance textures of one size.
 Output RGBA32F radiance, W/(m^2 sr), unshadowed. Needs a GPU context, main thread.
 """
@@ -23,9 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..layouts import GBUFFER, RSM, SHADING_INPUTS
+from ..reference.vpl_culling import VPL_ALPHA_MIN
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
-from .gpu_util import read_texture, texture_from_array
+from .gpu_util import RoundTrips, read_texture, set_uniform, texture_from_array
 
 TILE = 16
 #: VPL records per table row (the table is TABLE_WIDTH wide, four rows per record row).
@@ -39,7 +41,8 @@ def _interface(visibility: bool = False) -> ShaderInterface:
         push_constants=[("VEC4", "vpl_params"), ("IVEC4", "vpl_sizes"), ("IVEC4", "vpl_interleave")]
         + ([("IVEC4", "ism_params")] if visibility else []),
         samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal"),
-                  ("FLOAT_2D", "receiver_albedo"), ("FLOAT_2D", "vpl_table"), ("FLOAT_2D", "vpl_camera")]
+                  ("FLOAT_2D", "receiver_albedo"), ("FLOAT_2D", "vpl_table"), ("FLOAT_2D", "vpl_camera"),
+                  ("UINT_2D", "vpl_count")]
         + ([("FLOAT_2D", "ism_atlas"), ("FLOAT_2D", "vpl_map_origins")] if visibility else []),
         images=[("RGBA32F", "FLOAT_2D", "vpl_radiance"), ("R32UI", "UINT_2D", "vpl_tile_lists"),
                 ("R32UI", "UINT_2D", "vpl_tile_counts")],
@@ -109,27 +112,47 @@ def add_textures(a, b, weight_a: float, weight_b: float, out=None):
     return out
 
 
-#: Smallest GGX α a VPL's lobe takes: the range the spheroid bounds and the shading are tested on
-#: (tests/test_reference_vpl_culling.py); a mirror texel (α 1e-6) shines as an α 1e-3 lobe.
-VPL_ALPHA_MIN = 1e-3
-
-
-@dataclass
 class VPLSet:
-    """The glossy VPLs of a scene state on the GPU (view-independent, uploaded once): the record
-    table of :func:`vpl_table` and the count; with visibility, the imperfect shadow maps of the VPLs'
-    clusters (passes/ism.py ISMAtlas) and each map's origin (a (maps, 1) RGBA32F texture).
-    ``free()`` drops the textures."""
+    """The glossy VPLs of a scene state on the GPU (view-independent, made once): the record table
+    of :func:`vpl_table` (``capacity`` records), the number of VPLs in it as a 1x1 R32UI texture
+    (``count_texture``: the culling reads it there, so the GPU extraction needs no read-back), and
+    with visibility the imperfect shadow maps of the VPLs' clusters (passes/ism.py ISMAtlas) and each
+    map's origin (a (maps, 1) RGBA32F texture). ``count`` is known when the set was uploaded, else read
+    back once (4 bytes) when first asked: the statistics and the report. ``free()`` drops the textures."""
 
-    table: object
-    count: int
-    isms: object = None
-    map_origins: object = None
+    def __init__(self, table, count: int | None = None, isms=None, map_origins=None, count_texture=None,
+                 capacity: int | None = None):
+        self.table, self.isms, self.map_origins = table, isms, map_origins
+        self._count = None if count is None else int(count)
+        self.capacity = int(capacity if capacity is not None else count)
+        self.count_texture = _count_texture(self._count) if count_texture is None else count_texture
+
+    @property
+    def count(self) -> int:
+        if self._count is None:
+            self._count = min(_read_count(self.count_texture), self.capacity)
+        return self._count
 
     def free(self) -> None:
         if self.isms is not None:
             self.isms.free()
-        self.table = self.isms = self.map_origins = None
+        self.table = self.isms = self.map_origins = self.count_texture = None
+
+
+def _count_texture(count: int):
+    """A 1x1 R32UI texture holding ``count`` (integer textures take no Python data: cleared to it)."""
+    import gpu
+
+    texture = gpu.types.GPUTexture((1, 1), format="R32UI")
+    texture.clear(format="UINT", value=(int(count),))
+    return texture
+
+
+def _read_count(texture) -> int:
+    """The one uint of a 1x1 R32UI texture, read back (counted as a read-back of 4 bytes)."""
+    RoundTrips.read_backs += 1
+    RoundTrips.read_back_bytes += 4
+    return int(_read_uint(texture, 1, 1)[0, 0])
 
 
 def upload_vpls(vpls) -> VPLSet:
@@ -192,35 +215,142 @@ def upload_visible_vpls(vpls, scene_gpu, settings, view_size: int, first_map: in
 
 
 def scene_vpls(scene_gpu, rsm_size: int, caustic_roughness: float) -> dict:
-    """The glossy VPLs of every light (004 §3; reference.vpl_culling.glossy_vpls_from_rsm): each RSM
-    texel of a sharp reflector (GGX α < α_c, reference.principled.principled_alpha as the RSM's split
-    tests it) seen by diffuse rays, with its Φ Rs and ω_i towards the light. The RSM views are read
-    back and dropped; nothing is resampled, so the set is as stable as the RSM."""
-    from ..reference import rsm as rsm_ref
+    """The glossy VPLs of every light read back to the CPU (004 §3; the float64 twin
+    reference.vpl_culling.extract_glossy_vpls of :func:`extract_vpls`): each RSM texel of a sharp
+    reflector (GGX α < α_c, reference.principled.principled_alpha as the RSM's split tests it) seen
+    by diffuse rays, with its Φ Rs and ω_i towards the light, and its texel and view (the VPLs'
+    shadow-map clusters, the command line's export). The RSM views are read back and dropped;
+    nothing is resampled, so the set is as stable as the RSM."""
     from ..reference import vpl_culling as reference
-    from ..reference.principled import principled_alpha
     from .rsm import render_rsm_views
 
     parts = []
     views_done = 0
     for index, light in enumerate(scene_gpu.scene.lights):
         for view in render_rsm_views(scene_gpu, index, rsm_size, "diffuse"):
-            arrays = view.to_numpy()
+            slots = [read_texture(view.textures[name], rsm_size, rsm_size) for name in EXTRACTION_SLOTS]
             view.free()
-            alpha = principled_alpha(arrays.roughness)
-            vpls = reference.glossy_vpls_from_rsm(arrays.rsm.position, arrays.rsm.normal,
-                                                  rsm_ref.incoming_directions(light, arrays.rsm.position),
-                                                  arrays.rsm.flux_specular, np.ones_like(arrays.rsm.flux_specular),
-                                                  alpha, caustic_roughness)
-            vpls["roughness"] = np.maximum(vpls["roughness"], VPL_ALPHA_MIN)
-            vpls["view"] = np.full(len(vpls["roughness"]), views_done)
+            records, texels = reference.extract_glossy_vpls(*slots, reference.light_vector(light), caustic_roughness)
+            parts.append(dict(_records_to_vpls(records), texel=texels, view=np.full(len(texels), views_done)))
             views_done += 1
-            parts.append(vpls)
-    keys = ("position", "normal", "incoming", "flux", "rs")
-    merged = {key: np.concatenate([part[key] for part in parts]) if parts else np.zeros((0, 3)) for key in keys}
+    merged = {key: np.concatenate([part[key] for part in parts]) if parts else np.zeros((0, 3))
+              for key in ("position", "normal", "incoming", "flux", "rs")}
     for key in ("roughness", "texel", "view"):
         merged[key] = np.concatenate([part[key] for part in parts]) if parts else np.zeros(0, np.int64)
     return merged
+
+
+#: The RSM slots a VPL is made from (layouts.RSM): q, n + Principled roughness, Φ Rs.
+EXTRACTION_SLOTS = ("position", "normal", "flux_specular")
+
+
+def _records_to_vpls(records) -> dict:
+    """The VPL dict (scene_vpls' fields; rs = 1, Φ Rs in flux) of (K, 4, 4) table records."""
+    records = np.asarray(records, np.float64)
+    return {"position": records[:, 0, :3], "roughness": records[:, 0, 3], "normal": records[:, 1, :3],
+            "incoming": records[:, 2, :3], "flux": records[:, 3, :3], "rs": np.ones_like(records[:, 3, :3])}
+
+
+def read_vpls(vpl_set: VPLSet) -> dict:
+    """The VPLs of a set read back (tests, benchmarks): scene_vpls' fields without texel and view."""
+    count = vpl_set.count
+    rows = vpl_set.table.height
+    table = read_texture(vpl_set.table, TABLE_WIDTH, rows).astype(np.float64)
+    records = table.reshape(rows // 4, 4, TABLE_WIDTH, 4).transpose(0, 2, 1, 3).reshape(-1, 4, 4)[:count]
+    return _records_to_vpls(records)
+
+
+#: Texels one invocation of the GPU extraction walks (a run, in row-major order), the work group
+#: of its scan, and the width of its run tables.
+EXTRACT_RUN = 16
+SCAN_GROUP = 256
+RUN_TABLE_WIDTH = 1024
+
+
+def _extract_interface(write: bool) -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("IVEC4", "extract_sizes"), ("VEC4", "extract_light"), ("VEC4", "extract_params")],
+        samplers=[("FLOAT_2D", "rsm_position"), ("FLOAT_2D", "rsm_normal"), ("FLOAT_2D", "rsm_flux_specular")],
+        images=([("R32UI", "UINT_2D", "vpl_run_offsets"), ("RGBA32F", "FLOAT_2D", "vpl_table_out")] if write
+                else [("R32UI", "UINT_2D", "vpl_run_counts")]),
+        local_group_size=(64, 1, 1),
+    )
+
+
+def _scan_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("IVEC4", "scan_sizes")],
+        images=[("R32UI", "UINT_2D", "vpl_run_counts"), ("R32UI", "UINT_2D", "vpl_run_offsets"),
+                ("R32UI", "UINT_2D", "vpl_count")],
+        local_group_size=(SCAN_GROUP, 1, 1),
+        shared=f"shared uint prefix_sum_values[{SCAN_GROUP}];",
+    )
+
+
+def empty_vpl_set(capacity: int) -> VPLSet:
+    """A VPL set of no VPLs with room for ``capacity`` (the table's contents undefined past the count)."""
+    import gpu
+
+    rows = max(1, math.ceil(int(capacity) / TABLE_WIDTH))
+    table = gpu.types.GPUTexture((TABLE_WIDTH, 4 * rows), format="RGBA32F")
+    return VPLSet(table, None, count_texture=_count_texture(0), capacity=int(capacity))
+
+
+def extract_view(vpl_set: VPLSet, textures, size: int, light, caustic_roughness: float) -> None:
+    """Append the glossy VPLs of one RSM view to ``vpl_set`` on the GPU, in row-major texel order
+    after the VPLs already in it (glsl/vpl_culling/vpl_extract.comp.glsl: the kept texels per run, the
+    scan of vpl_extract_scan.comp.glsl, then the records). ``textures``: the view's RSM slots by name
+    (EXTRACTION_SLOTS), ``size`` its side; ``light`` (x, y, z, w) of reference light_vector. Nothing
+    is read back; the set's count stays on the GPU."""
+    import gpu
+
+    size = int(size)
+    runs = math.ceil(size * size / EXTRACT_RUN)
+    run_table = (min(runs, RUN_TABLE_WIDTH), math.ceil(runs / RUN_TABLE_WIDTH))
+    counts = gpu.types.GPUTexture(run_table, format="R32UI")
+    offsets = gpu.types.GPUTexture(run_table, format="R32UI")
+    groups = math.ceil(runs / 64)
+    for key in ("extract_count", "extract_write"):
+        shader = PASS.shader(key)
+        shader.bind()
+        shader.uniform_int("extract_sizes", (size, vpl_set.capacity, TABLE_WIDTH, RUN_TABLE_WIDTH))
+        # The count stage keeps no record: the compiler drops the light, whose only use is w_i.
+        set_uniform(shader.uniform_float, "extract_light", tuple(float(v) for v in light))
+        shader.uniform_float("extract_params", (float(caustic_roughness), 0.0, 0.0, 0.0))
+        for name in EXTRACTION_SLOTS:
+            shader.uniform_sampler(f"rsm_{name}", textures[name])
+        if key == "extract_count":
+            shader.image("vpl_run_counts", counts)
+            gpu.compute.dispatch(shader, groups, 1, 1)
+            scan = PASS.shader("extract_scan")
+            scan.bind()
+            scan.uniform_int("scan_sizes", (runs, RUN_TABLE_WIDTH, 0, 0))
+            scan.image("vpl_run_counts", counts)
+            scan.image("vpl_run_offsets", offsets)
+            scan.image("vpl_count", vpl_set.count_texture)
+            gpu.compute.dispatch(scan, 1, 1, 1)
+        else:
+            shader.image("vpl_run_offsets", offsets)
+            shader.image("vpl_table_out", vpl_set.table)
+            gpu.compute.dispatch(shader, groups, 1, 1)
+
+
+def extract_vpls(scene_gpu, rsm_size: int, caustic_roughness: float) -> VPLSet:
+    """The glossy VPLs of every light made on the GPU (004 §3): :func:`scene_vpls`' set, in its
+    order, without a read-back. Each light's RSM views (seen by diffuse rays) are rendered, turned
+    into VPLs by :func:`extract_view` and dropped. The table has room for every texel of the views
+    (64 bytes a texel, 4/5 of the RSM's colour attachments), since the count stays on the GPU."""
+    from ..reference.vpl_culling import light_vector
+    from .rsm import render_rsm_views, visible_view_specs
+
+    lights = scene_gpu.scene.lights
+    specs = [visible_view_specs(scene_gpu, light) for light in lights]
+    vpl_set = empty_vpl_set(sum(map(len, specs)) * int(rsm_size) ** 2)
+    for index, light in enumerate(lights):
+        for view in render_rsm_views(scene_gpu, index, rsm_size, "diffuse", specs=specs[index]):
+            extract_view(vpl_set, view.textures, rsm_size, light_vector(light), caustic_roughness)
+            view.free()
+    return vpl_set
 
 
 def vpl_table(vpls) -> np.ndarray:
@@ -246,7 +376,11 @@ class VPLCullingResult:
     counts: object
     size: tuple[int, int]
     tiles: tuple[int, int]
-    vpl_count: int
+    vpls: VPLSet
+
+    @property
+    def vpl_count(self) -> int:
+        return self.vpls.count
 
     def read(self) -> np.ndarray:
         return read_texture(self.radiance, *self.size)
@@ -259,7 +393,7 @@ class VPLCullingResult:
         return _read_uint(self.lists, LIST_CAPACITY, self.tiles[0] * self.tiles[1])
 
     def free(self) -> None:
-        self.radiance = self.lists = self.counts = None
+        self.radiance = self.lists = self.counts = self.vpls = None
 
 
 def _read_uint(texture, width: int, height: int) -> np.ndarray:
@@ -284,7 +418,6 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
     width, height = position.width, position.height
     tiles = (math.ceil(width / TILE), math.ceil(height / TILE))
     vpl_set = vpls if isinstance(vpls, VPLSet) else upload_vpls(vpls)
-    count = vpl_set.count
     camera = np.zeros((8, 1, 4), np.float32)
     camera[:4, 0] = np.asarray(world_to_view, np.float64)
     camera[4:, 0] = np.linalg.inv(np.asarray(projection, np.float64))
@@ -301,9 +434,10 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
         shader.uniform_int("ism_params", (vpl_set.isms.size, vpl_set.isms.columns, 0, 0))
         shader.uniform_sampler("ism_atlas", vpl_set.isms.texture)
         shader.uniform_sampler("vpl_map_origins", vpl_set.map_origins)
-    shader.uniform_float("vpl_params", (float(delta), float(count), float(seed), float(frame)))
+    shader.uniform_float("vpl_params", (float(delta), 0.0, float(seed), float(frame)))
     shader.uniform_int("vpl_sizes", (TABLE_WIDTH, LIST_CAPACITY, tiles[0], tiles[1]))
-    shader.uniform_int("vpl_interleave", (int(interleave), int(interleave_offset), 0, 0))
+    shader.uniform_int("vpl_interleave", (int(interleave), int(interleave_offset), vpl_set.capacity, 0))
+    shader.uniform_sampler("vpl_count", vpl_set.count_texture)
     shader.uniform_sampler("gbuffer_position", position)
     shader.uniform_sampler("gbuffer_normal", normal)
     shader.uniform_sampler("receiver_albedo", albedo)
@@ -313,7 +447,7 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
     shader.image("vpl_tile_lists", lists)
     shader.image("vpl_tile_counts", counts)
     gpu.compute.dispatch(shader, tiles[0], tiles[1], 1)
-    return VPLCullingResult(radiance, lists, counts, (width, height), tiles, count)
+    return VPLCullingResult(radiance, lists, counts, (width, height), tiles, vpl_set)
 
 
 def render_caustics(position, normal, albedo, vpls, world_to_view, projection, delta: float, *, samples: int = 1,
@@ -332,8 +466,8 @@ def render_caustics(position, normal, albedo, vpls, world_to_view, projection, d
     return (total / max(int(samples), 1)).astype(np.float32)
 
 
-#: The VPLs' extraction from the RSM (read back, once per scene state: not a GPU pass; the renderer's
-#: SceneLights.build times it), and the count it is the source of.
+#: The VPLs' extraction from the RSM (extract_vpls, once per scene state, a light pass rather than a
+#: pass of the frame's list; the renderer's SceneLights.build times it), and the count it is the source of.
 EXTRACTION = Step("vpl_extraction", "VPL Extraction + Shadow Maps", {"vpls": "VPLs"})
 
 
@@ -395,7 +529,13 @@ PASS = GPUPass(
                                                {"compute": "vpl_culling/vpl_cull_shade.comp.glsl"},
                                                defines=lambda: {"VPL_VISIBILITY": 1}),
              "denoise": ShaderSpec(_denoise_interface, {"compute": "vpl_culling/vpl_denoise.comp.glsl"}),
-             "add": ShaderSpec(_add_interface, {"compute": "vpl_culling/vpl_add.comp.glsl"})},
+             "add": ShaderSpec(_add_interface, {"compute": "vpl_culling/vpl_add.comp.glsl"}),
+             "extract_count": ShaderSpec(lambda: _extract_interface(False), {"compute": "vpl_culling/vpl_extract.comp.glsl"},
+                                         defines=lambda: {"VPL_EXTRACT_WRITE": 0, "VPL_EXTRACT_RUN": EXTRACT_RUN}),
+             "extract_write": ShaderSpec(lambda: _extract_interface(True), {"compute": "vpl_culling/vpl_extract.comp.glsl"},
+                                         defines=lambda: {"VPL_EXTRACT_WRITE": 1, "VPL_EXTRACT_RUN": EXTRACT_RUN}),
+             "extract_scan": ShaderSpec(_scan_interface, {"compute": "vpl_culling/vpl_extract_scan.comp.glsl"},
+                                        defines=lambda: {"PREFIX_SUM_SIZE": SCAN_GROUP})},
     reads=(GBUFFER.name, SHADING_INPUTS.name, RSM.name),
     writes=("indirect_caustics",),
     run=run,

@@ -228,6 +228,65 @@ def glossy_vpls_from_rsm(position, normal, incoming, flux, rs, roughness, causti
     }
 
 
+#: Smallest GGX alpha a VPL's lobe takes: the range the spheroid bounds and the shading are tested on
+#: (tests/test_reference_vpl_culling.py); a mirror texel (alpha 1e-6) shines as an alpha 1e-3 lobe.
+VPL_ALPHA_MIN = 1e-3
+
+
+def light_vector(light):
+    """(x, y, z, w) of a light for :func:`incoming_from_light`: w = 1 and its position, or for a
+    sun w = 0 and the direction towards it (-its direction)."""
+    if light.type == "SUN":
+        return np.append(-f64(light.direction), 0.0)
+    return np.append(f64(light.position), 1.0)
+
+
+def incoming_from_light(light, position):
+    """w_i per texel, unit, from the surface towards the light (reference.rsm.incoming_directions):
+    ``light`` (..., 4) of :func:`light_vector`."""
+    light = f64(light)
+    position = f64(position)
+    towards = np.where(light[..., 3:4] > 0.5, light[..., :3] - position, light[..., :3] + 0.0 * position)
+    return safe_normalize(towards, np.array([0.0, 0.0, 1.0]))
+
+
+def glossy_vpl_from_texel(position, normal, flux_specular, light, caustic_roughness):
+    """One RSM texel as a glossy VPL record (004 section 3, light-paths.md's sharp-reflector row):
+    ``position``, ``normal`` and ``flux_specular`` are the texel's RSM slots (xyz = q, n facing the
+    light and Phi Rs; normal's w = Principled roughness), ``light`` of :func:`light_vector`.
+
+    Returns (keep, records (..., 4, 4)): keep where GGX alpha = principled_alpha(roughness) < alpha_c
+    and the texel reflects some specular flux (max channel of Phi Rs > 0); the records are the
+    culling table's (passes/vpl_culling.py vpl_table): (q, max(alpha, VPL_ALPHA_MIN)),
+    (n, max channel of Phi Rs), (w_i, 0), (Phi Rs, 0)."""
+    from .principled import principled_alpha
+
+    position = f64(position)
+    normal = f64(normal)
+    flux_specular = f64(flux_specular)
+    alpha = principled_alpha(normal[..., 3])
+    scalar_flux = np.max(flux_specular[..., :3], axis=-1)
+    keep = (alpha < caustic_roughness) & (scalar_flux > 0.0)
+    records = np.zeros(position.shape[:-1] + (4, 4))
+    records[..., 0, :3] = position[..., :3]
+    records[..., 0, 3] = np.maximum(alpha, VPL_ALPHA_MIN)
+    records[..., 1, :3] = normal[..., :3]
+    records[..., 1, 3] = scalar_flux
+    records[..., 2, :3] = incoming_from_light(light, position[..., :3])
+    records[..., 3, :3] = flux_specular[..., :3]
+    return keep, records
+
+
+def extract_glossy_vpls(position, normal, flux_specular, light, caustic_roughness):
+    """The glossy VPLs of one RSM view (H, W, 4 slots as :func:`glossy_vpl_from_texel` takes them):
+    the kept texels' records (K, 4, 4) in row-major texel order (row 0 first), and their texel
+    indices (K,). Nothing is resampled, so the set is as stable as the RSM; this order is the GPU
+    extraction's (glsl/vpl_culling/vpl_extract_write.comp.glsl), so a VPL keeps its xi."""
+    keep, records = glossy_vpl_from_texel(position, normal, flux_specular, light, caustic_roughness)
+    keep = keep.reshape(-1)
+    return records.reshape(-1, 4, 4)[keep], np.flatnonzero(keep)
+
+
 def glossy_bounding_volumes(vpls, delta, xi, fmax=1.0):
     """Spheroids (Eqs. 13-15) of a VPL dict for per-VPL xi."""
     scalar_flux = np.max(vpls["flux"] * vpls["rs"], axis=-1)
