@@ -242,3 +242,53 @@ def test_quality_settings_are_validated():
     for bad in (0.5, 1e9, float("nan")):
         with pytest.raises(SettingsError, match="time budget"):
             VSGLSettings(time_budget_ms=bad)
+
+
+# --- The viewport's coarse step ------------------------------------------------------------------
+
+
+def test_the_coarse_factor_is_the_largest_the_model_predicts_within_the_step_budget():
+    room, plan = _plan()
+    model = B.CostModel.fallback()
+    triangles = room.geometry.triangle_count
+    factors = [B.coarse_factor(plan, VSGLSettings(), (400, 300), 1.0, seconds, model, triangles)
+               for seconds in np.geomspace(1e-4, 100.0, 20)]
+    assert [f for f, _ in factors] == sorted(f for f, _ in factors)  # monotone in the step budget
+    assert factors[0][0] == B.COARSE_FACTORS[-1] and factors[-1][0] == 1.0
+    for (factor, predicted), seconds in zip(factors, np.geomspace(1e-4, 100.0, 20)):
+        if factor < 1.0 and factor != B.COARSE_FACTORS[-1]:
+            bigger = B.COARSE_FACTORS[B.COARSE_FACTORS.index(factor) - 1]
+            size = B.scaled_size(400, 300, bigger)
+            assert predicted <= seconds < B.view_seconds(plan, VSGLSettings(), size, (400, 300), model, triangles)
+
+
+def test_the_viewport_s_first_coarse_image_follows_the_cost_model():
+    import test_view_pipeline as V
+    from vsgl_addon.view_pipeline import COARSE, ViewPipeline
+
+    room, plan = _plan()
+
+    class ModelBackend(V.FakeBackend):
+        def cost_model(self):
+            return B.CostModel.fallback()
+
+        def scene_lights(self, description, settings):
+            lights = super().scene_lights(description, settings)
+            lights.plan, lights.scene = plan, room
+            return lights
+
+    sizes = {}
+    for budget in (0.01, 10.0):
+        clock = V.Clock()
+        backend = ModelBackend(clock)
+        pipeline = ViewPipeline(backend, clock, step_budget=budget)
+        pipeline.request_view(np.eye(4), np.eye(4), (400, 300))
+        pipeline.step(lambda: room, VSGLSettings(), 1.0)
+        entry = pipeline.statistics
+        expected, predicted = B.coarse_factor(plan, VSGLSettings(), (400, 300), 1.0, budget, B.CostModel.fallback(),
+                                              room.geometry.triangle_count)
+        assert entry["level"] == COARSE and entry["predicted_view_seconds"] == pytest.approx(predicted)
+        assert backend.renders[0] == B.scaled_size(400, 300, expected)
+        sizes[budget] = backend.renders[0]
+        pipeline.free()
+    assert sizes[10.0] == (400, 300) and sizes[0.01][0] < 400

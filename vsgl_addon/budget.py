@@ -533,3 +533,38 @@ def upscale(image: np.ndarray, width: int, height: int) -> np.ndarray:
     rows = image[y0] * (1.0 - fy.reshape(shape)) + image[y1] * fy.reshape(shape)
     shape = (1, -1) + (1,) * (image.ndim - 2)
     return (rows[:, x0] * (1.0 - fx.reshape(shape)) + rows[:, x1] * fx.reshape(shape)).astype(image.dtype)
+
+
+# --- The viewport's coarse step -------------------------------------------------------------------
+
+#: The steps of a view render (renderer.render_view_textures): the light passes are built apart.
+VIEW_STEPS = ("gbuffer", "direct_light", "vsgl_shading", "vpl_culling", "mrp_asg")
+#: The coarse factors the viewport's first coarse image is chosen from (each 0.85 of the last).
+COARSE_FACTORS = tuple(float(0.85 ** i) for i in range(19))  # 1 down to 0.054
+
+
+def view_seconds(plan, settings: VSGLSettings, size: tuple[int, int], full_size: tuple[int, int], model: CostModel,
+                 triangles: int = 0) -> float:
+    """Predicted seconds of one view render at ``size`` upsampled to ``full_size``: its view steps,
+    and below full size the full-resolution G-buffer that guides the upsampling."""
+    features = frame_features(plan, settings, size, size, triangles)
+    steps = model.predict_steps({step: features[step] for step in VIEW_STEPS if step in features})
+    seconds = sum(steps.values())
+    if tuple(size) != tuple(full_size):
+        guide = frame_features(plan, settings, full_size, full_size, triangles)["gbuffer"]
+        seconds += model.predict({"gbuffer": guide})
+    return float(seconds)
+
+
+def coarse_factor(plan, settings: VSGLSettings, full_size: tuple[int, int], scale: float, seconds: float,
+                  model: CostModel, triangles: int = 0) -> tuple[float, float]:
+    """(factor, predicted seconds): the largest of COARSE_FACTORS whose view render at ``scale`` ×
+    factor of ``full_size`` the model predicts within ``seconds`` (the viewport's step budget), the
+    smallest when none is."""
+    predicted = math.inf
+    for factor in COARSE_FACTORS:
+        size = scaled_size(*full_size, scale * factor)  # view_pipeline.view_size's rule
+        predicted = view_seconds(plan, settings, size, full_size, model, triangles)
+        if predicted <= seconds:
+            return factor, predicted
+    return COARSE_FACTORS[-1], predicted
