@@ -162,6 +162,12 @@ def test_the_choice_is_monotone_in_the_budget(sharp):
     for low, high in zip(keys, keys[1:]):
         assert all(a <= b for a, b in zip(low, high)), (low, high)
     assert [c.step for c in choices] == sorted(c.step for c in choices)
+    # N between the path's levels: filled towards the next level only, never reaching it.
+    steps = B.path(plan, VSGLSettings(), *SIZE, model, room.geometry.triangle_count)
+    for choice in choices:
+        if choice.fits and choice.step + 1 < len(steps):
+            assert choice.candidate.vsgl_count < max(steps[choice.step + 1][0].vsgl_count, steps[choice.step][0].vsgl_count + 1)
+    assert any(c.candidate.vsgl_count not in B.VSGL_COUNTS for c in choices)
     for choice in choices:
         if choice.fits:
             assert choice.predicted_seconds <= choice.target_seconds

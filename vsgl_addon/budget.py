@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .planner import rsm_size_for_share
-from .settings import VSGLSettings
+from .settings import VSGLSettings, interleave_factor
 
 #: The features each timed step (its FrameImages.timings key) is linear in. Units keep the
 #: coefficients near milliseconds: pixels in 10⁵, VSGLs in 10³, texels in 10⁵, splats in 10⁶.
@@ -140,8 +140,6 @@ def frame_features(plan, settings: VSGLSettings, size: tuple[int, int], full_siz
     sides follow the plan's rule for the settings' side (planner.rsm_size_for_share of their bounce
     estimates); ``vpl_fraction``: VPLs per RSM texel of the VPL pass's views (a frame of the scene
     counted them), DEFAULT_VPL_FRACTION when unknown."""
-    from .settings import interleave_factor
-
     w, h = size
     full_width, full_height = full_size or size
     pixels = w * h / 1e5
@@ -456,6 +454,14 @@ class BudgetChoice:
                 "warning": self.warning}
 
 
+def predicted_seconds(plan, settings: VSGLSettings, candidate: Candidate, width: int, height: int, model: CostModel,
+                      triangles: int = 0, vpl_fraction: float | None = None, scene: str | None = None) -> float:
+    """The model's frame time of ``candidate`` at width × height (its scale's size, upscaled)."""
+    features = frame_features(plan, candidate.apply(settings), scaled_size(width, height, candidate.scale),
+                              (width, height), triangles, vpl_fraction)
+    return model.predict(features, scene)
+
+
 def path(plan, settings: VSGLSettings, width: int, height: int, model: CostModel, triangles: int = 0,
          vpl_fraction: float | None = None, scene: str | None = None) -> list[tuple[Candidate, float]]:
     """(candidate, predicted seconds) from the cheapest setting to the richest: each step raises one
@@ -473,9 +479,7 @@ def path(plan, settings: VSGLSettings, width: int, height: int, model: CostModel
         return Candidate(**{**fixed, **values})
 
     def cost(candidate):
-        features = frame_features(plan, candidate.apply(settings), scaled_size(width, height, candidate.scale),
-                                  (width, height), triangles, vpl_fraction)
-        return model.predict(features, scene)
+        return predicted_seconds(plan, settings, candidate, width, height, model, triangles, vpl_fraction, scene)
 
     index = {name: 0 for name in levels}
     current = make(index)
@@ -501,12 +505,30 @@ def path(plan, settings: VSGLSettings, width: int, height: int, model: CostModel
 def choose(plan, settings: VSGLSettings, width: int, height: int, target_ms: float, model: CostModel,
            triangles: int = 0, vpl_fraction: float | None = None, scene: str | None = None) -> BudgetChoice:
     """The last setting of :func:`path` whose predicted frame time is within ``target_ms`` (the first
-    when none is)."""
+    when none is). When the path's next step only raises N, N is raised towards it as far as the
+    target allows (the path's levels are 1.5x apart, so a frame would otherwise leave up to a third of
+    its budget unused); below that next level, so the choice stays monotone in the target."""
     target = float(target_ms) / 1e3
     steps = path(plan, settings, width, height, model, triangles, vpl_fraction, scene)
     fitting = [i for i, (_, seconds) in enumerate(steps) if seconds <= target]
     position = max(fitting) if fitting else 0
     candidate, seconds = steps[position]
+    if fitting and position + 1 < len(steps):
+        following = steps[position + 1][0]
+        if replace(following, vsgl_count=candidate.vsgl_count) == candidate:
+            low, high = candidate.vsgl_count, following.vsgl_count  # cost(low) fits, cost(high) does not
+            while high - low > 1:
+                middle = (low + high) // 2
+                trial = replace(candidate, vsgl_count=middle)
+                if predicted_seconds(plan, settings, trial, width, height, model, triangles, vpl_fraction,
+                                     scene) <= target:
+                    low = middle
+                else:
+                    high = middle
+            if low != candidate.vsgl_count:
+                candidate = replace(candidate, vsgl_count=low)
+                seconds = predicted_seconds(plan, settings, candidate, width, height, model, triangles,
+                                            vpl_fraction, scene)
     chosen = candidate.apply(settings)
     size = scaled_size(width, height, candidate.scale)
     features = frame_features(plan, chosen, size, (width, height), triangles, vpl_fraction)
