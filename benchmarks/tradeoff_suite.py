@@ -23,8 +23,8 @@ noise-corrected relative RMSE of the indirect light over the covered pixels of t
 * **Cycles** at increasing samples, from the truth's own noise: its two seeds' difference gives the
   noise of s samples, relative RMSE ν·√(2S/s) (S samples per seed, ν the mean's relative noise), and
   its recorded render time per sample; "Cycles time to equal error" is the time at the s where that
-  equals our error (Cycles' bias against its own truth is nil; its per-render overhead is counted in
-  proportion).
+  equals our error (Cycles' bias against its own truth is nil). Its per-render overhead (scene sync,
+  BVH build) is spread over the truth's samples, so at a few samples the time is a lower bound.
 * **EEVEE** with ``--eevee`` (it renders headless here with llvmpipe, about a minute per 240x180 frame
   at 64 samples; off by default for that reason): its indirect = Combined − Combined with every
   indirect source off (tradeoff/baselines.eevee_runs), as saved and with ray tracing.
@@ -360,8 +360,12 @@ def plot(results: list[dict], path: Path) -> None:
         axis.tick_params(labelsize=7)
     for axis in list(axes.flat)[len(results):]:
         axis.axis("off")
-    axes.flat[0].legend(fontsize=6, frameon=False)
-    fig.tight_layout()
+    handles = {}
+    for axis in axes.flat:  # every panel's labels once (a scene without VPLs has no "+ VPLs")
+        for handle, label in zip(*axis.get_legend_handles_labels()):
+            handles.setdefault(label, handle)
+    fig.legend(handles.values(), handles.keys(), loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
