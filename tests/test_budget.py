@@ -284,17 +284,26 @@ def test_the_viewport_s_first_coarse_image_follows_the_cost_model():
             return lights
 
     sizes = {}
+    budgeted = VSGLSettings(quality_mode="budget")
     for budget in (0.01, 10.0):
         clock = V.Clock()
         backend = ModelBackend(clock)
         pipeline = ViewPipeline(backend, clock, step_budget=budget)
         pipeline.request_view(np.eye(4), np.eye(4), (400, 300))
-        pipeline.step(lambda: room, VSGLSettings(), 1.0)
+        pipeline.step(lambda: room, budgeted, 1.0)
         entry = pipeline.statistics
-        expected, predicted = B.coarse_factor(plan, VSGLSettings(), (400, 300), 1.0, budget, B.CostModel.fallback(),
+        expected, predicted = B.coarse_factor(plan, budgeted, (400, 300), 1.0, budget, B.CostModel.fallback(),
                                               room.geometry.triangle_count)
         assert entry["level"] == COARSE and entry["predicted_view_seconds"] == pytest.approx(predicted)
         assert backend.renders[0] == B.scaled_size(400, 300, expected)
         sizes[budget] = backend.renders[0]
         pipeline.free()
     assert sizes[10.0] == (400, 300) and sizes[0.01][0] < 400
+    # Manual mode: the first coarse image at the asked scale, whatever the model says.
+    clock = V.Clock()
+    backend = ModelBackend(clock)
+    pipeline = ViewPipeline(backend, clock, step_budget=0.01)
+    pipeline.request_view(np.eye(4), np.eye(4), (400, 300))
+    pipeline.step(lambda: room, VSGLSettings(), 1.0)
+    assert backend.renders[0] == (400, 300) and "predicted_view_seconds" not in pipeline.statistics
+    pipeline.free()

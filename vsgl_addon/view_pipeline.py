@@ -111,8 +111,8 @@ class ViewPipeline:
         # The coarse image's resolution as a fraction of the asked scale: lowered when a coarse image
         # took longer than the step budget, raised again when it took well under (never above 1).
         self.coarse_factor = 1.0
-        # The backend's cost model (budget.CostModel; None: the backend has none): it sets the first
-        # coarse factor of each new light passes' settings, the measured times then take over.
+        # The backend's cost model (budget.CostModel; None: the backend has none): in Budget mode it
+        # sets the first coarse factor of each new light passes' settings, measured times take over.
         self.cost_model = None
         self._model_settings = None  # the settings the coarse factor was last predicted for
         self.has_image = False
@@ -272,12 +272,14 @@ class ViewPipeline:
         return entry
 
     def _predict_coarse_factor(self, full, scale: float) -> float | None:
-        """With the backend's cost model (budget.py, the time budget's): the coarse factor whose view
-        render it predicts within the step budget, once per new settings of the light passes (not per
-        seed, view or edit: there the measured times adjust it). Returns the predicted seconds."""
+        """In Budget mode, with the backend's cost model (budget.py, the time budget's): the coarse
+        factor whose view render it predicts within the step budget, once per new settings of the
+        light passes (not per seed, view or edit: there the measured times adjust it). Returns the
+        predicted seconds. Manual mode starts at the asked scale, as before (at scale 1 the first
+        image is then a full-resolution sample)."""
         plan = getattr(self.lights, "plan", None)
         settings = self.lights_settings
-        if plan is None or settings == self._model_settings:
+        if plan is None or settings.quality_mode != "budget" or settings == self._model_settings:
             return None
         if self.cost_model is None:
             load = getattr(self.backend, "cost_model", None)
