@@ -57,8 +57,9 @@ STEP_FEATURES = {
 
 #: Seconds per feature unit, fitted on the reference machine (2 shared cores, llvmpipe 256 bits) to
 #: budget_render.CALIBRATION's frames of the ten scenes of the validation suite at 240x180 (70 frames;
-#: predicted / measured frame time 0.42 to 2.0, median 1.04, before any scene's correction): the model
-#: when no cache exists, and the prior of every fit.
+#: predicted / measured frame time 0.42 to 2.0, median 1.04, before any scene's correction; the
+#: shading's per-VSGL term came later and starts at 0): the model when no cache exists, and the prior
+#: of every fit.
 FALLBACK_COEFFICIENTS = {
     "upload": (5.3e-4, 3.2e-2),
     "rsm_and_vsgl_generation": (1.9e-3, 0.149, 3.1e-2),
