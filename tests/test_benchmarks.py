@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -72,3 +74,27 @@ def test_validation_suite_quick_run_writes_its_table():
     for row in rows:
         assert row["finite"] and 0.0 < row["mean_ratio"] < 10.0
         assert f"| {row['scene']} | {row['mean_ratio']:.3f} |" in table
+
+
+def test_tradeoff_suite_quick_run_writes_table_plot_and_targets():
+    # One scene against its committed truth, the cost model calibrated into a fresh temporary cache
+    # (never the user's); the quick files are gitignored, removed first so only this run's can pass.
+    results = REPO / "benchmarks" / "results"
+    for name in ("tradeoff_suite_quick.md", "tradeoff_suite_quick.json", "tradeoff_suite_quick.png"):
+        (results / name).unlink(missing_ok=True)
+    result = _run("benchmarks/tradeoff_suite.py", "--quick", timeout=120)
+    assert result.returncode == 0, result.stderr
+    table = (results / "tradeoff_suite_quick.md").read_text()
+    assert "| configuration | N | RSM | δ | interleave | scale | frame (ms) | rel RMSE |" in table
+    assert "## Targets" in table and "- **occluder**: Auto " in table
+    figures = json.loads((results / "tradeoff_suite_quick.json").read_text())
+    (scene,) = figures["scenes"]
+    assert scene["scene"] == "occluder" and {row["label"] for row in scene["manual"]} >= {"VSGL only", "+ visibility"}
+    for row in [scene["auto"], *scene["manual"], *scene["budget"]]:
+        assert row["finite"] and row["rel"] > 0.0 and row["seconds"] > 0.0
+    (budget,) = scene["budget"]
+    assert budget["target_ms"] > 0.0 and budget["predicted_ms"] > 0.0
+    # Cycles' error falls as 1/sqrt(samples) from its truth's noise.
+    rows = scene["cycles"]["rows"]
+    assert rows[0]["rel"] / rows[1]["rel"] == pytest.approx(2.0)
+    assert (results / "tradeoff_suite_quick.png").stat().st_size > 10_000

@@ -17,7 +17,7 @@ import pytest
 import vsgl_addon
 from vsgl_addon import engine, overlay, ui
 from vsgl_addon.operators import settings_image_name
-from vsgl_addon.settings import KERNELS, OVERLAY_DISPLAYS, POSITIONS, VSGLSettings
+from vsgl_addon.settings import KERNELS, OVERLAY_DISPLAYS, POSITIONS, QUALITY_MODES, VSGLSettings
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -103,8 +103,22 @@ def test_pass_settings_a_kernel_ignores_are_greyed_out(registered):
         scene.vsgl.kernel = kernel.identifier
         layouts = draw(ui.VIEW3D_PT_vsgl_passes, scene)["layouts"]
         greyed = {name for layout in layouts if not layout.enabled for name in layout.props}
-        assert greyed == set(kernel.ignores), kernel.identifier
+        # Manual mode has no target frame time.
+        assert greyed == set(kernel.ignores) | {"time_budget_ms"}, kernel.identifier
     assert KERNELS.identified("TWO_VSGL").ignores  # the case that greys something
+
+
+def test_budget_mode_greys_out_what_it_chooses(registered):
+    scene = registered
+    scene.vsgl.kernel = "MODIFIED"
+    scene.vsgl.quality_mode = "BUDGET"
+    try:
+        layouts = draw(ui.VIEW3D_PT_vsgl_passes, scene)["layouts"]
+        greyed = {name for layout in layouts if not layout.enabled for name in layout.props}
+        assert greyed == set(QUALITY_MODES.named("budget").ignores) == {
+            "vsgl_count", "rsm_size", "delta_log10", "vpl_interleave"}
+    finally:
+        scene.vsgl.quality_mode = "MANUAL"
 
 
 def test_enum_properties_are_the_settings_tables(registered):
@@ -134,7 +148,7 @@ def test_render_panels_only_with_the_vsgl_engine(registered):
 
 def test_pass_sections_name_real_properties_so_new_ones_slot_in(registered):
     names = [name for _heading, names in ui.PASS_SECTIONS for name in names]
-    assert set(names) == {"rsm_size", "vsgl_count", "k", "kernel", "pdf", "positional_distribution", "seed", "visibility",
+    assert set(names) == {"quality_mode", "time_budget_ms", "rsm_size", "vsgl_count", "k", "kernel", "pdf", "positional_distribution", "seed", "visibility",
                           "ism_size", "ism_points", "glossy_reflectors", "disk_radius", "caustic_roughness",
                           "reflector_mode", "caustics", "delta_log10", "vpl_interleave", "vpl_filter_radius",
                           "vpl_samples", "vpl_visibility"}

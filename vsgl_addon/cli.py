@@ -13,7 +13,8 @@ import tomllib
 from pathlib import Path
 
 from .gpu_context import GPUContextError
-from .settings import DELTA_RANGE, INTERLEAVE_CHOICES, KERNELS, PDFS, POSITIONS, REFLECTOR_MODES
+from .settings import (DELTA_RANGE, INTERLEAVE_CHOICES, KERNELS, PDFS, POSITIONS, QUALITY_MODES, REFLECTOR_MODES,
+                       TIME_BUDGET_RANGE)
 
 MANIFEST = Path(__file__).resolve().parent.parent / "blender_manifest.toml"
 
@@ -48,7 +49,7 @@ def _command_demo(arguments) -> int:
                                    ism_size=None, ism_points=None, frame=None, glossy_reflectors=None,
                                    disk_radius=None, caustic_roughness=None, reflector_mode=None, caustics=None,
                                    delta=None, vpl_interleave=None, vpl_filter_radius=None, vpl_samples=None,
-                                   vpl_visibility=None, pdf=None)
+                                   vpl_visibility=None, pdf=None, time_budget=None)
     print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
     return _command_render(arguments)
 
@@ -97,7 +98,9 @@ def _settings(scene, arguments):
             vpl_samples=getattr(arguments, "vpl_samples", None),
             vpl_visibility=(None if getattr(arguments, "vpl_visibility", None) is None
                             else arguments.vpl_visibility == "on"),
-            pdf=getattr(arguments, "pdf", None))
+            pdf=getattr(arguments, "pdf", None),
+            quality_mode=None if getattr(arguments, "time_budget", None) is None else "budget",
+            time_budget_ms=getattr(arguments, "time_budget", None))
     except SettingsError as error:
         raise UsageError(str(error)) from None
 
@@ -126,9 +129,12 @@ def _command_vsgl(arguments) -> int:
     try:
         scene = _open_blend(Path(arguments.scene))
         settings = _settings(scene, arguments)
-        ensure_gpu_context()
+        gpu_renderer = ensure_gpu_context()
         started = time.perf_counter()
         description = extract_scene(bpy.context.evaluated_depsgraph_get())
+        budget_line = None
+        if settings.quality_mode == "budget":
+            settings, budget_line = _budget_settings(scene, description, settings, gpu_renderer)
         table = generate_scene_vsgls(description, settings)
         if needs_glossy_vpls(description, settings):
             table.update(_glossy_vpls(description, settings))
@@ -143,7 +149,39 @@ def _command_vsgl(arguments) -> int:
           f"RSM {settings.rsm_size}², seed {settings.seed}, {settings.positional_distribution} positions)"
           + (f", {len(table['vpl_roughness'])} glossy VPLs (delta {settings.delta:g})" if "vpl_roughness" in table
              else "") + f" in {seconds:.2f} s")
+    if budget_line:
+        print(budget_line)
     return 0
+
+
+def _budget_settings(scene, description, settings, gpu_renderer):
+    """The settings Budget mode gives a frame of the scene at its output size (budget.py, this GPU's
+    cost model, calibrated first when the user's cache has none), and its one-line summary."""
+    from .budget import choose, save_model
+    from .budget_render import model_for, scene_key
+    from .views import render_size
+    from .planner import plan_frame
+    from .renderer import FrameRenderer
+
+    if description.camera is None:
+        raise UsageError("--time-budget needs the scene's camera (the frame the budget is for)")
+    width, height = render_size(scene.render)
+    renderer = FrameRenderer()
+    try:
+        model = model_for(renderer, description, settings, width, height, gpu_renderer,
+                          log=lambda line: print(line, file=sys.stderr))
+    finally:
+        renderer.free()
+    if model.warning:
+        print(model.warning, file=sys.stderr)
+    else:
+        save_model(gpu_renderer, model)
+    camera = description.camera
+    plan = plan_frame(description, settings, None, camera.projection_matrix() @ camera.view_matrix())
+    choice = choose(plan, settings, width, height, settings.time_budget_ms, model,
+                    int(description.geometry.triangle_count), model.vpl_fraction(scene_key(description)),
+                    scene_key(description))
+    return choice.settings, choice.line()
 
 
 def _glossy_vpls(description, settings) -> dict:
@@ -233,6 +271,8 @@ def _command_render(arguments) -> int:
         scene.vsgl.delta_log10 = math.log10(settings.delta)
         scene.vsgl.vpl_interleave = INTERLEAVE_CHOICES.named(settings.vpl_interleave).identifier
         scene.vsgl.pdf = PDFS.named(settings.pdf).identifier
+        scene.vsgl.quality_mode = QUALITY_MODES.named(settings.quality_mode).identifier
+        scene.vsgl.time_budget_ms = settings.time_budget_ms
         scene.render.engine = ENGINE_ID
         if arguments.resolution:
             scene.render.resolution_x, scene.render.resolution_y = arguments.resolution
@@ -265,6 +305,10 @@ def _command_render(arguments) -> int:
           f"{statistics['counts'].get('lights', 0)} lights ({settings_line}): {seconds:.2f} s in all")
     for name, value in statistics["timings"].items():
         print(f"  {name:>24}: {value * 1000:9.1f} ms")
+    budget = (statistics.get("plan") or {}).get("budget")
+    if budget:
+        print(f"time budget: target {budget['target_ms']:.0f} ms, predicted {budget['predicted_ms']:.0f} ms, "
+              f"measured {budget['measured_ms']:.0f} ms (the passes' sum; cost model: {budget['cost_model']})")
     if statistics.get("plan"):
         print("frame plan:")
         for line in statistics["plan"]["summary"]:
@@ -308,6 +352,14 @@ def _caustics_flags(parser) -> None:
                         help="shadow the VPLs' light with one imperfect shadow map per VPL cluster (off by default)")
 
 
+def _budget_flag(parser) -> None:
+    parser.add_argument("--time-budget", type=_float, metavar="MS",
+                        help=f"Budget mode: a target frame time in ms ({TIME_BUDGET_RANGE[0]:g} to "
+                             f"{TIME_BUDGET_RANGE[1]:g}); N, RSM size, delta, VPL interleave and resolution come from "
+                             "this machine's cost model (calibrated at first use, kept in the user's cache), "
+                             "overriding those flags")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="python -m vsgl_addon", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -337,6 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
     vsgl.add_argument("--ism-size", type=_positive_int, metavar="S", help="imperfect shadow map side, a power of two")
     vsgl.add_argument("--ism-points", type=_positive_int, metavar="P", help="scene points per shadow map")
     _caustics_flags(vsgl)
+    _budget_flag(vsgl)
     vsgl.set_defaults(run=_command_vsgl)
 
     render = commands.add_parser(
@@ -370,6 +423,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--pdf", choices=PDFS.names,
                         help="VSGL generation's PDF: light (the bounce power, default) or view (000 §5: also what "
                              "the camera sees of it)")
+    _budget_flag(render)
     render.add_argument("--frame", type=int, metavar="F")
     render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")
     render.set_defaults(run=_command_render)

@@ -143,7 +143,10 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         self.update_stats("VSGL", "Rendering one-bounce indirect light")
         renderer = FrameRenderer()
         try:
-            images = renderer.render(description, settings, width, height)
+            if settings.quality_mode == "budget":
+                images = self._render_budgeted(renderer, description, settings, width, height)
+            else:
+                images = renderer.render(description, settings, width, height)
         finally:
             renderer.free()
         for name in RENDER_PASSES:
@@ -161,6 +164,24 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
             counts=dict(images.counts), settings=settings.__dict__.copy(),
             resolution=[width, height], warnings=list(description.warnings), proxies=list(images.proxies),
             plan=images.plan.to_dict() if images.plan is not None else {})
+
+
+    def _render_budgeted(self, renderer, description, settings, width, height):
+        """Budget mode (budget.py): this GPU's cost model (calibrated on this scene when the user's
+        cache has none), the frame at the chosen settings, the model refitted with it and saved."""
+        import gpu
+
+        from .budget import save_model
+        from .budget_render import model_for, render_budgeted
+
+        key = gpu.platform.renderer_get()
+        model = model_for(renderer, description, settings, width, height, key,
+                          log=lambda line: self.report({"INFO"}, line))
+        if model.warning:
+            self.report({"WARNING"}, model.warning)
+        images, _, model = render_budgeted(renderer, description, settings, width, height, model)
+        save_model(key, model)
+        return images
 
 
 def _rows(image: np.ndarray) -> np.ndarray:

@@ -109,6 +109,9 @@ class FramePlan:
     # set -> fraction of that set's RSM bounce power that got no VSGL (NEGLIGIBLE_BOUNCE at most,
     # more only where N is smaller than the lights with bounce power)
     dropped_bounce: dict = field(default_factory=dict)
+    # Budget mode (budget.BudgetChoice): the settings the target frame time gave, predicted and
+    # measured time; None in Manual mode.
+    budget: object = None
 
     def runs(self, name: str) -> bool:
         return self.decisions[name].run
@@ -151,7 +154,8 @@ class FramePlan:
         """One line per decision, then one per light: what the frame ran and why."""
         lines = [f"{DECISIONS[name]}: {'on' if decision.run else 'off'} — {decision.reason}"
                  for name, decision in self.decisions.items()]
-        return lines + [self.light_line(light) for light in self.lights]
+        lines += [self.light_line(light) for light in self.lights]
+        return lines if self.budget is None else [self.budget.line(), *lines]
 
     def light_line(self, light: LightPlan) -> str:
         if not light.gets_rsm:
@@ -183,6 +187,7 @@ class FramePlan:
             "proxies": [{"object": int(proxy.object_index), "area": float(proxy.area),
                          "alpha": float(proxy.alpha), "lit_by": [int(i) for i in np.flatnonzero(mask)]}
                         for proxy, mask in self.proxies],
+            "budget": None if self.budget is None else self.budget.to_dict(),
             "summary": self.summary_lines(),
         }
 

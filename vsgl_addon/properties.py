@@ -15,8 +15,8 @@ from bpy.types import PropertyGroup
 from . import overlay
 from .settings import (CAUSTIC_ROUGHNESS_RANGE, DELTA_RANGE, DISK_RADIUS_RANGE, INTERLEAVE_CHOICES, ISM_POINTS_RANGE,
                        ISM_SIZE_RANGE, K_RANGE, KERNELS, OVERLAY_DISPLAYS, PDFS, POSITIONS, PROXY_OVERRIDES,
-                       REFLECTOR_MODES, RSM_SIZE_RANGE, VIEWPORT_PASSES, VPL_FILTER_RADIUS_RANGE, VPL_SAMPLES_RANGE,
-                       VSGL_COUNT_RANGE)
+                       QUALITY_MODES, REFLECTOR_MODES, RSM_SIZE_RANGE, TIME_BUDGET_RANGE, VIEWPORT_PASSES,
+                       VPL_FILTER_RADIUS_RANGE, VPL_SAMPLES_RANGE, VSGL_COUNT_RANGE)
 
 
 def enum_items(choices) -> tuple[tuple[str, str, str, int], ...]:
@@ -41,6 +41,27 @@ def _proxy_outlines_changed(settings, context):
 class VSGLSceneSettings(PropertyGroup):
     """VSGL render parameters of a scene (``scene.vsgl``)."""
 
+    quality_mode: EnumProperty(
+        name="Quality",
+        description="Set the frame's quality by hand, or ask for a frame time and let a cost model of this "
+                    "machine choose VSGL count, RSM resolution, delta, VPL interleave and resolution",
+        items=enum_items(QUALITY_MODES),
+        default="MANUAL",
+    )
+    time_budget_ms: FloatProperty(
+        name="Target Frame Time",
+        description=(
+            "Budget mode: the frame time to aim for, in milliseconds (the sum of the passes' times). A "
+            "smaller target gives fewer VSGLs, smaller RSMs, a larger delta and interleave and, last, a "
+            "lower resolution (upscaled); the first budgeted render calibrates the cost model (a few "
+            "frames). The statistics show the predicted and the measured time"
+        ),
+        default=100.0,
+        min=TIME_BUDGET_RANGE[0],
+        max=TIME_BUDGET_RANGE[1],
+        soft_max=10000.0,
+        precision=0,
+    )
     vsgl_count: IntProperty(
         name="VSGL Count",
         description=(

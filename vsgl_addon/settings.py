@@ -197,6 +197,17 @@ INTERLEAVE_CHOICES = Choices(
            "fastest, needs the filter"),
 )
 
+#: How the frame's quality is set: by hand, or from a target frame time (vsgl_addon/budget.py).
+QUALITY_MODES = Choices(
+    Choice("manual", "MANUAL", "Manual",
+           "The settings below as they are: the frame takes what they cost"),
+    Choice("budget", "BUDGET", "Budget",
+           "A target frame time: VSGL count, RSM resolution, delta, VPL interleave and the resolution are "
+           "chosen from a cost model of this machine (calibrated at first use, a few frames; kept in the "
+           "user's cache), the rest as set below. The statistics show the predicted and measured time",
+           ignores=("vsgl_count", "rsm_size", "delta_log10", "vpl_interleave")),
+)
+
 KERNEL_MODES = KERNELS.names
 POSITIONAL_DISTRIBUTIONS = POSITIONS.names
 
@@ -216,6 +227,8 @@ CAUSTIC_ROUGHNESS_RANGE = (0.0, 1.0)
 DELTA_RANGE = (1e-6, 1e-1)
 VPL_FILTER_RADIUS_RANGE = (0, 16)
 VPL_SAMPLES_RANGE = (1, 256)
+# Budget mode's target frame time in milliseconds.
+TIME_BUDGET_RANGE = (1.0, 600000.0)
 #: Pixels per interleaved sub-image the automatic factor keeps (004 §6: N = 8 at 1920 x 1080).
 INTERLEAVE_SUBIMAGE_PIXELS = 1920 * 1080 // 64
 
@@ -292,6 +305,9 @@ class VSGLSettings:
     vpl_visibility: bool = False
     # VSGL generation's PDF (PDFS): the light's (000 §4) or the view-dependent one (000 §5).
     pdf: str = "light"
+    # Quality mode (QUALITY_MODES) and Budget mode's target frame time in ms (vsgl_addon/budget.py).
+    quality_mode: str = "manual"
+    time_budget_ms: float = 100.0
 
     def __post_init__(self):
         _check_range("VSGL count", self.vsgl_count, *VSGL_COUNT_RANGE)
@@ -329,6 +345,12 @@ class VSGLSettings:
                                 f"got {self.vpl_interleave!r}")
         _check_range("VPL filter radius", self.vpl_filter_radius, *VPL_FILTER_RADIUS_RANGE)
         _check_range("VPL samples", self.vpl_samples, *VPL_SAMPLES_RANGE)
+        if self.quality_mode not in QUALITY_MODES.names:
+            raise SettingsError(f"quality mode must be one of {', '.join(QUALITY_MODES.names)}, "
+                                f"got {self.quality_mode!r}")
+        if not math.isfinite(self.time_budget_ms):
+            raise SettingsError(f"time budget must be a finite number, got {self.time_budget_ms}")
+        _check_range("time budget (ms)", self.time_budget_ms, *TIME_BUDGET_RANGE)
 
     @classmethod
     def from_properties(cls, properties) -> "VSGLSettings":
@@ -353,7 +375,9 @@ class VSGLSettings:
                    vpl_filter_radius=int(getattr(properties, "vpl_filter_radius", 8)),
                    vpl_samples=int(getattr(properties, "vpl_samples", 1)),
                    vpl_visibility=bool(getattr(properties, "vpl_visibility", False)),
-                   pdf=PDFS.identified(getattr(properties, "pdf", "LIGHT")).name)
+                   pdf=PDFS.identified(getattr(properties, "pdf", "LIGHT")).name,
+                   quality_mode=QUALITY_MODES.identified(getattr(properties, "quality_mode", "MANUAL")).name,
+                   time_budget_ms=float(getattr(properties, "time_budget_ms", 100.0)))
 
     def overridden(self, **values) -> "VSGLSettings":
         """A copy with the given values (None means keep), validated."""

@@ -19,10 +19,11 @@ import bpy
 
 from . import engine, overlay, passes
 from .proxies import describe_proxies, describe_row
-from .settings import KERNELS
+from .settings import KERNELS, QUALITY_MODES
 
 #: (heading, scene.vsgl property names), in pipeline order. Append an entry for a new pass's controls.
 PASS_SECTIONS = (
+    ("Quality", ("quality_mode", "time_budget_ms")),
     ("Reflective Shadow Maps", ("rsm_size",)),
     ("VSGL Generation", ("kernel", "vsgl_count", "k", "pdf", "positional_distribution", "seed")),
     ("VSGL Visibility", ("visibility", "ism_size", "ism_points")),
@@ -71,6 +72,10 @@ def draw_pass_settings(layout, settings) -> None:
             row.prop(settings, name)
             if name in KERNELS.identified(settings.kernel).ignores:
                 row.enabled = False  # e.g. the two-VSGL mode has no N, K or lobe positions (003)
+            # Budget mode chooses N, the RSM side, δ and the interleave; Manual has no target.
+            if name in QUALITY_MODES.identified(settings.quality_mode).ignores or (
+                    name == "time_budget_ms" and settings.quality_mode != "BUDGET"):
+                row.enabled = False
 
 
 def draw_overlay_settings(layout, settings) -> None:

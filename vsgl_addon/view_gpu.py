@@ -227,6 +227,14 @@ class GPUViewBackend:
 
         return FrameRenderer()
 
+    def cost_model(self):
+        """This GPU's cost model from the user's cache (budget.py; the built-in one without a cache)."""
+        import gpu
+
+        from .budget import load_model
+
+        return load_model(gpu.platform.renderer_get())
+
     def scene_lights(self, description, settings):
         from .renderer import SceneLights
 

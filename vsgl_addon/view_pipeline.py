@@ -111,6 +111,10 @@ class ViewPipeline:
         # The coarse image's resolution as a fraction of the asked scale: lowered when a coarse image
         # took longer than the step budget, raised again when it took well under (never above 1).
         self.coarse_factor = 1.0
+        # The backend's cost model (budget.CostModel; None: the backend has none): in Budget mode it
+        # sets the first coarse factor of each new light passes' settings, measured times take over.
+        self.cost_model = None
+        self._model_settings = None  # the settings the coarse factor was last predicted for
         self.has_image = False
         self.step_args = None  # set by the glue: (settings, scale, samples) of the timer's steps
         self.steps = 0
@@ -221,6 +225,7 @@ class ViewPipeline:
     def _render_coarse(self, scale: float) -> dict:
         request = self.request
         full = request.region_size
+        predicted = self._predict_coarse_factor(full, scale)
         width, height = view_size(full, scale * self.coarse_factor)
         started = self.clock()
         target = self._ensure_target("target", full)
@@ -260,8 +265,37 @@ class ViewPipeline:
         if self.samples:
             self._seeds_used.add(self.lights_seed)
         self.has_image = True
-        return {"level": COARSE, "size": (width, height), "view_seconds": seconds, "counts": counts,
-                "coarse_scale": scale * self.coarse_factor if (width, height) != tuple(full) else 1.0}
+        entry = {"level": COARSE, "size": (width, height), "view_seconds": seconds, "counts": counts,
+                 "coarse_scale": scale * self.coarse_factor if (width, height) != tuple(full) else 1.0}
+        if predicted is not None:
+            entry["predicted_view_seconds"] = predicted
+        return entry
+
+    def _predict_coarse_factor(self, full, scale: float) -> float | None:
+        """In Budget mode, with the backend's cost model (budget.py, the time budget's): the coarse
+        factor whose view render it predicts within the step budget, once per new settings of the
+        light passes (not per seed, view or edit: there the measured times adjust it). Returns the
+        predicted seconds. Manual mode starts at the asked scale, as before (at scale 1 the first
+        image is then a full-resolution sample)."""
+        plan = getattr(self.lights, "plan", None)
+        settings = self.lights_settings
+        if plan is None or settings.quality_mode != "budget" or settings == self._model_settings:
+            return None
+        if self.cost_model is None:
+            load = getattr(self.backend, "cost_model", None)
+            if load is None:
+                return None
+            self.cost_model = load()
+            if self.cost_model.warning:
+                self.warnings = (*self.warnings, self.cost_model.warning)
+        from .budget import coarse_factor
+
+        self._model_settings = settings
+        scene = getattr(self.lights, "scene", None)
+        triangles = int(scene.geometry.triangle_count) if scene is not None else 0
+        self.coarse_factor, predicted = coarse_factor(plan, settings, full, scale, self.step_budget,
+                                                      self.cost_model, triangles)
+        return predicted
 
     def _refine(self, describe_scene, settings: VSGLSettings, started: float, max_samples: int) -> dict:
         entry: dict = {"level": SAMPLE}
