@@ -243,7 +243,7 @@ class ViewPipeline:
             finally:
                 if own_guide:
                     guide.free()
-            counts = dict(view.counts)
+            counts = view.counts  # lazy: the VPL count is read back only when the statistics are shown
         finally:
             view.free()
         self.backend.finish(target)
