@@ -114,14 +114,15 @@ class SceneLights:
 
     @classmethod
     def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
-              view=None) -> "SceneLights":
+              view=None, point_cache=None) -> "SceneLights":
         """``view``: (view matrix, projection matrix) of the one view the frame is seen from, when
         known, so the plan can skip the work no receiver in it needs and weigh the RSM texels by it
-        (the view PDF); None: any view (the viewport)."""
+        (the view PDF); None: any view (the viewport). ``point_cache``: a passes.scene_gpu
+        PointTextureCache that keeps the ISMs' point sets on the GPU across builds (the viewport's)."""
         view_projection = None if view is None else np.asarray(view[1]) @ np.asarray(view[0])
         plan = plan_frame(scene, settings, proxy_cache, view_projection)
         clock = time.perf_counter()
-        scene_gpu = SceneGPU(scene)
+        scene_gpu = SceneGPU(scene, point_cache)
         timings = {UPLOAD.name: time.perf_counter() - clock}
         proxies = plan.proxies
         caustics = plan.runs("vpl_pass")
