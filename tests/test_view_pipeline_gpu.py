@@ -149,6 +149,15 @@ def test_a_light_change_reads_back_only_the_views_totals_and_uploads_no_point_se
         assert RoundTrips.read_back_bytes - read_bytes == reads * 16 * len(VSGL_TABLE.slots)
         # Without the kept point sets: 8 MB per build.
         assert RoundTrips.upload_bytes - upload_bytes < 2 * 1024 * 1024
+        # Asked for, the VPL count of the light passes shown is read then (4 bytes).
+        vpls = pipeline.lights.vpls
+        if vpls is not None:
+            from vsgl_addon.renderer import ViewCounts
+
+            read_bytes = RoundTrips.read_back_bytes
+            counts = ViewCounts({}, {"vpls": lambda: vpls.count})
+            assert counts["vpls"] == counts["vpls"] >= 0
+            assert RoundTrips.read_back_bytes - read_bytes == 4
     finally:
         pipeline.free()
         light.location = location
