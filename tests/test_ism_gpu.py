@@ -94,7 +94,7 @@ def test_extremes_one_texel_maps_one_point_and_a_map_no_point_reaches(size, per_
 
 
 def test_the_pass_declares_its_contract():
-    assert set(ism_pass.PASS.shaders) == {"splat", "close", "pull", "push", "push_final"}
+    assert set(ism_pass.PASS.shaders) == {"origins", "splat", "close", "pull", "push", "push_final"}
     ism_pass.PASS.compile_shaders()
     ism_pass.PASS.free_shaders()
     with pytest.raises(ValueError):
@@ -178,3 +178,75 @@ def test_glsl_bilinear_and_nearest_lookups_match_the_reference():
                         libraries=["lib/ism.glsl"], images={"ism_atlas": atlas})
     expected = ism.ism_pcf(depth, origin, receivers, 0, normals=normals)
     assert np.mean(got == expected) > 0.99
+
+
+def _vsgl_table(count, seed=5):
+    """A VSGL dict with each lobe at its own position; variances from 0 (and a negative one, clamped)
+    to a wide spread, axes of every direction."""
+    rng = np.random.default_rng(seed)
+    table = {}
+    for lobe in ("diffuse", "specular"):
+        table[f"{lobe}_mean"] = rng.uniform(-5.0, 5.0, (count, 3))
+        table[f"{lobe}_variance"] = np.exp(rng.uniform(np.log(1e-8), np.log(4.0), count))
+        table[f"{lobe}_axis"] = _unit(rng.normal(size=(count, 3)))
+        table[f"{lobe}_amplitude"] = np.ones((count, 3))
+        table[f"{lobe}_sharpness"] = np.ones(count)
+    table["diffuse_variance"][0] = 0.0
+    if count > 1:
+        table["specular_variance"][1] = -1e-3
+    return table
+
+
+@pytest.mark.parametrize("count,maps_per_vsgl,first_map,point_sets,sigmas",
+                         [(1, 1, 0, 1, 0.0), (37, 1, 5, 8, 1.0), (37, 2, 61, 64, 2.5), (300, 2, 0, 64, 1e-6)])
+def test_glsl_vsgl_map_origins_match_the_reference(count, maps_per_vsgl, first_map, point_sets, sigmas):
+    from vsgl_addon.passes.gpu_util import read_texture
+    from vsgl_addon.passes.vsgl_shading import upload_vsgl_table
+
+    vsgls = _vsgl_table(count)
+    table = upload_vsgl_table(vsgls)
+    origins = ism_pass.vsgl_map_origins(table.texture, count, maps_per_vsgl, first_map, point_sets, sigmas)
+    assert origins.count == count * maps_per_vsgl
+    got = read_texture(origins.texture, origins.count, 2).astype(np.float64)
+    # The reference reads the float32 table the texture holds.
+    stored = {name: np.asarray(value, np.float32) for name, value in vsgls.items()}
+    want_origins, want_sets, want_distance = ism.vsgl_map_origins(stored, maps_per_vsgl, first_map, point_sets, sigmas)
+    assert np.all(np.isfinite(got))
+    np.testing.assert_allclose(got[0, :, :3], want_origins, rtol=1e-6, atol=1e-6)
+    np.testing.assert_array_equal(got[0, :, 3], want_sets)
+    np.testing.assert_allclose(got[1, :, 0], want_distance, rtol=1e-6, atol=1e-12)
+
+
+def test_vsgl_map_origins_refuse_other_map_counts():
+    with pytest.raises(ValueError):
+        ism.vsgl_map_origins(_vsgl_table(2), 3, 0, 8, 1.0)
+    with pytest.raises(ValueError):
+        ism_pass.vsgl_map_origins(None, 2, 3, 0, 8, 1.0)
+
+
+@pytest.mark.parametrize("maps_per_vsgl", [1, 2])
+def test_maps_of_a_table_texture_equal_those_of_the_same_origins_from_numpy(maps_per_vsgl):
+    """The splat's table made on the GPU gives the atlas the numpy origins give, reading nothing back."""
+    from vsgl_addon.passes.gpu_util import RoundTrips
+    from vsgl_addon.passes.vsgl_shading import upload_vsgl_table
+
+    geometry = _geometry(_quad(-2, -2, 2, 2) + _quad(-1, -1, 1, 1, z=1.0))
+    points = sp.scene_point_sets(geometry, 2048, 8, seed=2)
+    vsgls = _vsgl_table(12, seed=7)
+    for lobe in ("diffuse", "specular"):
+        vsgls[f"{lobe}_mean"][:, 2] = np.abs(vsgls[f"{lobe}_mean"][:, 2]) * 0.1 + 0.3
+        vsgls[f"{lobe}_variance"] = np.minimum(np.maximum(vsgls[f"{lobe}_variance"], 0.0), 0.05)
+    stored = {name: np.asarray(value, np.float32) for name, value in vsgls.items()}
+    origins, sets, distance = ism.vsgl_map_origins(stored, maps_per_vsgl, 3, 8, 1.0)
+    table = upload_vsgl_table(vsgls)
+    read_backs = RoundTrips.read_backs
+    on_gpu = ism_pass.PASS.run(points, ism_pass.vsgl_map_origins(table.texture, 12, maps_per_vsgl, 3, 8, 1.0),
+                               None, 16, point_area=0.01)
+    assert RoundTrips.read_backs == read_backs
+    from_numpy = ism_pass.PASS.run(points, origins, sets, 16, min_distance=distance, point_area=0.01)
+    a, b = on_gpu.read(), from_numpy.read()
+    assert on_gpu.count == from_numpy.count == 12 * maps_per_vsgl
+    # Float32 origins one rounding apart: a point at a texel's edge may land beside it.
+    finite = np.isfinite(a) & np.isfinite(b)
+    assert np.array_equal(np.isfinite(a), np.isfinite(b))
+    assert np.mean(np.abs(a[finite] - b[finite]) <= 1e-4 * np.maximum(b[finite], 1.0)) > 0.999

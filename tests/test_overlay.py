@@ -361,3 +361,37 @@ def test_renderer_takes_a_view_and_projection_and_reuses_scene_lights(demo):
         assert lights.scene_gpu is None and lights.vsgls is None
     finally:
         renderer.free()
+
+
+def test_a_light_change_keeps_the_point_sets_and_reads_back_no_vsgl_table(demo):
+    """Two viewports, a light moved: the shared light passes' builds read back only the planner's
+    one-column view tables (160 bytes each; no VSGL table, no VPL count), upload no shadow-map point
+    set (kept by the set's backend across builds of the same triangles), and closing the viewports
+    drops the kept sets."""
+    from vsgl_addon.layouts import VSGL_TABLE
+
+    light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
+    location = light.location.copy()
+    views = one_band_set()
+    try:
+        view, projection = camera_view(demo)
+        for key in (1, 2):
+            views.request_view(key, view, projection, REGION)
+        run_until_idle(views)
+        kept = views.gpu_resource_count()
+        light.location.x += 0.1
+        bpy.context.view_layer.update()
+        views.mark_scene_dirty()
+        read_backs, read_bytes, upload_bytes = RoundTrips.read_backs, RoundTrips.read_back_bytes, RoundTrips.upload_bytes
+        steps = run_until_idle(views)
+        assert [work for work, _ in steps].count(LIGHTS) >= 1
+        reads = RoundTrips.read_backs - read_backs
+        assert reads > 0 and RoundTrips.read_back_bytes - read_bytes == reads * 16 * len(VSGL_TABLE.slots)
+        assert RoundTrips.upload_bytes - upload_bytes < 2 * 1024 * 1024  # a seed's point sets: 8 MB
+        assert views.gpu_resource_count() == kept
+        views.retain(())
+        assert views.gpu_resource_count() == 0
+    finally:
+        views.free()
+        light.location = location
+        bpy.context.view_layer.update()

@@ -213,3 +213,28 @@ def test_close_gaps_closes_holes_in_a_near_occluder_and_keeps_its_outline():
     smooth = 2.0 + ism.texel_directions(size)[..., 2]
     np.testing.assert_array_equal(ism.close_gaps(smooth), smooth)
     assert np.all(ism.close_gaps(np.full((1, 1), ism.EMPTY)) == ism.EMPTY)
+
+
+@pytest.mark.parametrize("maps_per_vsgl", [1, 2])
+def test_vsgl_map_origins_follow_each_lobe_map_by_map(maps_per_vsgl):
+    """Map by map (a loop): lobe m mod maps-per-VSGL of VSGL m div maps-per-VSGL, its mean moved
+    half a σ_v along its axis, set (first + m) mod sets, minimum distance sigmas·σ_v (0 for variance
+    0 or below)."""
+    rng = np.random.default_rng(4)
+    count = 9
+    vsgls = {}
+    for lobe in ("diffuse", "specular"):
+        vsgls[f"{lobe}_mean"] = rng.normal(size=(count, 3))
+        vsgls[f"{lobe}_variance"] = rng.uniform(-0.1, 1e3, count)
+        axis = rng.normal(size=(count, 3))
+        vsgls[f"{lobe}_axis"] = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+    origins, sets, distance = ism.vsgl_map_origins(vsgls, maps_per_vsgl, 60, 64, 1.5)
+    assert len(origins) == len(sets) == len(distance) == count * maps_per_vsgl
+    for m in range(count * maps_per_vsgl):
+        lobe = "specular" if maps_per_vsgl == 2 and m % 2 else "diffuse"
+        i = m // maps_per_vsgl
+        sigma = np.sqrt(max(vsgls[f"{lobe}_variance"][i], 0.0))
+        np.testing.assert_allclose(origins[m], vsgls[f"{lobe}_mean"][i] + 0.5 * sigma * vsgls[f"{lobe}_axis"][i],
+                                   rtol=1e-14, atol=1e-14)
+        assert sets[m] == (60 + m) % 64
+        assert distance[m] == pytest.approx(1.5 * sigma, rel=1e-14, abs=0.0)

@@ -117,6 +117,53 @@ def test_view_updates_make_no_cpu_round_trip(demo):
         pipeline.free()
 
 
+def test_a_light_change_reads_back_only_the_views_totals_and_uploads_no_point_set(demo):
+    """A light moved: each light build (one per sample's seed) reads back only the one-column tables
+    from which the planner shares the VSGLs among the RSM views (160 bytes each), no VSGL table (the
+    shadow maps' origins are made on the GPU) and no VPL count (read when the statistics are shown);
+    the shadow maps' point sets stay on the GPU across builds of the same triangles (8 MB a seed)."""
+    from vsgl_addon.layouts import VSGL_TABLE
+
+    light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
+    location = light.location.copy()
+
+    def describe():
+        return extract_scene(bpy.context.evaluated_depsgraph_get())
+
+    pipeline = ViewPipeline()
+    try:
+        pipeline.request_view(demo.camera.view_matrix(), demo.camera.projection_matrix(), REGION)
+        _run(pipeline, describe, 0.25, 2)
+        light.location.x += 0.1
+        bpy.context.view_layer.update()
+        pipeline.mark_scene_dirty()
+        read_backs, read_bytes, upload_bytes = RoundTrips.read_backs, RoundTrips.read_back_bytes, RoundTrips.upload_bytes
+        steps = pipeline.steps
+        _run(pipeline, describe, 0.25, 2)
+        entries = list(pipeline.history)[-(pipeline.steps - steps):]
+        builds = sum(1 for entry in entries if entry.get("work") == "lights" or "light_seconds" in entry)
+        assert builds == 2
+        reads = RoundTrips.read_backs - read_backs
+        views = next(entry["counts"] for entry in reversed(entries) if "counts" in entry)["rsm_views"]
+        assert 0 < reads <= builds * views * len(pipeline.lights.plan.receiver_sets)
+        assert RoundTrips.read_back_bytes - read_bytes == reads * 16 * len(VSGL_TABLE.slots)
+        # Without the kept point sets: 8 MB per build.
+        assert RoundTrips.upload_bytes - upload_bytes < 2 * 1024 * 1024
+        # Asked for, the VPL count of the light passes shown is read then (4 bytes).
+        vpls = pipeline.lights.vpls
+        if vpls is not None:
+            from vsgl_addon.renderer import ViewCounts
+
+            read_bytes = RoundTrips.read_back_bytes
+            counts = ViewCounts({}, {"vpls": lambda: vpls.count})
+            assert counts["vpls"] == counts["vpls"] >= 0
+            assert RoundTrips.read_back_bytes - read_bytes == 4
+    finally:
+        pipeline.free()
+        light.location = location
+        bpy.context.view_layer.update()
+
+
 def test_coarse_image_keeps_edges_sharper_than_bilinear(demo):
     """Scale 0.25 upsampled by the joint bilateral filter against the full-resolution render, at the
     pixels next to a depth or coverage edge: at most 0.6x the error of bilinear upsampling of the same

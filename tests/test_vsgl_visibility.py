@@ -113,3 +113,45 @@ def test_a_vsgl_inside_a_closed_box_stays_finite():
     frame = sb.render_frame(bpy.context.scene, VSGLSettings(vsgl_count=64, rsm_size=32, visibility=True), 32, 24)
     sb.assert_finite_frame(frame)
     assert frame.indirect.max() > 0.0  # the room's walls still light each other
+
+
+def test_maps_made_from_the_tables_on_the_gpu_give_the_frame_of_origins_made_on_the_cpu(monkeypatch):
+    """pipeline.build_visibility makes each map's origin from the VSGL table texture on the GPU; the
+    frame equals that of origins computed from the tables read back (reference.ism.vsgl_map_origins),
+    and the maps' build reads nothing back."""
+    from vsgl_addon import pipeline, renderer
+    from vsgl_addon.passes import ism as ism_pass
+    from vsgl_addon.passes.gpu_util import RoundTrips
+    from vsgl_addon.reference import ism
+
+    description = _occluded_scene()
+    settings = VSGLSettings(vsgl_count=48, rsm_size=32, ism_points=4096)
+    built = pipeline.build_visibility
+    read_backs = []
+
+    def counted(*args, **kwargs):
+        before = RoundTrips.read_backs
+        result = built(*args, **kwargs)
+        read_backs.append(RoundTrips.read_backs - before)
+        return result
+
+    monkeypatch.setattr(renderer, "build_visibility", counted)
+    on_gpu = sb.render_frame(description, settings, 32, 24)
+    assert read_backs and not any(read_backs)
+
+    def from_read_back_tables(scene_gpu, vsgls, settings, first_map=0, timed=False):
+        points = scene_gpu.scene_points(settings.ism_points, pipeline.POINT_SETS, settings.seed)
+        area = float(pipeline.triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
+        for table in vsgls.table_arrays():
+            origins, sets, distance = ism.vsgl_map_origins(table, pipeline.MAPS_PER_VSGL, first_map,
+                                                           pipeline.POINT_SETS, pipeline.OWN_REFLECTOR_SIGMAS)
+            size = ism_pass.fitting_size(len(origins), settings.ism_size)
+            vsgls.isms.append(ism_pass.PASS.run(points, origins, sets, size, min_distance=distance, point_area=area))
+            first_map += len(origins)
+        return first_map
+
+    monkeypatch.setattr(renderer, "build_visibility", from_read_back_tables)
+    on_cpu = sb.render_frame(description, settings, 32, 24)
+    assert on_gpu.indirect.sum() > 0.0
+    np.testing.assert_allclose(on_gpu.indirect, on_cpu.indirect, rtol=1e-3,
+                               atol=1e-4 * float(np.abs(on_cpu.indirect).max()))

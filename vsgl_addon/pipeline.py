@@ -22,7 +22,6 @@ from .passes.rsm import SceneGPU, render_rsm_views
 from .passes.vsgl_generation import VSGLGeneration, upload_pdf
 from .planner import plan_frame, share_counts, view_power
 from .reference.vsgl import LUMINANCE_WEIGHTS
-from .reference.ism import shadow_origin
 from .scene_points import triangle_areas
 from .settings import VSGLSettings
 
@@ -280,22 +279,15 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
     point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
     # Uploaded once for every table and every VSGL set of the frame.
     textures = scene_gpu.point_textures(settings.ism_points, POINT_SETS, settings.seed) if vsgls.generations else None
-    for table in vsgls.table_arrays():
-        if MAPS_PER_VSGL == 1:
-            origins = shadow_origin(table["diffuse_mean"], table["diffuse_variance"], table["diffuse_axis"]).reshape(-1, 3)
-            sigma = np.sqrt(np.maximum(table["diffuse_variance"], 0.0)).reshape(-1)
-        else:
-            lobes = ("diffuse", "specular")
-            origins = np.stack([shadow_origin(table[f"{lobe}_mean"], table[f"{lobe}_variance"], table[f"{lobe}_axis"])
-                                for lobe in lobes], axis=1).reshape(-1, 3)
-            sigma = np.sqrt(np.maximum(np.stack([table[f"{lobe}_variance"] for lobe in lobes], axis=1),
-                                       0.0)).reshape(-1)
-        maps = np.arange(first_map, first_map + len(origins))
-        size = ism_pass.fitting_size(len(origins), settings.ism_size)
-        vsgls.isms.append(ism_pass.PASS.run(points, origins, maps % POINT_SETS, size,
-                                            min_distance=OWN_REFLECTOR_SIGMAS * sigma, point_area=point_area,
+    for table in vsgls.tables():
+        # Each map's origin, point set and own-reflector distance made from the table texture on
+        # the GPU (passes/ism.py vsgl_map_origins): the tables stay on the GPU.
+        origins = ism_pass.vsgl_map_origins(table.texture, table.count, MAPS_PER_VSGL, first_map, POINT_SETS,
+                                            OWN_REFLECTOR_SIGMAS)
+        size = ism_pass.fitting_size(origins.count, settings.ism_size)
+        vsgls.isms.append(ism_pass.PASS.run(points, origins, None, size, point_area=point_area,
                                             timed=timed, point_textures=textures))
-        first_map += len(origins)
+        first_map += origins.count
     return first_map
 
 

@@ -14,6 +14,7 @@ Every GPU resource a frame makes is released before render() returns, or by free
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -113,14 +114,15 @@ class SceneLights:
 
     @classmethod
     def build(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
-              view=None) -> "SceneLights":
+              view=None, point_cache=None) -> "SceneLights":
         """``view``: (view matrix, projection matrix) of the one view the frame is seen from, when
         known, so the plan can skip the work no receiver in it needs and weigh the RSM texels by it
-        (the view PDF); None: any view (the viewport)."""
+        (the view PDF); None: any view (the viewport). ``point_cache``: a passes.scene_gpu
+        PointTextureCache that keeps the ISMs' point sets on the GPU across builds (the viewport's)."""
         view_projection = None if view is None else np.asarray(view[1]) @ np.asarray(view[0])
         plan = plan_frame(scene, settings, proxy_cache, view_projection)
         clock = time.perf_counter()
-        scene_gpu = SceneGPU(scene)
+        scene_gpu = SceneGPU(scene, point_cache)
         timings = {UPLOAD.name: time.perf_counter() - clock}
         proxies = plan.proxies
         caustics = plan.runs("vpl_pass")
@@ -195,6 +197,35 @@ def scene_proxies(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None 
     return kept_proxies(scene, settings, PROXY_CACHE if proxy_cache is None else proxy_cache, overrides)
 
 
+class ViewCounts(Mapping):
+    """A view's counts (key -> number), where a value given as a function is computed when first
+    read: the number of VPLs the GPU extracted is a read-back (4 bytes), which the viewport makes only
+    when its statistics are shown, F12 and the report when they copy the counts (``dict(counts)``)."""
+
+    def __init__(self, values: dict, deferred: dict | None = None):
+        self._values = dict(values)
+        self._deferred = dict(deferred or {})
+        self._keys = list(self._values) + [key for key in self._deferred if key not in self._values]
+
+    def __getitem__(self, key):
+        if key in self._deferred:
+            self._values[key] = self._deferred.pop(key)()
+        return self._values[key]
+
+    def __iter__(self):
+        return iter(self._keys)
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+
+def _vpl_count(vpls):
+    """The VPL count of ``vpls`` (a passes.vpl_culling.VPLSet), or None once it was freed unread."""
+    if vpls.count_texture is None and vpls._count is None:
+        return None
+    return vpls.count
+
+
 @dataclass
 class ViewTextures:
     """One view's images left on the GPU (RGBA32F, row 0 at the bottom, all of one size): the
@@ -205,7 +236,7 @@ class ViewTextures:
     width: int
     height: int
     textures: dict
-    counts: dict = field(default_factory=dict)
+    counts: Mapping = field(default_factory=dict)  # a ViewCounts: the VPL count is read when asked
     gbuffer: object = None  # the view's GBuffer (the guide of a full-resolution render)
     _owned: list = field(default_factory=list)
 
@@ -326,10 +357,11 @@ class FrameRenderer:
             textures["indirect_caustics"] = caustics
         vsgl_count = sum(table_set.vsgl_count for table_set in (lights.vsgls, lights.glossy_vsgls, lights.whole_vsgls)
                          if table_set is not None)
-        counts = {"lights": len(scene.lights), "rsm_views": sum(len(v) for v in lights.vsgls.views_by_light.values()),
-                  "vsgls": vsgl_count, "triangles": int(len(scene.geometry.positions)),
-                  "vpls": lights.vpls.count if lights.vpls is not None else 0,
-                  "vpls_per_pixel": float(vpls_per_pixel or 0.0), "proxies": len(lights.proxies)}
+        vpls = lights.vpls
+        counts = ViewCounts({"lights": len(scene.lights), "rsm_views": sum(len(v) for v in lights.vsgls.views_by_light.values()),
+                             "vsgls": vsgl_count, "triangles": int(len(scene.geometry.positions)),
+                             "vpls": 0, "vpls_per_pixel": float(vpls_per_pixel or 0.0), "proxies": len(lights.proxies)},
+                            {"vpls": lambda: _vpl_count(vpls)} if vpls is not None else None)
         return ViewTextures(width, height, textures, counts, gbuffer, [direct, gbuffer])
 
     def guide(self, lights: SceneLights, width: int, height: int, view_matrix, projection_matrix):

@@ -96,13 +96,19 @@ _CACHE: dict = {}
 CACHE_ENTRIES = 4
 
 
-def cached_scene_point_sets(geometry, points_per_set: int, set_count: int, seed: int = 0) -> ScenePoints:
-    """:func:`scene_point_sets`, kept for the same triangles (their bytes' hash), counts and seed."""
+def point_sets_key(geometry, points_per_set: int, set_count: int, seed: int = 0) -> tuple:
+    """What identifies a :func:`scene_point_sets` draw: the triangles (their bytes' hash), the
+    counts and the seed."""
     import hashlib
 
     corners = np.ascontiguousarray(np.asarray(geometry.positions, np.float64))
-    key = (hashlib.blake2b(corners.tobytes(), digest_size=16).digest(), corners.shape,
-           int(points_per_set), int(set_count), int(seed))
+    return (hashlib.blake2b(corners.tobytes(), digest_size=16).digest(), corners.shape,
+            int(points_per_set), int(set_count), int(seed))
+
+
+def cached_scene_point_sets(geometry, points_per_set: int, set_count: int, seed: int = 0) -> ScenePoints:
+    """:func:`scene_point_sets`, kept for the same triangles (their bytes' hash), counts and seed."""
+    key = point_sets_key(geometry, points_per_set, set_count, seed)
     points = _CACHE.pop(key, None)
     if points is None:
         points = scene_point_sets(geometry, points_per_set, set_count, seed)

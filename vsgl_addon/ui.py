@@ -114,6 +114,8 @@ def _draw_statistics_block(layout, title: str, statistics: dict) -> None:
     if counts:
         column.separator()
         for key, value in counts.items():
+            if value is None:  # renderer.ViewCounts: a VPL count whose light passes went unread
+                continue
             row = column.split(factor=0.62)
             row.label(text=COUNT_LABELS.get(key, key))
             row.label(text=f"{value:.1f}" if isinstance(value, float) else f"{value}")

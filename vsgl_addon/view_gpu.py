@@ -235,10 +235,25 @@ class GPUViewBackend:
 
         return load_model(gpu.platform.renderer_get())
 
+    #: passes.scene_gpu.PointTextureCache of this backend's builds, made on first use.
+    point_cache = None
+
     def scene_lights(self, description, settings):
+        from .passes.scene_gpu import PointTextureCache
         from .renderer import SceneLights
 
-        return SceneLights.build(description, settings)
+        if self.point_cache is None:
+            self.point_cache = PointTextureCache()
+        return SceneLights.build(description, settings, point_cache=self.point_cache)
+
+    def free(self) -> None:
+        """Drop the point sets kept across builds."""
+        if self.point_cache is not None:
+            self.point_cache.free()
+        self.point_cache = None
+
+    def gpu_resource_count(self) -> int:
+        return len(self.point_cache) if self.point_cache is not None else 0
 
     def render_view(self, renderer, lights, settings, width, height, view_matrix, projection_matrix):
         return renderer.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix)

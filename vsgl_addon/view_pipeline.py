@@ -243,7 +243,7 @@ class ViewPipeline:
             finally:
                 if own_guide:
                     guide.free()
-            counts = dict(view.counts)
+            counts = view.counts  # lazy: the VPL count is read back only when the statistics are shown
         finally:
             view.free()
         self.backend.finish(target)
@@ -394,6 +394,9 @@ class ViewPipeline:
         if self.renderer is not None:
             self.renderer.free()
         self.renderer = None
+        free_backend = getattr(self.backend, "free", None)  # the point sets it keeps across builds
+        if free_backend is not None:
+            free_backend()
         self._accumulated_for = None
         self.samples = 0
         self.has_image = False
@@ -405,8 +408,10 @@ class ViewPipeline:
 
     def gpu_resource_count(self) -> int:
         """GPU objects held (0 after free()): light passes, renderer, accumulation targets."""
+        backend_count = getattr(self.backend, "gpu_resource_count", None)
         return ((self.lights is not None) + (self.renderer is not None)
-                + sum(getattr(self, name) is not None for name in ("target", "sample_target")))
+                + sum(getattr(self, name) is not None for name in ("target", "sample_target"))
+                + (backend_count() if backend_count is not None else 0))
 
 
 def has_work(pipeline) -> bool:
@@ -453,6 +458,12 @@ class _SharedLightsBackend:
 
     def scene_lights(self, description, settings):
         return self._viewports._acquire_lights(self._backend, description, settings)
+
+    def free(self) -> None:
+        """Nothing: the shared backend is the ViewportSet's, freed with it."""
+
+    def gpu_resource_count(self) -> int:
+        return 0  # the shared backend's are counted once, by the ViewportSet
 
 
 class ViewportSet:
@@ -532,6 +543,8 @@ class ViewportSet:
             pipeline.free()
             if self.last is pipeline:
                 self.last = None
+        if not self.pipelines and self._backend is not None and hasattr(self._backend, "free"):
+            self._backend.free()  # the last viewport closed: nothing is kept for the next
 
     def step(self, describe_scene) -> ViewPipeline | None:
         if self.settings_error:
@@ -567,9 +580,13 @@ class ViewportSet:
         for lights, _ in list(self._lights.values()):
             lights.free()  # none is left once every pipeline let go; this is the safety net
         self._lights.clear()
+        if self._backend is not None and hasattr(self._backend, "free"):
+            self._backend.free()
         self._description = None
         self.last = None
 
     def gpu_resource_count(self) -> int:
         """GPU objects held (0 after free()): every pipeline's, and the shared light passes."""
-        return sum(p.gpu_resource_count() for p in self.pipelines.values()) + len(self._lights)
+        backend_count = getattr(self._backend, "gpu_resource_count", None)
+        return (sum(p.gpu_resource_count() for p in self.pipelines.values()) + len(self._lights)
+                + (backend_count() if backend_count is not None else 0))

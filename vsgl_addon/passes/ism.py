@@ -3,7 +3,9 @@
 position; 000 §5, Ritschel et al. 2008), all in one atlas. The twin of
 :mod:`vsgl_addon.reference.ism` (projection, splat, pull-push; why octahedral is said there).
 
-Four compute stages (``glsl/ism/``):
+Four compute stages (``glsl/ism/``), after a fifth that makes the splat's table of a VSGL table
+on the GPU (``ism_origins.comp.glsl``, :func:`vsgl_map_origins`: each map's origin, point set and
+minimum distance from the table texture, so the maps of GPU-made VSGLs read nothing back):
 
 1. ``ism_splat.comp.glsl``: one invocation per (point, map). Map m splats point set
    ``set_index[m]`` of :func:`vsgl_addon.scene_points.scene_point_sets` (an RGBA32F texture, one
@@ -28,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..layouts import VSGL_TABLE
 from ..reference.ism import EMPTY, GAP_MARGIN, GAP_REACH, SPLAT_MAX_RADIUS, SPLAT_SHARE
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
@@ -48,6 +51,16 @@ def _splat_interface() -> ShaderInterface:
         push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_point_area")],
         samplers=[("FLOAT_2D", "scene_points"), ("FLOAT_2D", "scene_point_normals"), ("FLOAT_2D", "ism_origins")],
         images=[("R32UI", "UINT_2D", "ism_atlas")],
+        local_group_size=_GROUP,
+    )
+
+
+def _origins_interface() -> ShaderInterface:
+    return ShaderInterface(
+        # (VSGL count, maps per VSGL, first map, point sets)
+        push_constants=[("IVEC4", "ism_origin_params"), ("FLOAT", "ism_own_reflector_sigmas")],
+        samplers=[("FLOAT_2D", "vsgl_table")],
+        images=[("RGBA32F", "FLOAT_2D", "ism_origins")],
         local_group_size=_GROUP,
     )
 
@@ -145,9 +158,40 @@ def upload_points(points) -> tuple:
             texture_from_array(np.concatenate([points.normals, ones], axis=-1)))
 
 
+@dataclass
+class MapOrigins:
+    """The splat's table on the GPU: an RGBA32F texture of ``count`` columns (row 0: origin xyz,
+    point set; row 1: minimum distance), as :func:`build_ism_atlas` makes from numpy arrays."""
+
+    texture: object
+    count: int
+
+
+def vsgl_map_origins(table_texture, vsgl_count: int, maps_per_vsgl: int, first_map: int, point_sets: int,
+                     own_reflector_sigmas: float) -> MapOrigins:
+    """The splat's table of the maps of a VSGL table texture (layouts.VSGL_TABLE, ``vsgl_count``
+    columns), made on the GPU: the twin of reference.ism.vsgl_map_origins (same arguments)."""
+    import gpu
+
+    if maps_per_vsgl not in (1, 2):
+        raise ValueError(f"maps per VSGL must be 1 or 2, got {maps_per_vsgl}")
+    count = int(vsgl_count) * maps_per_vsgl
+    texture = gpu.types.GPUTexture((max(count, 1), 2), format="RGBA32F")
+    if count:
+        shader = PASS.shader("origins")
+        shader.bind()
+        shader.uniform_int("ism_origin_params", (int(vsgl_count), maps_per_vsgl, int(first_map), int(point_sets)))
+        shader.uniform_float("ism_own_reflector_sigmas", float(own_reflector_sigmas))
+        shader.uniform_sampler("vsgl_table", table_texture)
+        shader.image("ism_origins", texture)
+        gpu.compute.dispatch(shader, _groups(count, _GROUP[0]), 1, 1)
+    return MapOrigins(texture, count)
+
+
 def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
                     timed: bool = False, point_textures=None) -> ISMAtlas:
-    """The ISMs of ``origins`` (M, 3), map m splatting set ``set_index[m]`` of ``points`` (a
+    """The ISMs of ``origins`` (M, 3) (or a :class:`MapOrigins`, which holds the sets and minimum
+    distances too: ``set_index`` and ``min_distance`` are then unused), map m splatting set ``set_index[m]`` of ``points`` (a
     :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two), leaving out the
     points nearer than ``min_distance`` (a scalar, or one per map). ``point_area`` > 0 (the surface
     each point stands for) sizes every splat to the solid angle it covers (reference splat_radius);
@@ -164,18 +208,22 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
     size = int(size)
     if not ISM_SIZE_RANGE[0] <= size <= ISM_SIZE_RANGE[1] or size & (size - 1):
         raise ValueError(f"ISM size must be a power of two in {ISM_SIZE_RANGE}, got {size}")
-    origins = np.asarray(origins, np.float64).reshape(-1, 3)
-    count = len(origins)
+    if isinstance(origins, MapOrigins):
+        count, origin_texture = origins.count, origins.texture
+    else:
+        origins = np.asarray(origins, np.float64).reshape(-1, 3)
+        count, origin_texture = len(origins), None
     if points.points_per_set > MAX_POINTS_PER_SET:
         raise ValueError(f"at most {MAX_POINTS_PER_SET} points per set, got {points.points_per_set}")
     columns, rows = atlas_layout(count, size)
     width, height = columns * size, rows * size
     point_texture, normal_texture = point_textures if point_textures is not None else upload_points(points)
-    table = np.zeros((2, max(count, 1), 4), np.float32)
-    table[0, :count, :3] = origins
-    table[0, :count, 3] = np.asarray(set_index).reshape(-1)[:count]
-    table[1, :count, 0] = np.broadcast_to(np.asarray(min_distance, np.float64), (count,))
-    origin_texture = texture_from_array(table)
+    if origin_texture is None:
+        table = np.zeros((2, max(count, 1), 4), np.float32)
+        table[0, :count, :3] = origins
+        table[0, :count, 3] = np.asarray(set_index).reshape(-1)[:count]
+        table[1, :count, 0] = np.broadcast_to(np.asarray(min_distance, np.float64), (count,))
+        origin_texture = texture_from_array(table)
     atlas = gpu.types.GPUTexture((width, height), format="R32UI")
     atlas.clear(format="UINT", value=(-1,))  # every texel empty: 0xFFFFFFFF
     if count:
@@ -255,7 +303,9 @@ PASS = GPUPass(
     name="ism",
     label="Imperfect Shadow Maps",
     step=Step("ism", "Imperfect Shadow Maps"),
-    shaders={"splat": ShaderSpec(_splat_interface, {"compute": "ism/ism_splat.comp.glsl"},
+    shaders={"origins": ShaderSpec(_origins_interface, {"compute": "ism/ism_origins.comp.glsl"},
+                                   code=lambda: {"compute": VSGL_TABLE.glsl("sampler_load")}),
+             "splat": ShaderSpec(_splat_interface, {"compute": "ism/ism_splat.comp.glsl"},
                                  defines=lambda: {"ISM_SPLAT_MAX_RADIUS": SPLAT_MAX_RADIUS,
                                                   "ISM_SPLAT_SHARE": repr(float(SPLAT_SHARE))}),
              "close": ShaderSpec(_close_interface, {"compute": "ism/ism_close.comp.glsl"},

@@ -46,6 +46,38 @@ def scene_shader_interface(push_constants, samplers, fragment_outputs) -> Shader
     )
 
 
+class PointTextureCache:
+    """passes/ism.py upload_points of the scene's point sets, kept across SceneGPUs of the same
+    triangles, counts and seed (scene_points.point_sets_key): the viewport makes a SceneGPU per
+    light build, two per change at two samples, and a light moved leaves the triangles as they were;
+    the sets are 8 MB at the default 16384 points × 64 sets. The last ENTRIES draws are kept (two
+    seeds of two geometry states); its owner frees it with the viewport."""
+
+    ENTRIES = 4
+
+    def __init__(self):
+        self._textures: dict = {}
+
+    def textures(self, geometry, points_per_set: int, set_count: int, seed: int, upload) -> tuple:
+        """The textures of that draw, made by ``upload()`` when not kept."""
+        from ..scene_points import point_sets_key
+
+        key = point_sets_key(geometry, points_per_set, set_count, seed)
+        textures = self._textures.pop(key, None)
+        if textures is None:
+            textures = upload()
+        self._textures[key] = textures
+        while len(self._textures) > self.ENTRIES:
+            self._textures.pop(next(iter(self._textures)))
+        return textures
+
+    def __len__(self) -> int:
+        return len(self._textures)
+
+    def free(self) -> None:
+        self._textures.clear()  # Blender frees a GPUTexture with its last reference
+
+
 class SceneGPU:
     """The scene's triangles on the GPU, uploaded once and shared by every light and view.
 
@@ -53,10 +85,12 @@ class SceneGPU:
     so each material is one ``draw_range``; base colour images as RGBA32F textures.
     """
 
-    def __init__(self, scene):
+    def __init__(self, scene, point_cache: PointTextureCache | None = None):
+        """``point_cache``: where the point sets' textures outlive this upload (the viewport's)."""
         import gpu
 
         self.scene = scene
+        self._point_cache = point_cache
         geometry = scene.geometry
         count = geometry.triangle_count
         self.triangle_count = count
@@ -140,7 +174,11 @@ class SceneGPU:
 
         key = (int(points_per_set), int(set_count), int(seed))
         if key not in self._point_textures:
-            self._point_textures[key] = upload_points(self.scene_points(*key))
+            if self._point_cache is not None:
+                self._point_textures[key] = self._point_cache.textures(
+                    self.scene.geometry, *key, lambda: upload_points(self.scene_points(*key)))
+            else:
+                self._point_textures[key] = upload_points(self.scene_points(*key))
         return self._point_textures[key]
 
     def has_non_blockers(self, light_index: int) -> bool:

@@ -223,6 +223,26 @@ def shadow_origin(mean, variance, axis):
     return f64(mean) + SHADOW_ORIGIN_SIGMAS * sigma[..., None] * f64(axis)
 
 
+
+def vsgl_map_origins(vsgls, maps_per_vsgl: int, first_map: int, point_sets: int, own_reflector_sigmas: float):
+    """The splat's table of a VSGL table's maps (GPU twin: glsl/ism/ism_origins.comp.glsl): map i
+    (``maps_per_vsgl`` 1) or maps 2i, 2i + 1 (2: the diffuse and the specular lobe) of VSGL i, each
+    centred on its lobe's shadow_origin, splatting point set (first_map + map) mod ``point_sets``
+    (Ritschel et al. 2008 give neighbouring maps different subsets) and leaving out the points within
+    ``own_reflector_sigmas`` σ_v of the origin (the lobe's own reflector, 000 §5). Returns
+    (origins (M, 3), set index (M,), minimum distance (M,)), float64."""
+    if maps_per_vsgl not in (1, 2):
+        raise ValueError(f"maps per VSGL must be 1 or 2, got {maps_per_vsgl}")
+    lobes = ("diffuse",) if maps_per_vsgl == 1 else ("diffuse", "specular")
+    means = np.stack([f64(vsgls[f"{lobe}_mean"]).reshape(-1, 3) for lobe in lobes], axis=1)
+    variances = np.stack([f64(vsgls[f"{lobe}_variance"]).reshape(-1) for lobe in lobes], axis=1)
+    axes = np.stack([f64(vsgls[f"{lobe}_axis"]).reshape(-1, 3) for lobe in lobes], axis=1)
+    origins = shadow_origin(means, variances, axes).reshape(-1, 3)
+    sigma = np.sqrt(np.maximum(variances, 0.0)).reshape(-1)
+    maps = np.arange(first_map, first_map + len(origins))
+    return origins, maps % point_sets, f64(own_reflector_sigmas) * sigma
+
+
 #: Largest tan of the receiver's incidence the slope-scaled bias follows (as lib/shadow.glsl).
 ISM_MAX_SLOPE = 8.0
 
