@@ -206,3 +206,54 @@ def test_vpl_light_is_shadowed():
             lit[occluder, visibility] = float(frame.indirect_caustics.sum())
     assert lit[False, True] > 0.85 * lit[False, False]
     assert lit[True, True] < 0.93 * lit[True, False]
+
+
+@pytest.mark.gpu
+def test_shadowed_pass_equals_the_reference_lookup_of_its_own_maps():
+    """Brute force (δ = 0, every VPL) with visibility: each VPL's light on each pixel weighted by
+    reference.ism.ism_pcf_bilinear of its cluster's map (read back), at its cluster's origin. The
+    panel fills 8 blocks of a 64² RSM: 8 maps, so a map looked up at another map's origin shows."""
+    from vsgl_addon.passes.gbuffer import render_gbuffer
+    from vsgl_addon.passes.gpu_util import read_texture
+    from vsgl_addon.passes.shading_inputs import shading_gbuffer
+    from vsgl_addon.reference import ism as reference_ism
+    from vsgl_addon.reference import vpl_culling as reference
+
+    description = _scene(occluder=True)
+    settings = SETTINGS.overridden(rsm_size=64, ism_size=32, ism_points=4096)
+    width, height = 32, 24
+    scene_gpu = SceneGPU(description)
+    camera = description.camera
+    gbuffer = render_gbuffer(scene_gpu, camera.view_matrix(), camera.projection_matrix(), (width, height))
+    inputs = shading_gbuffer(gbuffer)
+    vpls = vpl_culling.scene_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness)
+    visible = vpl_culling.upload_visible_vpls(vpls, scene_gpu, settings, settings.rsm_size)
+    try:
+        result = vpl_culling.run(inputs.position, inputs.normal, inputs.diffuse_reflectance, visible,
+                                 camera.view_matrix(), camera.projection_matrix(), 0.0)
+        image = result.read()[..., :3].astype(np.float64)
+        result.free()
+        maps = visible.isms.read()
+        position = read_texture(inputs.position, width, height).astype(np.float64)
+        normal = read_texture(inputs.normal, width, height)[..., :3].astype(np.float64)
+        albedo = read_texture(inputs.diffuse_reflectance, width, height)[..., :3].astype(np.float64)
+    finally:
+        visible.free()
+        gbuffer.free()
+        scene_gpu.free()
+    cluster, origins = vpl_culling.vpl_clusters(vpls, settings.rsm_size)[:2]
+    assert len(origins) > 4
+    covered = position[..., 3] > 0.0
+    receivers, normals = position[..., :3][covered], normal[covered]
+    visibility = [reference_ism.ism_pcf_bilinear(np.where(np.isfinite(m), m, 1e30), o, receivers, normals)
+                  for m, o in zip(maps, origins)]
+    expected = np.zeros_like(receivers)
+    for k in range(len(vpls["roughness"])):
+        radiance, _, _ = reference.glossy_vpl_radiance(
+            receivers, normals, albedo[covered], vpls["position"][k], vpls["normal"][k], vpls["incoming"][k],
+            vpls["roughness"][k], vpls["flux"][k], vpls["rs"][k])
+        expected += radiance * visibility[cluster[k]][:, None]
+    assert expected.max() > 0.0 and np.isfinite(image).all()
+    # Receivers within float32 rounding of a texel's depth test may flip; the sums stay together.
+    np.testing.assert_allclose(image[covered].sum(), expected.sum(), rtol=1e-3)
+    np.testing.assert_allclose(image[covered], expected, rtol=2e-2, atol=1e-3 * expected.max())

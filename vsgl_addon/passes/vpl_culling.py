@@ -209,8 +209,9 @@ def upload_visible_vpls(vpls, scene_gpu, settings, view_size: int, first_map: in
     maps = np.arange(first_map, first_map + len(origins))
     atlas = ism.PASS.run(points, origins, maps % POINT_SETS, ism.fitting_size(len(origins), settings.ism_size),
                          min_distance=OWN_REFLECTOR_SIGMAS * sigma, point_area=point_area)
-    table = np.zeros((len(origins), 1, 4), np.float32)
-    table[:, 0, :3] = origins
+    # One row, map m in column m (the shader's texelFetch(vpl_map_origins, ivec2(m, 0))).
+    table = np.zeros((1, len(origins), 4), np.float32)
+    table[0, :, :3] = origins
     return VPLSet(texture_from_array(vpl_table(vpls)), int(len(vpls["roughness"])), atlas, texture_from_array(table))
 
 
