@@ -44,9 +44,10 @@ def _atlas(points, origins, set_index, size, **kwargs):
         ism_pass.PASS.free(atlas)
 
 
-def _reference(points, origins, set_index, size, min_distance=0.0):
-    return np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, size, min_distance)))
-                     for o, s in zip(np.asarray(origins, np.float64), set_index)])
+def _reference(points, origins, set_index, size, min_distance=0.0, planes=None):
+    planes = [None] * len(set_index) if planes is None else planes
+    return np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, size, min_distance, plane=h)))
+                     for o, s, h in zip(np.asarray(origins, np.float64), set_index, planes)])
 
 
 def test_splat_and_pull_push_match_the_reference_on_texel_centres():
@@ -67,6 +68,28 @@ def test_splat_and_pull_push_match_the_reference_on_texel_centres():
     expected = _reference(points, origins[:1].repeat(5, 0), set_index, size)
     np.testing.assert_allclose(got, expected, rtol=2e-6)
     assert np.isfinite(got).all()
+
+
+def test_half_spaces_leave_out_the_same_points_as_the_reference():
+    """Points on texel-centre directions, maps with the half-space of a floor seen from just above it,
+    a tilted one, one that keeps every point (n = 0, c = 0) and one that keeps none: the GPU's maps
+    equal the float64 twin's (no point within rounding of a plane)."""
+    size, rng = 16, np.random.default_rng(3)
+    directions = ism.texel_directions(size).reshape(-1, 3)
+    chosen = directions[rng.choice(len(directions), 200, replace=False)] * rng.uniform(0.5, 4.0, size=(200, 1))
+    tilted = _unit(np.array([1.0, -2.0, 3.0]))
+    planes = np.array([[0.0, 0.0, 1.0, -0.01], [*tilted, 0.3], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1e30]])
+    heights = chosen @ planes[:2, :3].T - planes[:2, 3]
+    chosen = chosen[np.all(np.abs(heights) > 1e-3, axis=-1)]
+    points = sp.ScenePoints(chosen[None].astype(np.float32), np.zeros((1, len(chosen), 3), np.float32),
+                            np.zeros((1, len(chosen)), np.int64))
+    origins = np.zeros((4, 3))
+    got = _atlas(points, origins, [0, 0, 0, 0], size, planes=planes)
+    expected = _reference(points, origins, [0, 0, 0, 0], size, planes=planes)
+    np.testing.assert_allclose(got, expected, rtol=2e-6)
+    np.testing.assert_allclose(got[2], _reference(points, origins[:1], [0], size)[0], rtol=2e-6)
+    assert np.all(got[3] == ism.EMPTY) and not np.array_equal(got[0], got[2])
+    assert np.isfinite(got[:3]).all()
 
 
 def test_a_scene_s_maps_match_the_reference_but_for_texels_at_rounding_edges():
