@@ -3,6 +3,7 @@
 ray-cast visibility, on a caustic scene with an occluder (not a test).
 
     .venv/bin/python benchmarks/vpl_visibility.py [--size 80x60] [--rsm-size 64]
+    .venv/bin/python benchmarks/vpl_visibility.py --scene polished_metal_floor --vpls 400
 
 The scene: a spot on a polished metal panel (GGX α 0.04) throws its caustic onto a white wall; a box
 between panel and wall shadows part of it. The glossy VPLs of the RSM (every texel of the panel) are
@@ -12,7 +13,9 @@ no filter) three ways: the GPU pass with the clusters' shadow maps, the float64 
 triangle (exact), and the reference unshadowed. Figures over the covered pixels: relative RMSE and
 mean of the ISM image against the exact one, next to the unshadowed image's (what visibility must
 remove), and the share of the exact image's light inside the shadow. Writes
-benchmarks/results/vpl_visibility.{md,json}.
+benchmarks/results/vpl_visibility.{md,json}. With --scene, a validation-suite scene (its saved
+settings; --vpls draws a random subset, so that ray casting every segment stays minutes) into
+vpl_visibility_<scene>.{md,json}.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-for folder in (REPO, REPO / "tests", REPO / "benchmarks"):
+for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
 RESULTS = REPO / "benchmarks" / "results"
@@ -68,12 +71,39 @@ def segment_blocked(origins, targets, triangles, epsilon=1e-4) -> np.ndarray:
     return blocked
 
 
+def bvh_blocked(triangles):
+    """A ray caster for scenes of thousands of triangles (mathutils' BVH, float32 inside):
+    (origin (3,), targets (N, 3)) -> (N,) bool, the open segment crosses a triangle."""
+    from mathutils import Vector
+    from mathutils.bvhtree import BVHTree
+
+    flat = np.asarray(triangles, np.float64).reshape(-1, 3)
+    tree = BVHTree.FromPolygons(flat.tolist(), [(3 * i, 3 * i + 1, 3 * i + 2) for i in range(len(flat) // 3)],
+                                epsilon=0.0)
+
+    def blocked(origin, targets, epsilon=1e-4):
+        out = np.zeros(len(targets), bool)
+        start = Vector(origin)
+        for i, target in enumerate(targets):
+            offset = Vector(target - origin)
+            length = offset.length
+            hit = tree.ray_cast(start, offset / length, length) if length > 2 * epsilon else (None,)
+            out[i] = hit[0] is not None and epsilon < hit[3] < length - epsilon
+        return out
+
+    return blocked
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", default="80x60")
     parser.add_argument("--rsm-size", type=int, default=64)
     parser.add_argument("--ism-size", type=int, default=64)
     parser.add_argument("--ism-points", type=int, default=4096)
+    parser.add_argument("--scene", help="a validation-suite scene instead (its saved RSM and ISM settings, "
+                                        "BVH ray casting); results go to vpl_visibility_<scene>.{md,json}")
+    parser.add_argument("--vpls", type=int, default=0,
+                        help="shade this many VPLs drawn at random (flux scaled by all / drawn), 0: all")
     args = parser.parse_args(argv)
     width, height = (int(v) for v in args.size.split("x"))
 
@@ -88,11 +118,26 @@ def main(argv=None) -> int:
     from vsgl_addon.settings import VSGLSettings
 
     ensure_gpu_context()
-    description = extract_scene(sb.depsgraph(build_scene()))
-    settings = VSGLSettings(rsm_size=args.rsm_size, ism_size=args.ism_size, ism_points=args.ism_points)
+    if args.scene:
+        import bpy
+        from build_validation_scenes import scene_path
+        from vsgl_addon import register
+
+        register()
+        bpy.ops.wm.open_mainfile(filepath=str(scene_path(args.scene)), load_ui=False)
+        settings = VSGLSettings.from_properties(bpy.context.scene.vsgl)
+        description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    else:
+        description = extract_scene(sb.depsgraph(build_scene()))
+        settings = VSGLSettings(rsm_size=args.rsm_size, ism_size=args.ism_size, ism_points=args.ism_points)
     bench = Bench(description, width, height)
     try:
         vpls = vpl_culling.scene_vpls(bench.scene_gpu, settings.rsm_size, settings.caustic_roughness)
+        found = len(vpls["roughness"])
+        if 0 < args.vpls < found:
+            drawn = np.sort(np.random.default_rng(0).choice(found, args.vpls, replace=False))
+            vpls = {key: np.asarray(value)[drawn] for key, value in vpls.items()}
+            vpls["flux"] = vpls["flux"] * (found / args.vpls)
         visible = vpl_culling.upload_visible_vpls(vpls, bench.scene_gpu, settings, settings.rsm_size)
         camera = description.camera
         result = vpl_culling.run(bench.inputs.position, bench.inputs.normal, bench.inputs.diffuse_reflectance,
@@ -111,6 +156,8 @@ def main(argv=None) -> int:
     receivers = position[..., :3].astype(np.float64)[covered]
     normals, albedos = normal[covered], albedo[covered]
     triangles = description.geometry.positions.astype(np.float64)
+    blocked_from = bvh_blocked(triangles) if args.scene else (
+        lambda origin, targets: segment_blocked(np.broadcast_to(origin, targets.shape), targets, triangles))
     exact = np.zeros((len(receivers), 3))
     unshadowed = np.zeros_like(exact)
     for k in range(len(vpls["roughness"])):
@@ -120,8 +167,7 @@ def main(argv=None) -> int:
         lit = radiance.max(axis=-1) > 0.0
         unshadowed += radiance
         if lit.any():
-            origin = np.broadcast_to(vpls["position"][k], (int(lit.sum()), 3))
-            blocked = segment_blocked(origin, receivers[lit], triangles)
+            blocked = blocked_from(vpls["position"][k], receivers[lit])
             shown = radiance[lit]
             shown[blocked] = 0.0
             exact[lit] += shown
@@ -132,23 +178,27 @@ def main(argv=None) -> int:
         return float(np.sqrt(np.mean((image - exact) ** 2)) / mean)
 
     shadow_share = 1.0 - float(exact.sum() / unshadowed.sum())
-    rows = {"size": [width, height], "rsm_size": settings.rsm_size, "vpls": int(len(vpls["roughness"])),
+    rows = {"scene": args.scene or "panel_occluder", "size": [width, height], "rsm_size": settings.rsm_size,
+            "vpls": int(len(vpls["roughness"])), "vpls_found": found,
             "maps": int(maps), "ism_size": settings.ism_size, "ism_points": settings.ism_points,
             "shadowed_share_of_unshadowed_light": shadow_share,
             "ism": {"rel": rel(ours), "mean_ratio": float(ours.mean() / mean)},
             "unshadowed": {"rel": rel(unshadowed), "mean_ratio": float(unshadowed.mean() / mean)}}
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "vpl_visibility.json").write_text(json.dumps(rows, indent=2))
+    stem = f"vpl_visibility_{args.scene}" if args.scene else "vpl_visibility"
+    (RESULTS / f"{stem}.json").write_text(json.dumps(rows, indent=2))
+    command = (f"--scene {args.scene} --size {width}x{height}" if args.scene else
+               f"--size {width}x{height} --rsm-size {settings.rsm_size} --ism-size {settings.ism_size} "
+               f"--ism-points {settings.ism_points}") + (f" --vpls {args.vpls}" if args.vpls else "")
     text = "\n".join([
-        "# VPL visibility: the clusters' imperfect shadow maps against ray-cast visibility", "",
-        f"`.venv/bin/python benchmarks/vpl_visibility.py --size {width}x{height} --rsm-size {settings.rsm_size} "
-        f"--ism-size {settings.ism_size} --ism-points {settings.ism_points}`: "
-        f"{rows['vpls']} glossy VPLs (brute force, δ = 0, no filter), {maps} maps of {settings.ism_size}², "
+        f"# VPL visibility ({rows['scene']}): the clusters' imperfect shadow maps against ray-cast visibility", "",
+        f"`.venv/bin/python benchmarks/vpl_visibility.py {command}`: "
+        f"{rows['vpls']} of {found} glossy VPLs (brute force, δ = 0, no filter), {maps} maps of {settings.ism_size}², "
         f"{settings.ism_points} points each; the occluder takes {100 * shadow_share:.1f} % of the unshadowed light.", "",
         "| image | rel RMSE vs exact | mean / exact |", "|---|---|---|",
         f"| ISM per VPL cluster (the pass) | {rows['ism']['rel']:.3f} | {rows['ism']['mean_ratio']:.3f} |",
         f"| unshadowed | {rows['unshadowed']['rel']:.3f} | {rows['unshadowed']['mean_ratio']:.3f} |", ""])
-    (RESULTS / "vpl_visibility.md").write_text(text)
+    (RESULTS / f"{stem}.md").write_text(text)
     print(text)
     return 0
 

@@ -122,15 +122,15 @@ def test_caustics_flags_and_settings(command):
     scene = type("Scene", (), {"vsgl": type("Props", (), stored)})
     defaults = VSGLSettings()
     assert (defaults.caustics, defaults.delta, defaults.vpl_interleave, defaults.vpl_filter_radius,
-            defaults.vpl_samples, defaults.vpl_visibility) == (True, 1e-3, "auto", 8, 1, False)
+            defaults.vpl_samples, defaults.vpl_visibility) == (True, 1e-3, "auto", 8, 1, True)
     from_scene = VSGLSettings.from_properties(scene.vsgl)
-    assert from_scene.delta == 0.0035 and from_scene.vpl_interleave == "4"
+    assert from_scene.delta == 0.0035 and from_scene.vpl_interleave == "4" and from_scene.vpl_visibility
     arguments = build_parser().parse_args([command, "scene.blend", "--out", "out" + ext, "--caustics", "off",
                                            "--delta", "1e-6", "--vpl-interleave", "8", "--vpl-filter-radius", "0",
-                                           "--vpl-samples", "3", "--vpl-visibility", "on"])
+                                           "--vpl-samples", "3", "--vpl-visibility", "off"])
     result = _settings(scene, arguments)
     assert (result.caustics, result.delta, result.vpl_interleave, result.vpl_filter_radius, result.vpl_samples,
-            result.vpl_visibility) == (False, 1e-6, "8", 0, 3, True)
+            result.vpl_visibility) == (False, 1e-6, "8", 0, 3, False)
     for low, high in (DELTA_RANGE,):
         assert delta_from_log10(np.float32(np.log10(low))) == low and delta_from_log10(np.float32(np.log10(high))) == high
     for bad in (["--delta", "0"], ["--delta", "0.2"], ["--delta", "nan"], ["--vpl-filter-radius", "17"],

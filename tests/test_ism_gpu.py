@@ -44,9 +44,10 @@ def _atlas(points, origins, set_index, size, **kwargs):
         ism_pass.PASS.free(atlas)
 
 
-def _reference(points, origins, set_index, size, min_distance=0.0):
-    return np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, size, min_distance)))
-                     for o, s in zip(np.asarray(origins, np.float64), set_index)])
+def _reference(points, origins, set_index, size, min_distance=0.0, planes=None):
+    planes = [None] * len(set_index) if planes is None else planes
+    return np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, size, min_distance, plane=h)))
+                     for o, s, h in zip(np.asarray(origins, np.float64), set_index, planes)])
 
 
 def test_splat_and_pull_push_match_the_reference_on_texel_centres():
@@ -67,6 +68,28 @@ def test_splat_and_pull_push_match_the_reference_on_texel_centres():
     expected = _reference(points, origins[:1].repeat(5, 0), set_index, size)
     np.testing.assert_allclose(got, expected, rtol=2e-6)
     assert np.isfinite(got).all()
+
+
+def test_half_spaces_leave_out_the_same_points_as_the_reference():
+    """Points on texel-centre directions, maps with the half-space of a floor seen from just above it,
+    a tilted one, one that keeps every point (n = 0, c = 0) and one that keeps none: the GPU's maps
+    equal the float64 twin's (no point within rounding of a plane)."""
+    size, rng = 16, np.random.default_rng(3)
+    directions = ism.texel_directions(size).reshape(-1, 3)
+    chosen = directions[rng.choice(len(directions), 200, replace=False)] * rng.uniform(0.5, 4.0, size=(200, 1))
+    tilted = _unit(np.array([1.0, -2.0, 3.0]))
+    planes = np.array([[0.0, 0.0, 1.0, -0.01], [*tilted, 0.3], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1e30]])
+    heights = chosen @ planes[:2, :3].T - planes[:2, 3]
+    chosen = chosen[np.all(np.abs(heights) > 1e-3, axis=-1)]
+    points = sp.ScenePoints(chosen[None].astype(np.float32), np.zeros((1, len(chosen), 3), np.float32),
+                            np.zeros((1, len(chosen)), np.int64))
+    origins = np.zeros((4, 3))
+    got = _atlas(points, origins, [0, 0, 0, 0], size, planes=planes)
+    expected = _reference(points, origins, [0, 0, 0, 0], size, planes=planes)
+    np.testing.assert_allclose(got, expected, rtol=2e-6)
+    np.testing.assert_allclose(got[2], _reference(points, origins[:1], [0], size)[0], rtol=2e-6)
+    assert np.all(got[3] == ism.EMPTY) and not np.array_equal(got[0], got[2])
+    assert np.isfinite(got[:3]).all()
 
 
 def test_a_scene_s_maps_match_the_reference_but_for_texels_at_rounding_edges():
@@ -207,7 +230,7 @@ def test_glsl_vsgl_map_origins_match_the_reference(count, maps_per_vsgl, first_m
     table = upload_vsgl_table(vsgls)
     origins = ism_pass.vsgl_map_origins(table.texture, count, maps_per_vsgl, first_map, point_sets, sigmas)
     assert origins.count == count * maps_per_vsgl
-    got = read_texture(origins.texture, origins.count, 2).astype(np.float64)
+    got = read_texture(origins.texture, origins.count, 3).astype(np.float64)
     # The reference reads the float32 table the texture holds.
     stored = {name: np.asarray(value, np.float32) for name, value in vsgls.items()}
     want_origins, want_sets, want_distance = ism.vsgl_map_origins(stored, maps_per_vsgl, first_map, point_sets, sigmas)
@@ -215,6 +238,8 @@ def test_glsl_vsgl_map_origins_match_the_reference(count, maps_per_vsgl, first_m
     np.testing.assert_allclose(got[0, :, :3], want_origins, rtol=1e-6, atol=1e-6)
     np.testing.assert_array_equal(got[0, :, 3], want_sets)
     np.testing.assert_allclose(got[1, :, 0], want_distance, rtol=1e-6, atol=1e-12)
+    # Row 2, the half-space of the VPL clusters' maps: none for VSGLs (every point kept).
+    np.testing.assert_array_equal(got[2], 0.0)
 
 
 def test_vsgl_map_origins_refuse_other_map_counts():

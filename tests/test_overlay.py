@@ -367,8 +367,13 @@ def test_a_light_change_keeps_the_point_sets_and_reads_back_no_vsgl_table(demo):
     """Two viewports, a light moved: the shared light passes' builds read back only the planner's
     one-column view tables (160 bytes each; no VSGL table, no VPL count), upload no shadow-map point
     set (kept by the set's backend across builds of the same triangles), and closing the viewports
-    drops the kept sets."""
+    drops the kept sets. VPL shadows off: with them the VPLs' clusters are made on the CPU, which
+    test_view_pipeline_gpu pins."""
+    from dataclasses import replace
+
     from vsgl_addon.layouts import VSGL_TABLE
+
+    settings = replace(SETTINGS, vpl_visibility=False)
 
     light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
     location = light.location.copy()
@@ -377,13 +382,13 @@ def test_a_light_change_keeps_the_point_sets_and_reads_back_no_vsgl_table(demo):
         view, projection = camera_view(demo)
         for key in (1, 2):
             views.request_view(key, view, projection, REGION)
-        run_until_idle(views)
+        run_until_idle(views, settings=settings)
         kept = views.gpu_resource_count()
         light.location.x += 0.1
         bpy.context.view_layer.update()
         views.mark_scene_dirty()
         read_backs, read_bytes, upload_bytes = RoundTrips.read_backs, RoundTrips.read_back_bytes, RoundTrips.upload_bytes
-        steps = run_until_idle(views)
+        steps = run_until_idle(views, settings=settings)
         assert [work for work, _ in steps].count(LIGHTS) >= 1
         reads = RoundTrips.read_backs - read_backs
         assert reads > 0 and RoundTrips.read_back_bytes - read_bytes == reads * 16 * len(VSGL_TABLE.slots)

@@ -156,6 +156,25 @@ def test_splat_keeps_the_nearest_point_per_texel_as_brute_force():
     assert np.all(ism.splat(origin[None], origin, 4) == ism.EMPTY)  # the origin's own point
 
 
+def test_a_half_space_splats_exactly_the_points_it_keeps():
+    """keeps_point against its definition point by point, and a splat with a plane equal to the splat
+    of the points it keeps; n = 0, c = 0 keeps every point, c = +inf none."""
+    rng = np.random.default_rng(5)
+    points = rng.uniform(-3, 3, size=(3000, 3))
+    origin = np.array([0.2, -0.1, 0.3])
+    normal = np.array([0.3, -0.4, 0.866])
+    normal /= np.linalg.norm(normal)
+    plane = np.array([*normal, -0.25])
+    kept = ism.keeps_point(points - origin, plane)
+    assert np.array_equal(kept, [(p - origin) @ normal >= -0.25 for p in points])
+    assert 0 < kept.sum() < len(points)
+    for size in (1, 8):
+        np.testing.assert_array_equal(ism.splat(points, origin, size, plane=plane),
+                                      ism.splat(points[kept], origin, size))
+    assert ism.keeps_point(points - origin, np.zeros(4)).all()
+    assert not ism.keeps_point(points - origin, [0.0, 0.0, 0.0, np.inf]).any()
+
+
 def test_pull_push_fills_holes_and_keeps_what_was_splatted():
     rng = np.random.default_rng(4)
     truth = 2.0 + rng.random((16, 16))

@@ -51,9 +51,9 @@ def _draw(pipeline, view_pass="combined", size=REGION):
         offscreen.free()
 
 
-def _run(pipeline, describe, scale, samples, limit=400):
+def _run(pipeline, describe, scale, samples, limit=400, settings=SETTINGS):
     for _ in range(limit):
-        if pipeline.step(describe, SETTINGS, scale, samples) is None:
+        if pipeline.step(describe, settings, scale, samples) is None:
             return
     raise AssertionError("not converged")
 
@@ -117,12 +117,20 @@ def test_view_updates_make_no_cpu_round_trip(demo):
         pipeline.free()
 
 
-def test_a_light_change_reads_back_only_the_views_totals_and_uploads_no_point_set(demo):
+@pytest.mark.parametrize("vpl_shadows", [False, True])
+def test_a_light_change_reads_back_only_the_views_totals_and_uploads_no_point_set(demo, vpl_shadows):
     """A light moved: each light build (one per sample's seed) reads back only the one-column tables
     from which the planner shares the VSGLs among the RSM views (160 bytes each), no VSGL table (the
     shadow maps' origins are made on the GPU) and no VPL count (read when the statistics are shown);
-    the shadow maps' point sets stay on the GPU across builds of the same triangles (8 MB a seed)."""
+    the shadow maps' point sets stay on the GPU across builds of the same triangles (8 MB a seed).
+    With VPL shadows (the default) the VPLs' clusters are made on the CPU: each build also reads
+    back the VPL pass's RSM views' extraction slots (vpl_culling.scene_vpls), and nothing else."""
+    from dataclasses import replace
+
     from vsgl_addon.layouts import VSGL_TABLE
+    from vsgl_addon.passes.vpl_culling import EXTRACTION_SLOTS
+
+    settings = replace(SETTINGS, vpl_visibility=vpl_shadows)
 
     light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
     location = light.location.copy()
@@ -133,23 +141,28 @@ def test_a_light_change_reads_back_only_the_views_totals_and_uploads_no_point_se
     pipeline = ViewPipeline()
     try:
         pipeline.request_view(demo.camera.view_matrix(), demo.camera.projection_matrix(), REGION)
-        _run(pipeline, describe, 0.25, 2)
+        _run(pipeline, describe, 0.25, 2, settings=settings)
         light.location.x += 0.1
         bpy.context.view_layer.update()
         pipeline.mark_scene_dirty()
         read_backs, read_bytes, upload_bytes = RoundTrips.read_backs, RoundTrips.read_back_bytes, RoundTrips.upload_bytes
         steps = pipeline.steps
-        _run(pipeline, describe, 0.25, 2)
+        _run(pipeline, describe, 0.25, 2, settings=settings)
         entries = list(pipeline.history)[-(pipeline.steps - steps):]
         builds = sum(1 for entry in entries if entry.get("work") == "lights" or "light_seconds" in entry)
         assert builds == 2
         reads = RoundTrips.read_backs - read_backs
         views = next(entry["counts"] for entry in reversed(entries) if "counts" in entry)["rsm_views"]
-        assert 0 < reads <= builds * views * len(pipeline.lights.plan.receiver_sets)
-        assert RoundTrips.read_back_bytes - read_bytes == reads * 16 * len(VSGL_TABLE.slots)
+        vpl_reads = builds * len(EXTRACTION_SLOTS) * views if vpl_shadows and pipeline.lights.vpls is not None else 0
+        totals = reads - vpl_reads
+        assert 0 < totals <= builds * views * len(pipeline.lights.plan.receiver_sets)
+        rsm = settings.rsm_size
+        assert (RoundTrips.read_back_bytes - read_bytes
+                == totals * 16 * len(VSGL_TABLE.slots) + vpl_reads * 16 * rsm * rsm)
         # Without the kept point sets: 8 MB per build.
         assert RoundTrips.upload_bytes - upload_bytes < 2 * 1024 * 1024
-        # Asked for, the VPL count of the light passes shown is read then (4 bytes).
+        # Asked for, the VPL count of the GPU extraction is read then (4 bytes); with VPL shadows the
+        # CPU made the VPLs and knows it.
         vpls = pipeline.lights.vpls
         if vpls is not None:
             from vsgl_addon.renderer import ViewCounts
@@ -157,7 +170,7 @@ def test_a_light_change_reads_back_only_the_views_totals_and_uploads_no_point_se
             read_bytes = RoundTrips.read_back_bytes
             counts = ViewCounts({}, {"vpls": lambda: vpls.count})
             assert counts["vpls"] == counts["vpls"] >= 0
-            assert RoundTrips.read_back_bytes - read_bytes == 4
+            assert RoundTrips.read_back_bytes - read_bytes == (0 if vpl_shadows else 4)
     finally:
         pipeline.free()
         light.location = location

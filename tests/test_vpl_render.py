@@ -206,3 +206,118 @@ def test_vpl_light_is_shadowed():
             lit[occluder, visibility] = float(frame.indirect_caustics.sum())
     assert lit[False, True] > 0.85 * lit[False, False]
     assert lit[True, True] < 0.93 * lit[True, False]
+
+
+@pytest.mark.gpu
+def test_shadowed_pass_equals_the_reference_lookup_of_its_own_maps():
+    """Brute force (δ = 0, every VPL) with visibility: each VPL's light on each pixel weighted by
+    reference.ism.ism_pcf_bilinear of its cluster's map (read back), at its cluster's origin. The
+    panel fills 8 blocks of a 64² RSM: 8 maps, so a map looked up at another map's origin shows."""
+    from vsgl_addon.passes.gbuffer import render_gbuffer
+    from vsgl_addon.passes.gpu_util import read_texture
+    from vsgl_addon.passes.shading_inputs import shading_gbuffer
+    from vsgl_addon.reference import ism as reference_ism
+    from vsgl_addon.reference import vpl_culling as reference
+
+    description = _scene(occluder=True)
+    settings = SETTINGS.overridden(rsm_size=64, ism_size=32, ism_points=4096)
+    width, height = 32, 24
+    scene_gpu = SceneGPU(description)
+    camera = description.camera
+    gbuffer = render_gbuffer(scene_gpu, camera.view_matrix(), camera.projection_matrix(), (width, height))
+    inputs = shading_gbuffer(gbuffer)
+    vpls = vpl_culling.scene_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness)
+    visible = vpl_culling.upload_visible_vpls(vpls, scene_gpu, settings, settings.rsm_size)
+    try:
+        result = vpl_culling.run(inputs.position, inputs.normal, inputs.diffuse_reflectance, visible,
+                                 camera.view_matrix(), camera.projection_matrix(), 0.0)
+        image = result.read()[..., :3].astype(np.float64)
+        result.free()
+        maps = visible.isms.read()
+        position = read_texture(inputs.position, width, height).astype(np.float64)
+        normal = read_texture(inputs.normal, width, height)[..., :3].astype(np.float64)
+        albedo = read_texture(inputs.diffuse_reflectance, width, height)[..., :3].astype(np.float64)
+    finally:
+        visible.free()
+        gbuffer.free()
+        scene_gpu.free()
+    cluster, origins = vpl_culling.vpl_clusters(vpls, settings.rsm_size)[:2]
+    assert len(origins) > 4
+    covered = position[..., 3] > 0.0
+    receivers, normals = position[..., :3][covered], normal[covered]
+    visibility = [reference_ism.ism_pcf_bilinear(np.where(np.isfinite(m), m, 1e30), o, receivers, normals)
+                  for m, o in zip(maps, origins)]
+    expected = np.zeros_like(receivers)
+    for k in range(len(vpls["roughness"])):
+        radiance, _, _ = reference.glossy_vpl_radiance(
+            receivers, normals, albedo[covered], vpls["position"][k], vpls["normal"][k], vpls["incoming"][k],
+            vpls["roughness"][k], vpls["flux"][k], vpls["rs"][k])
+        expected += radiance * visibility[cluster[k]][:, None]
+    assert expected.max() > 0.0 and np.isfinite(image).all()
+    # Receivers within float32 rounding of a texel's depth test may flip; the sums stay together.
+    np.testing.assert_allclose(image[covered].sum(), expected.sum(), rtol=1e-3)
+    np.testing.assert_allclose(image[covered], expected, rtol=2e-2, atol=1e-3 * expected.max())
+
+
+def _flat_cluster(rng, normal, count=64, spread=0.05):
+    """``count`` VPLs on a plane through (0.3, -0.2, 0.5) with unit ``normal``, ``spread`` m across."""
+    normal = np.asarray(normal, np.float64) / np.linalg.norm(normal)
+    tangent = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    tangent /= np.linalg.norm(tangent)
+    uv = rng.uniform(-0.5 * spread, 0.5 * spread, size=(count, 2))
+    position = np.array([0.3, -0.2, 0.5]) + uv[:, :1] * tangent + uv[:, 1:] * np.cross(normal, tangent)
+    return {"position": position, "normal": np.tile(normal, (count, 1)), "flux": np.ones((count, 3)),
+            "rs": np.ones((count, 3)), "roughness": np.full(count, 0.01),
+            "texel": np.arange(count) % 8 + 64 * (np.arange(count) // 8), "view": np.zeros(count, np.int64)}
+
+
+@pytest.mark.parametrize("normal", [(0.0, 0.0, 1.0), (0.2, -0.5, 0.8), (1.0, 0.0, 1e-3)])
+def test_a_flat_cluster_s_half_space_leaves_out_only_what_cannot_block_its_light(normal):
+    """Every VPL of a flat cluster lies outside its map's half-space (its own surface is not
+    splatted), and along segments from its VPLs to receivers in their front hemisphere (glossy
+    light leaves there), the points outside it are within CLUSTER_PLANE_SLACK of the VPLs' plane:
+    a left-out point blocks no such segment but where it leaves the surface."""
+    from vsgl_addon.reference import ism as reference_ism
+
+    rng = np.random.default_rng(3)
+    vpls = _flat_cluster(rng, normal)
+    cluster, origins, _, planes = vpl_culling.vpl_clusters(vpls, 64)
+    assert len(origins) == 1 and np.isfinite(planes).all()
+    assert not reference_ism.keeps_point(vpls["position"] - origins[0], planes[0]).any()
+    n = vpls["normal"][0]
+    start = vpls["position"][rng.integers(0, 64, 4000)]
+    direction = rng.normal(size=(4000, 3))
+    direction *= np.sign(direction @ n)[:, None]
+    segment = start[:, None] + rng.uniform(0.0, 3.0, (4000, 1, 1)) * np.linspace(0.0, 1.0, 50)[None, :, None] \
+        * direction[:, None]
+    left_out = ~reference_ism.keeps_point(segment.reshape(-1, 3) - origins[0], planes[0])
+    heights = (segment.reshape(-1, 3) - vpls["position"][0]) @ n
+    assert left_out.any() and (~left_out).any()
+    assert heights[left_out].max() <= vpl_culling.CLUSTER_PLANE_SLACK + 1e-9
+
+
+def test_a_mirror_floor_s_own_points_do_not_shadow_the_wall_it_lights():
+    """A floor cluster's map (reference splat, gap closing, pull-push at the pass's sizes) and a wall
+    3 m away: with the floor's own points splatted, edge-on at the map's horizon, and pulled into
+    the texels of the sparse wall above them, some wall receivers are fully shadowed; with the
+    cluster's half-space every one is lit (nothing stands between)."""
+    from test_reference_ism import _geometry, _quad
+    from vsgl_addon import scene_points as sp
+    from vsgl_addon.reference import ism as reference_ism
+
+    rng = np.random.default_rng(1)
+    scene = _geometry(_quad(-4, -4, 4, 4) + [((-4, 3, 0), (4, 3, 0), (4, 3, 4)), ((-4, 3, 0), (4, 3, 4), (-4, 3, 4))])
+    points = sp.scene_point_sets(scene, 4096, 1, seed=0)
+    vpls = _flat_cluster(rng, (0.0, 0.0, 1.0))
+    vpls["position"] = vpls["position"] * [1.0, 1.0, 0.0]  # on the floor z = 0
+    _, origins, sigma, planes = vpl_culling.vpl_clusters(vpls, 64)
+    wall = np.stack([rng.uniform(-3, 3, 400), np.full(400, 3.0), rng.uniform(0.05, 3.5, 400)], -1)
+    facing = np.tile([0.0, -1.0, 0.0], (400, 1))
+    for size in (32, 64):
+        lit = {}
+        for plane in (None, planes[0]):
+            depth = reference_ism.pull_push(reference_ism.close_gaps(reference_ism.splat(
+                points.positions[0], origins[0], size, sigma[0], points.normals[0], 96.0 / 4096, plane=plane)))
+            lit[plane is not None] = reference_ism.ism_pcf_bilinear(depth, origins[0], wall, facing)
+        assert lit[False].min() == 0.0, size
+        assert lit[True].min() > 0.999, size

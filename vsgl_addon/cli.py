@@ -349,7 +349,7 @@ def _caustics_flags(parser) -> None:
     parser.add_argument("--vpl-samples", type=_positive_int, metavar="S",
                         help="culling draws averaged per image (noise falls as 1/sqrt(S))")
     parser.add_argument("--vpl-visibility", choices=("on", "off"),
-                        help="shadow the VPLs' light with one imperfect shadow map per VPL cluster (off by default)")
+                        help="shadow the VPLs' light with one imperfect shadow map per VPL cluster (on by default)")
 
 
 def _budget_flag(parser) -> None:

@@ -270,10 +270,10 @@ class VSGLSceneSettings(PropertyGroup):
         name="VPL Shadows",
         description=(
             "Shadow the VPLs' light (with VSGL Visibility on): one imperfect shadow map per cluster of "
-            "VPLs. Removes light an occluder blocks, but a large mirror-like floor shadows what stands on "
-            "it (its maps sit just above it), so it is off by default; costs one small map per cluster"
+            "VPLs (16x16 RSM texels). Removes the light an occluder blocks, so caustics do not leak "
+            "through walls; costs one small map per cluster and reading the VPLs back to the CPU"
         ),
-        default=False,
+        default=True,
     )
     seed: IntProperty(
         name="Seed",

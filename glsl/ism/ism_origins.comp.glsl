@@ -6,7 +6,8 @@
 // first map, point sets). Map m is lobe m mod maps-per-VSGL (0 diffuse, 1 specular) of VSGL
 // m / maps-per-VSGL, centred on the lobe's ism_shadow_origin (the shading's lookups centre it the
 // same way); row 0 of ism_origins: origin xyz, point set (first map + m) mod point sets; row 1: the
-// map's minimum distance, ism_own_reflector_sigmas sigma_v (the lobe's own reflector, 000 sec. 5).
+// map's minimum distance, ism_own_reflector_sigmas sigma_v (the lobe's own reflector, 000 sec. 5);
+// row 2: no half-space (every point kept; the VPL clusters' maps have one, ism_splat.comp.glsl).
 void main()
 {
   int map_index = int(gl_GlobalInvocationID.x);
@@ -23,4 +24,5 @@ void main()
   imageStore(ism_origins, ivec2(map_index, 0), vec4(ism_shadow_origin(mean, variance, axis), float(point_set)));
   float min_distance = ism_own_reflector_sigmas * sqrt(max(variance, 0.0));
   imageStore(ism_origins, ivec2(map_index, 1), vec4(min_distance, 0.0, 0.0, 0.0));
+  imageStore(ism_origins, ivec2(map_index, 2), vec4(0.0));
 }

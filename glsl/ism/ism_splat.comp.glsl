@@ -3,7 +3,7 @@
 // Imperfect shadow maps, splat (vsgl_addon/passes/ism.py; twin: reference/ism.py splat): one
 // invocation per (point, map). Map m, with origin and point set from column m of ism_origins (row
 // 0: xyz, set; row 1: the map's own minimum distance, so that the points of the reflector a VSGL
-// stands for do not shadow its light), keeps in its tile of the R32UI atlas the nearest radial
+// stands for do not shadow its light; row 2: its half-space, see below), keeps in its tile of the R32UI atlas the nearest radial
 // distance of the set's points beyond that minimum per texel:
 // positive floats order as their bits, so imageAtomicMin of floatBitsToUint is a float minimum.
 // Texels no point reaches keep the clear value 0xFFFFFFFF (empty).
@@ -20,6 +20,12 @@ void main()
   float min_distance = texelFetch(ism_origins, ivec2(map_index, 1), 0).x;
   if (!(distance > min_distance)) {
     return;  // the origin's own point, or a non-finite one
+  }
+  // Row 2: the map's half-space (n, c), points with n . offset < c left out (reference keeps_point;
+  // (0, 0) keeps all): a flat reflector's own surface and what lies behind it.
+  vec4 plane = texelFetch(ism_origins, ivec2(map_index, 2), 0);
+  if (dot(plane.xyz, offset) < plane.w) {
+    return;
   }
   int size = ism_params.z;
   ivec2 tile = ivec2(map_index % ism_params.w, map_index / ism_params.w) * size;

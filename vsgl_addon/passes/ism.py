@@ -161,7 +161,8 @@ def upload_points(points) -> tuple:
 @dataclass
 class MapOrigins:
     """The splat's table on the GPU: an RGBA32F texture of ``count`` columns (row 0: origin xyz,
-    point set; row 1: minimum distance), as :func:`build_ism_atlas` makes from numpy arrays."""
+    point set; row 1: minimum distance; row 2: the half-space, zero: every point kept), as
+    :func:`build_ism_atlas` makes from numpy arrays."""
 
     texture: object
     count: int
@@ -176,7 +177,7 @@ def vsgl_map_origins(table_texture, vsgl_count: int, maps_per_vsgl: int, first_m
     if maps_per_vsgl not in (1, 2):
         raise ValueError(f"maps per VSGL must be 1 or 2, got {maps_per_vsgl}")
     count = int(vsgl_count) * maps_per_vsgl
-    texture = gpu.types.GPUTexture((max(count, 1), 2), format="RGBA32F")
+    texture = gpu.types.GPUTexture((max(count, 1), 3), format="RGBA32F")
     if count:
         shader = PASS.shader("origins")
         shader.bind()
@@ -189,11 +190,12 @@ def vsgl_map_origins(table_texture, vsgl_count: int, maps_per_vsgl: int, first_m
 
 
 def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
-                    timed: bool = False, point_textures=None) -> ISMAtlas:
+                    timed: bool = False, point_textures=None, planes=None) -> ISMAtlas:
     """The ISMs of ``origins`` (M, 3) (or a :class:`MapOrigins`, which holds the sets and minimum
-    distances too: ``set_index`` and ``min_distance`` are then unused), map m splatting set ``set_index[m]`` of ``points`` (a
+    distances too: ``set_index``, ``min_distance`` and ``planes`` are then unused), map m splatting set ``set_index[m]`` of ``points`` (a
     :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two), leaving out the
-    points nearer than ``min_distance`` (a scalar, or one per map). ``point_area`` > 0 (the surface
+    points nearer than ``min_distance`` (a scalar, or one per map) and, with ``planes`` (M, 4), the
+    points outside map m's half-space (reference keeps_point; none: every point). ``point_area`` > 0 (the surface
     each point stands for) sizes every splat to the solid angle it covers (reference splat_radius);
     0 splats single texels. ``point_textures``: :func:`upload_points` of ``points``, when several
     atlases splat the same sets (uploaded here otherwise). ``timed``: the GPU is waited for after each stage, and the atlas's
@@ -219,10 +221,12 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
     width, height = columns * size, rows * size
     point_texture, normal_texture = point_textures if point_textures is not None else upload_points(points)
     if origin_texture is None:
-        table = np.zeros((2, max(count, 1), 4), np.float32)
+        table = np.zeros((3, max(count, 1), 4), np.float32)
         table[0, :count, :3] = origins
         table[0, :count, 3] = np.asarray(set_index).reshape(-1)[:count]
         table[1, :count, 0] = np.broadcast_to(np.asarray(min_distance, np.float64), (count,))
+        if planes is not None:
+            table[2, :count] = np.asarray(planes, np.float64).reshape(count, 4)
         origin_texture = texture_from_array(table)
     atlas = gpu.types.GPUTexture((width, height), format="R32UI")
     atlas.clear(format="UINT", value=(-1,))  # every texel empty: 0xFFFFFFFF

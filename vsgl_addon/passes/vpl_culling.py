@@ -163,19 +163,21 @@ def upload_vpls(vpls) -> VPLSet:
 #: each cluster of VPLs, the texels of one CLUSTER_TEXELS² block of one RSM view, one imperfect shadow
 #: map (000 §5's ISMs, passes/ism.py) at the cluster's flux-weighted mean moved off its surface
 #: (reference.ism.shadow_origin, as a VSGL's), leaving out its own reflector's points (within
-#: pipeline.OWN_REFLECTOR_SIGMAS σ). Why not the maps of the VSGLs: the diffuse receivers' VSGLs hold
-#: no sharp reflector's specular flux, so a metal panel has no VSGL of its own there; and a map per
-#: VPL (tens of thousands) is too many. A block is a few centimetres of reflector at the suite's
-#: sizes, so its map's origin is near each VPL; benchmarks/vpl_visibility.py measures the error
-#: against ray-cast visibility (relative RMSE 1.23 against the unshadowed image's 1.97; blocks of 4,
-#: 8 and 32 texels measured 1.38, 1.40 and 1.68, origins 1 and 2 σ off the surface 1.43 and 1.71).
+#: pipeline.OWN_REFLECTOR_SIGMAS σ, and the half-space of cluster_planes). Why not the maps of the
+#: VSGLs: the diffuse receivers' VSGLs hold no sharp reflector's specular flux, so a metal panel has
+#: no VSGL of its own there; and a map per VPL (tens of thousands) is too many. A block is a few
+#: centimetres of reflector at the suite's sizes, so its map's origin is near each VPL;
+#: benchmarks/vpl_visibility.py measures the error against ray-cast visibility (its occluded
+#: caustic: relative RMSE 1.05 against the unshadowed image's 1.97; polished_metal_floor, where
+#: nearly nothing is occluded: 0.33 against 0.01).
 CLUSTER_TEXELS = 16
 
 
 def vpl_clusters(vpls, view_size: int):
-    """(cluster per VPL, origins (C, 3), σ (C,)) of the VPLs of scene_vpls: the texels of one
-    CLUSTER_TEXELS² block of one view form a cluster; its origin is the Φ-weighted mean position
-    moved off the surface along the mean normal (reference.ism.shadow_origin)."""
+    """(cluster per VPL, origins (C, 3), σ (C,), half-spaces (C, 4)) of the VPLs of scene_vpls: the
+    texels of one CLUSTER_TEXELS² block of one view form a cluster; its origin is the Φ-weighted
+    mean position moved off the surface along the mean normal (reference.ism.shadow_origin), its
+    map's half-space that of :func:`cluster_planes`."""
     from ..reference.ism import shadow_origin
 
     texel = np.asarray(vpls["texel"], np.int64)
@@ -191,7 +193,31 @@ def vpl_clusters(vpls, view_size: int):
     variance = spread / total / 3.0  # per axis, as a VSGL's σ_v²
     axis = np.stack([np.bincount(cluster, weight * vpls["normal"][:, k], len(keys)) for k in range(3)], -1)
     axis /= np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-30)
-    return cluster, shadow_origin(mean, variance, axis), np.sqrt(variance)
+    origins = shadow_origin(mean, variance, axis)
+    return cluster, origins, np.sqrt(variance), cluster_planes(vpls["position"], cluster, origins, axis)
+
+
+#: Metres above its VPLs' plane a cluster's map starts (the floor of reference.ism.ism_bias): the
+#: reflector's own points, sampled from float32 triangles, lie within rounding of that plane.
+CLUSTER_PLANE_SLACK = 1e-3
+
+
+def cluster_planes(positions, cluster, origins, axis) -> np.ndarray:
+    """(C, 4) half-space of each cluster's map (reference.ism.keeps_point: n · (p − origin) ≥ c): the
+    points above the plane through its highest VPL along its mean normal n, plus
+    CLUSTER_PLANE_SLACK. A glossy VPL's light leaves into the hemisphere of its normal, so on a
+    flat cluster (every normal n) a segment from a VPL to a receiver it lights stays above the
+    plane of its start, and a point below the highest VPL's plane can only block it where it
+    leaves the surface, inside the slack: leaving such points out is exact there. Kept, the
+    reflector's own surface, seen edge-on from an origin just above it, splats a band of near
+    depths at the map's horizon, which pull-push then spreads into the sparse texels above it:
+    a mirror floor shadowed the wall behind it and the objects on it (validation suite,
+    polished_metal_floor). On a curved cluster this is an approximation: a VPL whose normal leans
+    off n lights receivers a little below that plane, and what stands there is not in its map."""
+    heights = np.einsum("ij,ij->i", np.asarray(positions, np.float64) - origins[cluster], axis[cluster])
+    top = np.full(len(origins), -np.inf)
+    np.maximum.at(top, cluster, heights)
+    return np.concatenate([axis, (top + CLUSTER_PLANE_SLACK)[:, None]], axis=-1)
 
 
 def upload_visible_vpls(vpls, scene_gpu, settings, view_size: int, first_map: int = 0) -> VPLSet:
@@ -202,15 +228,19 @@ def upload_visible_vpls(vpls, scene_gpu, settings, view_size: int, first_map: in
 
     if len(vpls["roughness"]) == 0:
         return upload_vpls(vpls)
-    cluster, origins, sigma = vpl_clusters(vpls, view_size)
+    cluster, origins, sigma, planes = vpl_clusters(vpls, view_size)
     vpls = dict(vpls, map=cluster.astype(np.float64))
     points = scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
     point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
     maps = np.arange(first_map, first_map + len(origins))
+    # The VSGL maps' point sets on the GPU (kept across the viewport's builds), not a second upload.
+    textures = scene_gpu.point_textures(settings.ism_points, POINT_SETS, settings.seed)
     atlas = ism.PASS.run(points, origins, maps % POINT_SETS, ism.fitting_size(len(origins), settings.ism_size),
-                         min_distance=OWN_REFLECTOR_SIGMAS * sigma, point_area=point_area)
-    table = np.zeros((len(origins), 1, 4), np.float32)
-    table[:, 0, :3] = origins
+                         min_distance=OWN_REFLECTOR_SIGMAS * sigma, point_area=point_area, planes=planes,
+                         point_textures=textures)
+    # One row, map m in column m (the shader's texelFetch(vpl_map_origins, ivec2(m, 0))).
+    table = np.zeros((1, len(origins), 4), np.float32)
+    table[0, :, :3] = origins
     return VPLSet(texture_from_array(vpl_table(vpls)), int(len(vpls["roughness"])), atlas, texture_from_array(table))
 
 

@@ -121,15 +121,19 @@ def splat_radius(offsets, cos_theta, point_area, size):
     return np.clip(np.ceil(0.5 * (SPLAT_SHARE * np.sqrt(texels) - 1.0)), 0, SPLAT_MAX_RADIUS).astype(np.int64)
 
 
-def splat(points, origin, size: int, min_distance: float = 0.0, normals=None, point_area: float = 0.0) -> np.ndarray:
+def splat(points, origin, size: int, min_distance: float = 0.0, normals=None, point_area: float = 0.0,
+          plane=None) -> np.ndarray:
     """(size, size) float64 map [row, column] of the nearest radial distance of ``points`` (N, 3)
     seen from ``origin`` (3,) per texel; EMPTY where none lands. Points closer than
-    ``min_distance`` (the origin's own point) are not splatted. With ``normals`` and the surface
-    area each point stands for (``point_area``), a point covers the texels of :func:`splat_radius`
-    around its own (wrapping across the octahedral folds)."""
+    ``min_distance`` (the origin's own point) are not splatted, nor, with ``plane`` = (n_x, n_y,
+    n_z, c), the points whose offset p − origin has n · (p − origin) < c (:func:`keeps_point`).
+    With ``normals`` and the surface area each point stands for (``point_area``), a point covers
+    the texels of :func:`splat_radius` around its own (wrapping across the octahedral folds)."""
     offsets = f64(points).reshape(-1, 3) - f64(origin)
     distance = np.linalg.norm(offsets, axis=-1)
     keep = np.isfinite(distance) & (distance > max(min_distance, 1e-300))
+    if plane is not None:
+        keep &= keeps_point(offsets, plane)
     offsets, distance = offsets[keep], distance[keep]
     texel = ism_texel(offsets, size)
     depth = np.full((size, size), EMPTY)
@@ -145,6 +149,15 @@ def splat(points, origin, size: int, min_distance: float = 0.0, normals=None, po
                 column, row = octahedral_wrap(texel[here, 0] + dx, texel[here, 1] + dy, size)
                 np.minimum.at(depth, (row, column), distance[here])
     return depth
+
+
+def keeps_point(offsets, plane) -> np.ndarray:
+    """(N,) bool: a map's half-space ``plane`` = (n, c) keeps the points at ``offsets`` (N, 3) from its
+    origin with n · offset ≥ c (glsl/ism/ism_splat.comp.glsl). n = 0, c = 0 (the default) keeps
+    every point; a map that stands for a flat reflector passes its plane (passes/vpl_culling.py
+    vpl_clusters), so the reflector's own surface, and anything behind it, is not splatted."""
+    plane = f64(plane).reshape(4)
+    return ~(f64(offsets).reshape(-1, 3) @ plane[:3] < plane[3])
 
 
 #: Gaps of up to 2·GAP_REACH − 1 texels between nearer texels on both sides are closed (close_gaps).
