@@ -6,12 +6,18 @@
 
 Through the scene's camera, in the 3D viewport of the default layout:
 
-1. Rendered shading (VSGL engine): after a warm-up, the first light is moved REPEATS times; for each
-   move, the viewport's step log (view_pipeline.ViewPipeline.history) gives the time from the change
-   to the first coarse image, the time of each refinement step and of the whole convergence. On the
-   first move every step's average image is also read back (outside the steps' timing), to find the
-   work time after which it is within 10 % / 5 % relative RMSE of the converged image.
-2. The overlay over Solid shading, "Combined", at the same resolution scale and samples, in the same
+1. Rendered shading (VSGL engine), in Manual quality mode (the scene's settings): after a warm-up,
+   the first light is moved REPEATS + 1 times; for each move, the viewport's step log
+   (view_pipeline.ViewPipeline.history) gives the time from the change to the first coarse image,
+   the time of each refinement step and of the whole convergence. On the first move the displayed
+   average image is also read back (outside the steps' timing) whenever a step changed it (a coarse
+   image, or one more full-resolution sample: the steps between only fill the next sample's bands),
+   to find the work time after which it is within 10 % / 5 % relative RMSE of the converged image.
+   Only those few images are kept (one per sample count), not one per step.
+2. The same in Budget quality mode (target frame time BUDGET_MS, BLENDER_VSGL_BENCH_BUDGET_MS): the
+   switch's first coarse image is the one whose size the cost model predicts (budget.coarse_factor);
+   its converged image must equal Manual's at the same light position.
+3. The overlay over Solid shading, "Combined", at the same resolution scale and samples, in the same
    session: it draws through the same view pipeline (overlay.py on view_pipeline.ViewportSet), so
    the same moves must give the same step times, its converged image must equal the Rendered one,
    and neither path may read images back or upload them per update (the CPU round trips, bytes read
@@ -31,10 +37,13 @@ MODULE = "bl_ext.user_default.vsgl"
 OUT = os.environ["BLENDER_VSGL_BENCH_OUT"]
 SAMPLES = int(os.environ.get("BLENDER_VSGL_BENCH_SAMPLES", "8"))
 REPEATS = int(os.environ.get("BLENDER_VSGL_BENCH_REPEATS", "3"))
+BUDGET_MS = float(os.environ.get("BLENDER_VSGL_BENCH_BUDGET_MS", "60"))
 SCALE = 0.25
 POLL = 0.01
 TIMEOUT = 900.0
-result = {"rendered": [], "overlay": [], "errors": []}
+result = {"rendered": [], "rendered_budget": [], "overlay": [], "errors": [], "budget_ms": BUDGET_MS}
+#: The light's offset from its start, in moves (+1 / -1 each): converged images are compared at equal offsets.
+offset = 0
 
 
 def addon(name):
@@ -79,17 +88,36 @@ def rmse(image, reference):
 
 
 def snapshotting(pipeline, store):
-    """Wrap pipeline.step so each step's image is kept (read after the step's own timing)."""
+    """Wrap pipeline.step so that, after each step's own timing, the step is logged with the image it
+    left on screen: read back only when the step changed it (a coarse image, or a sample completed;
+    a band of the next sample does not touch the displayed average), else None (the last one's)."""
     step = pipeline.step
+    last = {"samples": None}
 
     def wrapped(*args, **kwargs):
         work = step(*args, **kwargs)
         if work is not None and pipeline.has_image:
-            store.append((pipeline.statistics["index"], pipeline.samples, average_image(pipeline)))
+            changed = (pipeline.statistics.get("level") == "coarse" or pipeline.samples != last["samples"])
+            last["samples"] = pipeline.samples
+            store.append((pipeline.statistics["index"], pipeline.samples,
+                          average_image(pipeline) if changed else None))
         return work
 
     pipeline.step = wrapped
     return lambda: pipeline.__dict__.pop("step", None)
+
+
+def error_curve(snapshots, entries, converged_image):
+    """Per logged step: its samples, the work seconds so far and the relative RMSE of the image it
+    left on screen against the converged one (computed once per distinct image)."""
+    seconds = {e["index"]: e["seconds"] for e in entries}
+    curve, error, work = [], None, 0.0
+    for index, samples, image in snapshots:
+        if image is not None:
+            error = rmse(image, converged_image)
+        work = sum(s for i, s in seconds.items() if i <= index)
+        curve.append({"index": index, "samples": samples, "work_seconds": work, "relative_rmse": error})
+    return curve
 
 
 def rendered_converged():
@@ -113,8 +141,51 @@ def overlay_converged():
 
 
 def move_light(sign):
+    global offset
     light = light_object()
     light.location.x += 0.05 * sign
+    offset += sign
+
+
+def wait_rendered(first_index, what):
+    """Yield until the Rendered pipeline stepped past `first_index` and converged."""
+    started = time.perf_counter()
+    while not (the_pipeline() is not None and the_pipeline().steps > first_index and rendered_converged()):
+        if time.perf_counter() - started > TIMEOUT:
+            raise RuntimeError(f"no convergence {what}")
+        yield POLL
+
+
+def rendered_moves(records, area):
+    """REPEATS + 1 light moves in Rendered shading, each to convergence; the first with the error
+    curve. Returns (converged image of the first move, the light offset it was at)."""
+    converged = None
+    for repeat in range(REPEATS + 1):
+        pipeline = the_pipeline()
+        first_index = pipeline.steps
+        snapshots = []
+        undo = snapshotting(pipeline, snapshots) if repeat == 0 else None
+        trips = round_trips()
+        change = time.perf_counter()
+        move_light(1 if repeat % 2 == 0 else -1)
+        area.tag_redraw()
+        yield from wait_rendered(first_index, "after a change")
+        done = time.perf_counter()
+        if undo is not None:
+            undo()
+        entries = [dict(e) for e in pipeline.history if e["index"] >= first_index]
+        after = round_trips()
+        record = {"repeat": repeat, "entries": [{k: v for k, v in e.items() if k not in ("counts", "traceback")}
+                                                for e in entries],
+                  "first_image_wall": entries[0]["ended"] - change, "first_step_seconds": entries[0]["seconds"],
+                  "converged_wall": done - change, "round_trips": {k: after[k] - trips[k] for k in after}}
+        if snapshots:
+            converged = (average_image(pipeline), offset)
+            record["error_curve"] = error_curve(snapshots, entries, converged[0])
+            record["images_kept"] = sum(image is not None for _, _, image in snapshots)
+            snapshots.clear()
+        records.append(record)
+    return converged
 
 
 def tick_generator():
@@ -134,41 +205,29 @@ def tick_generator():
         if time.perf_counter() - started > TIMEOUT:
             raise RuntimeError("no convergence")
         yield POLL
-    converged_image = None
-    for repeat in range(REPEATS + 1):
-        pipeline = the_pipeline()
-        first_index = pipeline.steps
-        snapshots = []
-        undo = snapshotting(pipeline, snapshots) if repeat == 0 else None
-        trips = round_trips()
-        change = time.perf_counter()
-        move_light(1 if repeat % 2 == 0 else -1)
-        area.tag_redraw()
-        while not (pipeline.steps > first_index and rendered_converged()):
-            if time.perf_counter() - change > TIMEOUT:
-                raise RuntimeError("no convergence after a change")
-            yield POLL
-        done = time.perf_counter()
-        if undo is not None:
-            undo()
-        entries = [dict(e) for e in pipeline.history if e["index"] >= first_index]
-        after = round_trips()
-        record = {"repeat": repeat, "entries": [{k: v for k, v in e.items() if k != "counts"} for e in entries],
-                  "first_image_wall": entries[0]["ended"] - change, "first_step_seconds": entries[0]["seconds"],
-                  "converged_wall": done - change, "round_trips": {k: after[k] - trips[k] for k in after}}
-        if snapshots:
-            converged_image = average_image(pipeline)
-            work = 0.0
-            seconds = {e["index"]: e["seconds"] for e in entries}
-            curve = []
-            for index, samples, image in snapshots:
-                work = sum(s for i, s in seconds.items() if i <= index)
-                curve.append({"index": index, "samples": samples, "work_seconds": work,
-                              "relative_rmse": rmse(image, converged_image)})
-            record["error_curve"] = curve
-        result["rendered"].append(record)
+    manual = yield from rendered_moves(result["rendered"], area)
+    # --- Budget quality mode: the viewport's coarse step sized by the cost model ---
+    pipeline = the_pipeline()
+    first_index = pipeline.steps
+    change = time.perf_counter()
+    scene.vsgl.time_budget_ms = BUDGET_MS
+    scene.vsgl.quality_mode = "BUDGET"
+    area.tag_redraw()
+    yield from wait_rendered(first_index, "in Budget mode")
+    entries = [{k: v for k, v in e.items() if k not in ("counts", "traceback")}
+               for e in pipeline.history if e["index"] >= first_index]
+    model = pipeline.cost_model
+    result["budget_switch"] = {"first_image_wall": entries[0]["ended"] - change, "first_entry": entries[0],
+                               "converged_wall": time.perf_counter() - change,
+                               "cost_model": None if model is None else model.source,
+                               "cost_model_warning": None if model is None else model.warning}
+    budget = yield from rendered_moves(result["rendered_budget"], area)
+    if manual is not None and budget is not None and manual[1] == budget[1]:
+        result["budget_converged_relative_rmse_manual"] = rmse(budget[0], manual[0])
+    converged_image = manual
     # --- the overlay over Solid shading: the same view pipeline ---
     space.shading.type = "SOLID"
+    scene.vsgl.quality_mode = "MANUAL"  # the overlay as before: the scene's settings
     scene.vsgl.overlay_mode = "COMBINED"
     scene.vsgl.overlay_resolution_scale = SCALE
     scene.vsgl.show_overlay = True
@@ -197,10 +256,10 @@ def tick_generator():
             "updates": [{"level": e.get("level"), "work": e["work"], "seconds": e["seconds"], "size": e.get("size")}
                         for e in entries],
             "round_trips": {k: after[k] - trips[k] for k in after}})
-    if converged_image is not None:
-        # Moves alternate +, -, +, ...: after the Rendered repeats and the overlay's, the light is
-        # where it was for the first Rendered repeat, whose converged image this is.
-        result["overlay_final_relative_rmse_nearest"] = rmse(average_image(overlay_pipeline()), converged_image)
+    if converged_image is not None and converged_image[1] == offset:
+        # Moves alternate +, -, +, ...: with REPEATS odd, after the Rendered repeats and the
+        # overlay's the light is where it was for the first Rendered repeat, whose image this is.
+        result["overlay_final_relative_rmse_nearest"] = rmse(average_image(overlay_pipeline()), converged_image[0])
     scene.vsgl.show_overlay = False
 
 
