@@ -49,11 +49,10 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from validation_suite import TRUTH_SAMPLES, open_scene, suite  # noqa: E402
+from validation_suite import scene_with_truth, suite  # noqa: E402
 from build_validation_scenes import RESOLUTION  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
 from tradeoff.demo import COVERED, log  # noqa: E402
-from tradeoff.truth import load_reference  # noqa: E402
 from vsgl_addon.reference.sg import DIFFUSE_HEMISPHERE_SCALE  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -186,21 +185,13 @@ def visible_share(contrib, v, position, triangles, samples, rng):
 
 
 def budget(name, path, stride, samples, counts, seed=0):
-    import bpy
     from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.pipeline import build_visibility
     from vsgl_addon.renderer import FrameRenderer
     from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel, shade
-    from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
 
     width, height = RESOLUTION
-    scene = open_scene(path)
-    settings = VSGLSettings.from_properties(scene.vsgl)
-    truth = load_reference(scene, width, height, TRUTH_SAMPLES[name], False, name=name, source=path,
-                           dtype=np.float32 if name == "demo" else np.float16)
-    scene = open_scene(path)
-    description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    settings, truth, description = scene_with_truth(name, path, width, height)
     triangles = np.asarray(description.geometry.positions, np.float64)
     renderer = FrameRenderer()
     try:

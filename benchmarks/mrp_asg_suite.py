@@ -35,8 +35,7 @@ for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
 
 from tradeoff.demo import RESULTS_DIR, log  # noqa: E402
 from tradeoff.metrics import Errors  # noqa: E402
-from tradeoff.truth import load_reference  # noqa: E402
-from validation_suite import TRUTH_SAMPLES, open_scene, suite  # noqa: E402
+from validation_suite import scene_with_truth, suite  # noqa: E402
 
 RADII = (0.01, 0.03, 0.1, 0.3, 1.0)
 SWEEP_SCENES = ("demo", "polished_metal_floor")
@@ -79,18 +78,10 @@ def _material_index(description):
 
 
 def measure(name, path, sweep: bool) -> dict:
-    import bpy
 
     from vsgl_addon.renderer import FrameRenderer
-    from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
 
-    scene = open_scene(path)
-    settings = VSGLSettings.from_properties(scene.vsgl)
-    dtype = np.float32 if name == "demo" else np.float16
-    truth = load_reference(scene, WIDTH, HEIGHT, TRUTH_SAMPLES[name], False, name=name, source=path, dtype=dtype)
-    scene = open_scene(path)
-    description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    settings, truth, description = scene_with_truth(name, path, WIDTH, HEIGHT)
     material_index, materials = _material_index(description)
     renderer = FrameRenderer()
     out = {"scene": name, "settings": str(settings)}

@@ -57,10 +57,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
 
-from validation_suite import TRUTH_SAMPLES, open_scene, suite  # noqa: E402  (sets the paths)
+from validation_suite import open_scene, scene_with_truth, suite  # noqa: E402  (sets the paths)
 from tradeoff.demo import RESULTS_DIR, log  # noqa: E402
 from tradeoff.metrics import Errors  # noqa: E402
-from tradeoff.truth import load_reference  # noqa: E402
 
 RESOLUTION = (240, 180)
 COMBINATIONS = (
@@ -138,22 +137,14 @@ def cycles_time_to(curve: dict, error: float) -> float:
 
 
 def measure_scene(name, path, counts, budgets, repeats, eevee, gpu, cache):
-    import bpy
 
     from vsgl_addon import budget as B
     from vsgl_addon.budget_render import model_for, render_budgeted
     from vsgl_addon.planner import plan_frame
     from vsgl_addon.renderer import FrameRenderer
-    from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
 
     width, height = RESOLUTION
-    scene = open_scene(path)
-    auto_settings = VSGLSettings.from_properties(scene.vsgl)
-    truth = load_reference(scene, width, height, TRUTH_SAMPLES[name], False, name=name, source=path,
-                           dtype=np.float32 if name == "demo" else np.float16)
-    scene = open_scene(path)
-    description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    auto_settings, truth, description = scene_with_truth(name, path, width, height)
     camera = description.camera
     view_projection = camera.projection_matrix() @ camera.view_matrix()
     renderer = FrameRenderer()

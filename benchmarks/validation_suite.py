@@ -92,6 +92,23 @@ def open_scene(path: Path):
     return bpy.context.scene
 
 
+def scene_with_truth(name: str, path: Path, width: int, height: int, regenerate: bool = False):
+    """(the scene's saved settings, its Cycles one-bounce truth (tradeoff.truth.load_reference, cached
+    as float16, the demo's as float32), its SceneDescription): the truth's render switches the scene
+    to Cycles, so the file is opened again before it is described for ours."""
+    import bpy
+
+    from vsgl_addon.scene import extract_scene
+    from vsgl_addon.settings import VSGLSettings
+
+    scene = open_scene(path)
+    settings = VSGLSettings.from_properties(scene.vsgl)
+    truth = load_reference(scene, width, height, TRUTH_SAMPLES[name], regenerate, name=name, source=path,
+                           dtype=np.float32 if name == "demo" else np.float16)
+    open_scene(path)
+    return settings, truth, extract_scene(bpy.context.evaluated_depsgraph_get())
+
+
 def robust_errors(truth: dict, mask: np.ndarray, ours: np.ndarray) -> dict:
     """Relative RMSE (noise-corrected and plain) with ours and the truth's seeds clamped at the
     truth's ROBUST_PERCENTILE-th percentile: a few extreme pixels no longer dominate."""
@@ -107,18 +124,8 @@ def robust_errors(truth: dict, mask: np.ndarray, ours: np.ndarray) -> dict:
 
 def measure_scene(name: str, path: Path, about: str, width: int, height: int, regenerate: bool) -> dict:
     from vsgl_addon.renderer import FrameRenderer
-    from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
-    import bpy
 
-    scene = open_scene(path)
-    settings = VSGLSettings.from_properties(scene.vsgl)
-    dtype = np.float32 if name == "demo" else np.float16
-    truth = load_reference(scene, width, height, TRUTH_SAMPLES[name], regenerate, name=name, source=path,
-                           dtype=dtype)
-    # The truth's render switched the scene to Cycles: open the file again for ours.
-    scene = open_scene(path)
-    description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    settings, truth, description = scene_with_truth(name, path, width, height, regenerate)
     renderer = FrameRenderer()
     visibility = {}
     images = {"truth": truth["indirect"]}

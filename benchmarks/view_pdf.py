@@ -39,10 +39,9 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from validation_suite import TRUTH_SAMPLES, open_scene, suite  # noqa: E402
+from validation_suite import open_scene, scene_with_truth, suite  # noqa: E402
 from tradeoff.demo import RESULTS_DIR  # noqa: E402
 from tradeoff.metrics import Errors  # noqa: E402
-from tradeoff.truth import load_reference  # noqa: E402
 
 WIDTH, HEIGHT = 240, 180
 LARGE_FOOTPRINT = "sun_courtyard"
@@ -156,18 +155,10 @@ def flicker(name: str, path: Path, frames: int, seeds: int) -> dict:
 
 
 def measure(name: str, path: Path) -> dict:
-    import bpy
 
     from vsgl_addon.renderer import FrameRenderer
-    from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
 
-    scene = open_scene(path)
-    settings = VSGLSettings.from_properties(scene.vsgl)
-    truth = load_reference(scene, WIDTH, HEIGHT, TRUTH_SAMPLES[name], False, name=name, source=path,
-                           dtype=np.float32 if name == "demo" else np.float16)
-    scene = open_scene(path)
-    description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    settings, truth, description = scene_with_truth(name, path, WIDTH, HEIGHT)
     renderer = FrameRenderer()
     row = {"scene": name, "footprint": footprint_ratio(description, settings)}
     try:

@@ -35,11 +35,10 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from validation_suite import TRUTH_SAMPLES, open_scene, suite  # noqa: E402
+from validation_suite import scene_with_truth, suite  # noqa: E402
 from build_validation_scenes import RESOLUTION  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
 from tradeoff.demo import COVERED, log  # noqa: E402
-from tradeoff.truth import load_reference  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
@@ -93,21 +92,14 @@ def exact_visibility(table, maps_per_vsgl, position, triangles, exclude_sigmas, 
 
 
 def diagnose(name, path, stride, settings_overrides, material=None):
-    import bpy
     from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.pipeline import build_visibility
     from vsgl_addon.reference.vsgl_shading import shade, vsgl_visibility
     from vsgl_addon.passes.vsgl_shading import ISM_MAX_RADIUS
-    from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
 
     width, height = RESOLUTION
-    scene = open_scene(path)
-    settings = VSGLSettings.from_properties(scene.vsgl).overridden(visibility=True, **settings_overrides)
-    truth = load_reference(scene, width, height, TRUTH_SAMPLES[name], False, name=name, source=path,
-                           dtype=np.float32 if name == "demo" else np.float16)
-    scene = open_scene(path)
-    description = extract_scene(bpy.context.evaluated_depsgraph_get())
+    saved, truth, description = scene_with_truth(name, path, width, height)
+    settings = saved.overridden(visibility=True, **settings_overrides)
     triangles = np.asarray(description.geometry.positions, np.float64)
     bench = Bench(description, width, height)
     try:
