@@ -15,7 +15,29 @@ the product taken with ``sg.sg_product`` (stable exponent |ξm| − λ1 − λ2)
 own (``diffuse_mean``/``specular_mean``; ``vsgl.POSITIONAL_DISTRIBUTIONS``: the same for both
 lobes in the paper's "shared" form, 000 app. B.2). Then, per lobe:
 
-* **Diffuse** (000 app. C, cosine pulled out of the integral), mode ``"cosine"``:
+* **Diffuse**, mode ``"separable"`` (the default of the modified and original kernels,
+  ``diffuse_mode_for_kernel``): the incoming radiance of 000 Eqs. 10-11 with the radiant intensity
+  taken at the direction of the lobe's mean instead of multiplied into one SG with the positional
+  lobe (``vsgl_separable_lobe``),
+
+      Lin(ω) ≈ cv G(−ξµ; ξv, λv) G(ω; ξµ, λσ)/(2πσv²),
+      Ld = cv G(−ξµ; ξv, λv)/(2πσv²) · Rd/π · A(λσ) ⟨ξµ, n_p⟩
+
+  (the cosine pulled out of the positional lobe's integral as in 000 app. C, exact A). Why not
+  Eq. 12's product for the diffuse: it tilts the incoming lobe's axis to (λσ ξµ − λv ξv)/λin,
+  towards −ξv, by as much as the positional lobe is broad. For a cluster spanning a room's corner
+  (its mean between floor and wall, ξv diagonal, λv broad) the receivers across the room then see
+  the lobe centred behind the cluster's own walls, and the pulled-out cosine drops most of it: one
+  corner VSGL gives 0.72 of its VPLs' light (brute force with SG lobes), the separable form 0.87
+  (tests/test_reference_vsgl_shading.py); in the suite's rooms corner VSGLs carried ~17 % of the
+  light and ~53 % of the loss against Cycles, while clustering itself loses nothing (total flux
+  ratio 1.017 clustered, 1.015 unclustered). The specular keeps Eq. 12's product (below). Far from the VSGL the two forms are the same point light
+  Iv(−ξµ) ⟨ξµ, n⟩/d² (000 app. C.1 derives Eq. 12 for small σv or large distances): their exponents
+  differ by λv²(1 − ⟨ξµ, −ξv⟩²)/(2λσ) to first order, within 2 % at 100 σv for λv ≤ 10. Near a
+  sharp lobe (λσ ≲ λv²) the separable form keeps the emission lobe's own width where Eq. 12 widens
+  it by the positions' spread. A receiver on a flat VSGL's own plane has ⟨ξµ, n⟩ = 0: no light
+  from its own surface, as Lambert's reflector gives it none.
+  Mode ``"cosine"`` (000 app. C, Eq. 12's SG, cosine pulled out of the integral):
   ``Ld = cin Rd/π · A(λin) ⟨ξin, n_p⟩`` with the exact A(λ) (``sg.sg_integral``), not its
   large-λ form 2π/λ. Mode ``"sg-convolution"`` (003's simplified 2-VSGL mode, formulas §6):
   ``Ld = cin Rd ∫ G(ω; ξin, λin) G(ω; n_p, λd)/A(λd) dω`` (``sg.sg_product_integral``, λd = 2).
@@ -56,7 +78,8 @@ lobes in the paper's "shared" form, 000 app. B.2). Then, per lobe:
   Zero when co ≤ 0 (view below the shading normal: χ+). The receiver's α is clamped to
   ``ALPHA_MIN`` (λh = 2/α² ≤ 2e6, the range the SG/ASG float32 libraries are built for).
 
-Guards (finite everywhere): |µv − y_p| → 0 (λσ → 0, ξµ irrelevant, −ξv used), σv² floored at
+Guards (finite everywhere): |µv − y_p| → 0 (λσ → 0, ξµ irrelevant in Eq. 12, −ξv used for it,
+in the separable form too), σv² floored at
 ``VARIANCE_FLOOR`` (the generator's absolute floor: 1/(2πσv²) ≤ 1.6e11), λ's up to ~1e20
 (products and A(λ) stay in range), grazing views (ASG floors), back-facing VSGLs (⟨ξin,n⟩ = 0),
 zero-power VSGLs (amplitude 0).
@@ -85,7 +108,7 @@ from .vsgl import (MOMENT_CHANNELS, RSM, VARIANCE_FLOOR_ABSOLUTE, texel_moments,
 VARIANCE_FLOOR = VARIANCE_FLOOR_ABSOLUTE
 #: Smallest receiver GGX α (λh = 2/α² = 2e6).
 ALPHA_MIN = 1e-3
-DIFFUSE_MODES = ("cosine", "sg-convolution", "clamped-cosine")
+DIFFUSE_MODES = ("separable", "cosine", "sg-convolution", "clamped-cosine")
 SPECULAR_COSINES = ("normal", "lobe-axis")
 
 #: VSGL fields read by shading (a dict from ``vsgl.generate_vsgls`` or ``read_table``): each lobe
@@ -96,9 +119,10 @@ VSGL_KEYS = ("diffuse_mean", "diffuse_variance", "diffuse_amplitude", "diffuse_a
 
 
 def diffuse_mode_for_kernel(kernel: str) -> str:
-    """003's 2-VSGL mode shades with the diffuse SG convolution, the others pull the cosine out
-    (000 app. C; why not the clamped-cosine integral: the module documentation)."""
-    return "sg-convolution" if kernel == "two-vsgl" else "cosine"
+    """003's 2-VSGL mode shades with the diffuse SG convolution, the others with the separable
+    incoming radiance, cosine pulled out (000 Eqs. 10-11 and app. C; why not Eq. 12's product, nor
+    the clamped-cosine integral: the module documentation)."""
+    return "sg-convolution" if kernel == "two-vsgl" else "separable"
 
 
 def vsgl_incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
@@ -120,13 +144,32 @@ def vsgl_incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
     return axis_in, lam_in, scale / (2.0 * np.pi * var)
 
 
+def vsgl_separable_lobe(position, mean, variance, lobe_axis, lobe_sharpness):
+    """The separable incoming radiance of one VSGL lobe (000 Eqs. 10-11 with Iv(−ω) taken at the
+    direction of µv), without cv: Lin(ω) ≈ cv G(−ξµ; ξv, λv) G(ω; ξµ, λσ)/(2πσv²).
+
+    Returns ``(xi_mu, lam_sigma, scale)`` with Lin = cv · scale · G(ω; ξµ, λσ),
+    scale = G(−ξµ; ξv, λv)/(2πσv²). Broadcasts (vectors in a trailing axis of 3). At y_p = µv
+    (λσ = 0) −ξv stands in for ξµ, as in :func:`vsgl_incoming_sg`.
+    """
+    r = f64(mean) - f64(position)
+    d2 = dot(r, r)
+    lobe_axis = f64(lobe_axis)
+    r, lobe_axis = np.broadcast_arrays(r, lobe_axis)
+    xi_mu = safe_normalize(r, -lobe_axis, np.sqrt(d2))
+    var = np.maximum(f64(variance), VARIANCE_FLOOR)
+    emission = sg_evaluate(-xi_mu, lobe_axis, f64(lobe_sharpness))
+    return xi_mu, d2 / var, emission / (2.0 * np.pi * var)
+
+
 def vsgl_diffuse_factor(axis_in, sharpness_in, normal, mode="cosine"):
-    """Ld / (cin Rd): A(λin)/π ⟨ξin, n⟩ ("cosine", 000 app. C),
+    """Ld / (cin Rd): A(λin)/π ⟨ξin, n⟩ ("cosine", 000 app. C; also "separable", called with the
+    positional lobe ξµ, λσ of :func:`vsgl_separable_lobe` and its scale as cin),
     ∫ G(ξin, λin) G(n, λd) dω / A(λd) ("sg-convolution", 003) or
     1/π ∫ G(ω; ξin, λin) max(ω·n, 0) dω ("clamped-cosine", Tokuyoshi et al. 2024)."""
     if mode == "clamped-cosine":
         return sg_clamped_cosine_integral(dot(f64(axis_in), f64(normal)), sharpness_in)
-    if mode == "cosine":
+    if mode in ("cosine", "separable"):
         return sg_integral(sharpness_in) / np.pi * np.maximum(dot(f64(axis_in), f64(normal)), 0.0)
     if mode == "sg-convolution":
         return (sg_product_integral(axis_in, sharpness_in, normal, DIFFUSE_SHARPNESS)
@@ -202,11 +245,18 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
                 position[:, None], mean, variance,
                 f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
                 f64(vsgls[sharp_key]).reshape(-1)[rows][None])
-            c_in = amplitude * scale[..., None]
-            if visibility is not None:
-                c_in = c_in * f64(visibility)[:, rows, lobes.index(lobe), None]
-            ld = c_in * vsgl_diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
-                * rd[:, None]
+            seen = 1.0 if visibility is None else f64(visibility)[:, rows, lobes.index(lobe), None]
+            c_in = amplitude * scale[..., None] * seen
+            if diffuse_mode == "separable":
+                xi_mu, lam_sigma, sep_scale = vsgl_separable_lobe(
+                    position[:, None], mean, variance, f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
+                    f64(vsgls[sharp_key]).reshape(-1)[rows][None])
+                ld = (amplitude * sep_scale[..., None] * seen
+                      * vsgl_diffuse_factor(xi_mu, lam_sigma, normal[:, None], "separable")[..., None]
+                      * rd[:, None])
+            else:
+                ld = c_in * vsgl_diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
+                    * rd[:, None]
             ls = c_in * vsgl_specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
                                         alpha[:, None], f0[:, None], specular_cosine)
             diffuse += ld.sum(axis=1)
