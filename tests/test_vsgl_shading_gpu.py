@@ -15,8 +15,8 @@ uses are checked.
 
 The pass: G-buffers made in numpy with extreme pixels (background, grazing views at cosines ±1e-2
 … ±1e-4, normals facing away, roughness 1e-3 … 1, a pixel at a VSGL's mean, black and white
-materials), N = 1 and N = 4096 (8x8 pixels), extreme VSGL tables, two tables blended, both
-diffuse modes, the generation's table read on the GPU, perceptual roughness, an orthographic
+materials), N = 1 and N = 4096 (8x8 pixels), extreme VSGL tables, two tables blended, every
+diffuse mode (the separable one also with receivers on a lit floor's own plane), the generation's table read on the GPU, perceptual roughness, an orthographic
 camera: per pixel against the reference (relative 2e-4 + 1e-6 of the image or pixel maximum).
 ``test_shading_time`` prints the time against N and resolution.
 """
@@ -99,10 +99,14 @@ def lobe_reference(g):
     cosine = scale * vs.vsgl_diffuse_factor(axis_in, lam_in, g["normal"], "cosine")
     conv = scale * vs.vsgl_diffuse_factor(axis_in, lam_in, g["normal"], "sg-convolution")
     clamped = scale * vs.vsgl_diffuse_factor(axis_in, lam_in, g["normal"], "clamped-cosine")
+    xi_mu, lam_sigma, separable_scale = vs.vsgl_separable_lobe(g["position"], g["mean"], g["variance"],
+                                                               g["lobe_axis"], g["lobe_sharpness"])
+    separable = separable_scale * vs.vsgl_diffuse_factor(xi_mu, lam_sigma, g["normal"], "separable")
     k1 = vs.vsgl_specular_factor(axis_in, lam_in, g["view"], g["normal"], g["roughness"], np.ones((len(lam_in), 3)))[:, 0]
     k0 = vs.vsgl_specular_factor(axis_in, lam_in, g["view"], g["normal"], g["roughness"], np.zeros((len(lam_in), 3)))[:, 0]
     return {"incoming": np.concatenate([axis_in, lam_in[:, None]], -1), "scale": scale,
             "diffuse_cosine": cosine, "diffuse_convolution": conv, "diffuse_clamped_cosine": clamped,
+            "diffuse_separable": separable,
             "specular_f0_1": scale * k1, "specular_f0_004": scale * (0.04 * k1 + 0.96 * k0)}
 
 
@@ -136,6 +140,21 @@ vsgl_accumulate(rc, vsgl_position(position, mean, variance), vec3(1.0), lobe_axi
                 vsgl_position(position, vec3(-7.0, 3.0, 1.0), 0.5), vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0,
                 VSGL_DIFFUSE_CLAMPED_COSINE, d, sp, fr);
 diffuse_clamped_cosine = d.x;
+"""}
+
+# The separable diffuse mode (the modified and original kernels'), likewise in shaders of its own.
+SEPARABLE_BODIES = {"lobe": """
+VSGLReceiver rc = vsgl_receiver(position, normal, view, roughness);
+vec3 d = vec3(0.0), sp = vec3(0.0), fr = vec3(0.0);
+vsgl_accumulate_lobe(rc, mean, variance, vec3(1.0), lobe_axis, lobe_sharpness, VSGL_DIFFUSE_SEPARABLE, d, sp, fr);
+diffuse_separable = d.x;
+""", "fused": """
+VSGLReceiver rc = vsgl_receiver(position, normal, view, roughness);
+vec3 d = vec3(0.0), sp = vec3(0.0), fr = vec3(0.0);
+vsgl_accumulate(rc, vsgl_position(position, mean, variance), vec3(1.0), lobe_axis, lobe_sharpness,
+                vsgl_position(position, vec3(-7.0, 3.0, 1.0), 0.5), vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0,
+                VSGL_DIFFUSE_SEPARABLE, d, sp, fr);
+diffuse_separable = d.x;
 """}
 
 
@@ -199,13 +218,16 @@ def lobe_results(gpu_context):
     for body, source in CLAMPED_BODIES.items():
         gpu[body]["diffuse_clamped_cosine"] = evaluate_glsl(source, grid, {"diffuse_clamped_cosine": 1},
                                                             libraries=["lib/vsgl_shading.glsl"])["diffuse_clamped_cosine"]
+    for body, source in SEPARABLE_BODIES.items():
+        gpu[body]["diffuse_separable"] = evaluate_glsl(source, grid, {"diffuse_separable": 1},
+                                                       libraries=["lib/vsgl_shading.glsl"])["diffuse_separable"]
     elapsed = time.perf_counter() - start
     reference = lobe_reference(grid)
     return grid, groups, gpu, reference, _conditioning(grid, reference), elapsed
 
 
 @pytest.mark.parametrize("body", ["lobe", "fused"])
-@pytest.mark.parametrize("output", [*LOBE_OUTPUTS, "diffuse_clamped_cosine"])
+@pytest.mark.parametrize("output", [*LOBE_OUTPUTS, "diffuse_clamped_cosine", "diffuse_separable"])
 def test_glsl_lobe_matches_reference(lobe_results, output, body):
     grid, groups, gpu, reference, conditioning, _ = lobe_results
     gpu = gpu[body]
@@ -326,17 +348,18 @@ def floor_rsm():
     return floor_vpls(64).rsm()
 
 
+@pytest.mark.parametrize("diffuse_mode", [vs.diffuse_mode_for_kernel("modified"), "cosine"])
 @pytest.mark.parametrize("count", [1, 4096])
-def test_pass_matches_reference(gpu_context, floor_rsm, count):
+def test_pass_matches_reference(gpu_context, floor_rsm, count, diffuse_mode):
     size = 16 if count == 1 else 8
     vsgls = generate_vsgls(floor_rsm, count)
     gbuffer = extreme_gbuffer(size, size)
     gbuffer["position"][3, 2] = vsgls["diffuse_mean"][0]  # pixels at a VSGL lobe's mean
     gbuffer["position"][4, 2] = vsgls["specular_mean"][0]
-    gpu_d, gpu_s = shading_pass.shade_gpu(upload(gbuffer), CAMERA, vsgls)
-    ref_d, ref_s = reference_image(gbuffer, [vsgls])
-    assert_image_matches(gpu_d, ref_d, label=f"diffuse N={count}")
-    assert_image_matches(gpu_s, ref_s, label=f"specular N={count}")
+    gpu_d, gpu_s = shading_pass.shade_gpu(upload(gbuffer), CAMERA, vsgls, diffuse_mode)
+    ref_d, ref_s = reference_image(gbuffer, [vsgls], diffuse_mode=diffuse_mode)
+    assert_image_matches(gpu_d, ref_d, label=f"diffuse N={count} {diffuse_mode}")
+    assert_image_matches(gpu_s, ref_s, label=f"specular N={count} {diffuse_mode}")
     background = gbuffer["coverage"] == 0
     assert np.all(gpu_d[background] == 0.0) and np.all(gpu_s[background] == 0.0)
     np.testing.assert_array_equal(gpu_d[..., 3], gbuffer["coverage"])
@@ -365,9 +388,9 @@ def extreme_vsgls():
     return out
 
 
-@pytest.mark.parametrize("diffuse_mode", ["cosine", "sg-convolution", "clamped-cosine"])
+@pytest.mark.parametrize("diffuse_mode", vs.DIFFUSE_MODES)
 def test_pass_with_extreme_vsgls_and_several_tables(gpu_context, floor_rsm, diffuse_mode):
-    """Two tables (blended) = the sum of both; extreme VSGLs; both diffuse modes; finite."""
+    """Two tables (blended) = the sum of both; extreme VSGLs; every diffuse mode; finite."""
     extreme = extreme_vsgls()
     two = generate_vsgls(floor_rsm, 2, kernel="two-vsgl")
     gbuffer = extreme_gbuffer(12, 12)
@@ -379,6 +402,25 @@ def test_pass_with_extreme_vsgls_and_several_tables(gpu_context, floor_rsm, diff
     assert_image_matches(gpu_d, ref_d, label=f"diffuse extreme {diffuse_mode}", per_pixel=True)
     assert_image_matches(gpu_s, ref_s, label=f"specular extreme {diffuse_mode}", per_pixel=True)
     np.testing.assert_array_equal(gpu_d[..., 3], gbuffer["coverage"])
+
+
+def test_separable_pass_on_the_reflectors_own_plane(gpu_context, floor_rsm):
+    """Receivers on the lit floor's own plane (z = 0, normal +z: ⟨ξµ, n⟩ = 0) get no diffuse light
+    from its VSGLs in the separable mode, on the GPU as in the reference, while the wall and ceiling
+    of the extreme G-buffer match it per pixel; grazing and at-the-mean pixels included, finite."""
+    vsgls = generate_vsgls(floor_rsm, 256)
+    gbuffer = extreme_gbuffer(8, 8)
+    u = np.linspace(-0.45, 0.45, 8)
+    gbuffer["position"][5:] = np.stack([u[None, :] * np.ones((3, 1)), np.linspace(-0.4, 0.4, 3)[:, None]
+                                        * np.ones((1, 8)), np.zeros((3, 8))], -1)
+    gbuffer["normal"][5:] = [0.0, 0.0, 1.0]
+    gbuffer["position"][4, 2] = vsgls["diffuse_mean"][0]
+    gpu_d, gpu_s = shading_pass.shade_gpu(upload(gbuffer), CAMERA, vsgls, "separable")
+    ref_d, ref_s = reference_image(gbuffer, [vsgls], diffuse_mode="separable")
+    assert np.all(ref_d[5:] == 0.0) and np.all(gpu_d[5:, :, :3] == 0.0)
+    assert ref_d[:5].max() > 0.0
+    assert_image_matches(gpu_d, ref_d, label="diffuse separable, own plane")
+    assert_image_matches(gpu_s, ref_s, label="specular separable, own plane")
 
 
 def test_shared_positions_are_computed_once_with_the_same_result(gpu_context, floor_rsm):

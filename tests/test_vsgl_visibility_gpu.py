@@ -56,7 +56,8 @@ def _maps(vsgls, size=16):
                              min_distance=2.0 * sigma)
 
 
-def test_shading_with_visibility_matches_the_reference_and_the_wall_shadows():
+@pytest.mark.parametrize("diffuse_mode", [vs.diffuse_mode_for_kernel("modified"), "cosine"])
+def test_shading_with_visibility_matches_the_reference_and_the_wall_shadows(diffuse_mode):
     vsgls = _vsgls()
     g, wall = _gbuffer()
     atlas = _maps(vsgls)
@@ -65,8 +66,8 @@ def test_shading_with_visibility_matches_the_reference_and_the_wall_shadows():
     seen = shading_pass.VSGLTable(table.texture, table.count, False, atlas)
     gbuffer = shading_pass.upload_gbuffer(**g)
     try:
-        gpu_d, gpu_s = shading_pass.shade_gpu(gbuffer, CAMERA, [seen])
-        open_d, _ = shading_pass.shade_gpu(gbuffer, CAMERA, [table])
+        gpu_d, gpu_s = shading_pass.shade_gpu(gbuffer, CAMERA, [seen], diffuse_mode)
+        open_d, _ = shading_pass.shade_gpu(gbuffer, CAMERA, [table], diffuse_mode)
         depths = atlas.read()
     finally:
         ism_pass.PASS.free(atlas)
@@ -77,7 +78,8 @@ def test_shading_with_visibility_matches_the_reference_and_the_wall_shadows():
     f32 = {k: np.asarray(v, np.float32).astype(np.float64) for k, v in vsgls.items()}
     visibility = vs.vsgl_visibility(depths, 2, f32, position, normal, shading_pass.ISM_MAX_RADIUS)
     ref_d, ref_s = vs.shade(f32, position, normal, view, g["diffuse_reflectance"].reshape(-1, 3),
-                            g["specular_f0"].reshape(-1, 3), g["roughness"].reshape(-1), visibility=visibility)
+                            g["specular_f0"].reshape(-1, 3), g["roughness"].reshape(-1), visibility=visibility,
+                            diffuse_mode=diffuse_mode)
     got_d, got_s = gpu_d[..., :3].reshape(-1, 3), gpu_s[..., :3].reshape(-1, 3)
     assert np.isfinite(got_d).all() and np.isfinite(got_s).all()
     # A pixel within float32 rounding of a filter texel's edge or its bias may count one texel
@@ -96,7 +98,8 @@ def test_shading_with_visibility_matches_the_reference_and_the_wall_shadows():
     side[:, :, 0] = vs.vsgl_reflector_side(f32["diffuse_mean"][None], f32["diffuse_axis"][None],
                                            f32["diffuse_sharpness"][None], position[:, None])
     side_d, _ = vs.shade(f32, position, normal, view, g["diffuse_reflectance"].reshape(-1, 3),
-                         g["specular_f0"].reshape(-1, 3), g["roughness"].reshape(-1), visibility=side)
+                         g["specular_f0"].reshape(-1, 3), g["roughness"].reshape(-1), visibility=side,
+                         diffuse_mode=diffuse_mode)
     np.testing.assert_allclose(got_d[before], side_d[before], rtol=1e-4, atol=1e-6 * np.abs(side_d).max())
 
 

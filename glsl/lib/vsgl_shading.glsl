@@ -11,10 +11,15 @@
 // Per shading point: vsgl_receiver() once (the ASG specular lobe of 003 and the view terms of C);
 // per VSGL vsgl_accumulate() (both its lobes: the diffuse and the specular SG of every VSGL
 // illuminate; vsgl_accumulate_lobe() is one lobe), which adds per lobe
-//   diffuse   += c_in * A(lam_in)/pi * <xi_in, n>                    (cosine pulled out, 000 app. C)
+//   diffuse   += c_sep * A(lam_sigma)/pi * <xi_mu, n>                (separable, 000 Eqs. 10-11, app. C)
+//             or c_in * A(lam_in)/pi * <xi_in, n>                    (cosine pulled out, 000 app. C)
 //             or c_in * int G(xi_in, lam_in) G(n, lam_d) / A(lam_d)   (003's 2-VSGL mode)
 //             or c_in * 1/pi int G(xi_in, lam_in) max(<w, n>, 0) dw   (clamped cosine)
 //   specular  += c_in * k * (1 - m^5)   and   fresnel += c_in * k * m^5,
+// c_sep = c_v G(-xi_mu; xi_v, lam_v) / (2 pi sigma_v^2): the radiant intensity at the direction of the
+// mean times the positional lobe, not multiplied into Eq. 12's SG, whose axis a broad positional
+// lobe tilts towards -xi_v (behind the walls of a cluster spanning a corner; the reference's module
+// documentation). The specular always takes Eq. 12's product c_in G(xi_in, lam_in).
 // k = D(1) <xi_in, n> / ((c_i + s_i)(c_o + s_o)) * pi / sqrt((eta_x + nu)(eta_y + nu))
 //     * exp(-eta_x' (xi_in.x)^2 - eta_y' (xi_in.y)^2), m = 1 - xi_in.h (Schlick), so that the
 // specular radiance is F0 * specular + fresnel (Schlick is linear in F0) and the diffuse radiance
@@ -33,6 +38,7 @@ const float VSGL_ALPHA_MIN = 1e-3;
 const int VSGL_DIFFUSE_COSINE = 0;          // 000 app. C
 const int VSGL_DIFFUSE_SG_CONVOLUTION = 1;  // 003's 2-VSGL mode
 const int VSGL_DIFFUSE_CLAMPED_COSINE = 2;  // Tokuyoshi et al. 2024 (sg.glsl sg_clamped_cosine_integral)
+const int VSGL_DIFFUSE_SEPARABLE = 3;       // 000 Eqs. 10-11, intensity at the mean's direction
 
 // Incoming radiance SG of one VSGL lobe at `position` (000 Eq. 12), without c_v:
 // xi_mu = (mu_v - y_p)/|mu_v - y_p|, lam_sigma = |mu_v - y_p|^2 / sigma_v^2,
@@ -52,7 +58,22 @@ void vsgl_incoming_sg(vec3 position, vec3 mean, float variance, vec3 lobe_axis, 
   scale = product_scale / (TWO_PI * var);
 }
 
-// Ld / (c_in Rd) (reference diffuse_factor).
+// The separable incoming radiance of one VSGL lobe without c_v (reference vsgl_separable_lobe):
+// G(-xi_mu; xi_v, lam_v) G(w; xi_mu, lam_sigma) / (2 pi sigma_v^2) = scale * G(w; xi_mu, lam_sigma).
+// At y_p = mu_v (lam_sigma = 0) -xi_v stands in for xi_mu, as in vsgl_incoming_sg.
+void vsgl_separable_lobe(vec3 position, vec3 mean, float variance, vec3 lobe_axis, float lobe_sharpness,
+                         out vec3 xi_mu, out float lam_sigma, out float scale)
+{
+  vec3 r = mean - position;
+  float dist = safe_length(r);
+  xi_mu = safe_normalize(r, -lobe_axis);
+  float var = max(variance, VSGL_VARIANCE_FLOOR);
+  lam_sigma = dist * (dist / var);
+  scale = sg_evaluate(-xi_mu, lobe_axis, lobe_sharpness) / (TWO_PI * var);
+}
+
+// Ld / (c_in Rd) (reference diffuse_factor); VSGL_DIFFUSE_SEPARABLE takes the positional lobe
+// (xi_mu, lam_sigma) and is the cosine form of it.
 float vsgl_diffuse_factor(vec3 axis_in, float sharpness_in, vec3 normal, int mode)
 {
   if (mode == VSGL_DIFFUSE_CLAMPED_COSINE) {
@@ -161,7 +182,17 @@ void vsgl_accumulate_lobe(VSGLReceiver rc, vec3 mean, float variance, vec3 ampli
   vsgl_incoming_sg(rc.position, mean, variance, lobe_axis, lobe_sharpness, axis_in, sharpness_in,
                    scale);
   vec3 c_in = amplitude * scale;
-  diffuse += c_in * vsgl_diffuse_factor(axis_in, sharpness_in, rc.normal, diffuse_mode);
+  if (diffuse_mode == VSGL_DIFFUSE_SEPARABLE) {
+    vec3 xi_mu;
+    float lam_sigma;
+    float separable_scale;
+    vsgl_separable_lobe(rc.position, mean, variance, lobe_axis, lobe_sharpness, xi_mu, lam_sigma,
+                        separable_scale);
+    diffuse += amplitude * (separable_scale * vsgl_diffuse_factor(xi_mu, lam_sigma, rc.normal, diffuse_mode));
+  }
+  else {
+    diffuse += c_in * vsgl_diffuse_factor(axis_in, sharpness_in, rc.normal, diffuse_mode);
+  }
   float m5;
   float k = vsgl_specular_factor(rc, axis_in, sharpness_in, m5);
   specular += c_in * (k * (1.0 - m5));
@@ -238,7 +269,15 @@ void vsgl_accumulate(VSGLReceiver rc, VSGLPosition diffuse_position, vec3 diffus
     float product_scale = exp(sg_product_exponent(lobe_axis, lobe_sharpness, xi_mu, lam_sigma,
                                                   sharpness_in));
     vec3 c_in = amplitude * (product_scale * inv_area);
-    diffuse += c_in * vsgl_diffuse_factor(axis_in, sharpness_in, rc.normal, diffuse_mode);
+    if (diffuse_mode == VSGL_DIFFUSE_SEPARABLE) {
+      // vsgl_separable_lobe from the VSGLPosition (lobe_axis is -xi_v here: G(xi_mu; -xi_v, lam_v)).
+      vec3 xi_sep = lam_sigma > 0.0 ? xi_mu : lobe_axis;
+      float emission = sg_evaluate(xi_sep, lobe_axis, lobe_sharpness);
+      diffuse += amplitude * (emission * inv_area * vsgl_diffuse_factor(xi_sep, lam_sigma, rc.normal, diffuse_mode));
+    }
+    else {
+      diffuse += c_in * vsgl_diffuse_factor(axis_in, sharpness_in, rc.normal, diffuse_mode);
+    }
     float m5;
     float k = vsgl_specular_factor(rc, axis_in, sharpness_in, m5);
     specular += c_in * (k * (1.0 - m5));

@@ -11,7 +11,7 @@
 // diffuse = Rd * sum, indirect specular = F0 * sum_s + sum_f (Schlick is linear in F0); alpha =
 // coverage, or 0 when `accumulate` is set (later tables are added by blending).
 // VSGL_DIFFUSE_MODE is a compile-time define (0: cosine pulled out, 1: 003's SG convolution, 2: the
-// clamped-cosine integral of the incoming SG).
+// clamped-cosine integral of the incoming SG, 3: the separable incoming radiance, cosine pulled out).
 //
 // VSGL_VISIBILITY 1: each lobe's light is weighted by its visibility from the pixel, a filtered
 // lookup in the lobe position's imperfect shadow map (000 sec. 5; lib/ism.glsl, atlas of

@@ -38,9 +38,11 @@ added by blending (float32 adds).
 ``indirect_specular`` (F0 × Σs + Σf), alpha = coverage; background pixels 0. Radiance in the units
 of the VSGL amplitudes (Blender's W/(m² sr) when the RSM carries Blender's light units).
 
-``diffuse_mode``: "cosine" (000 app. C, cosine pulled out), "sg-convolution" (003's 2-VSGL mode) or
-"clamped-cosine" (the incoming SG times the clamped cosine, Tokuyoshi et al. 2024;
-``reference.vsgl_shading.diffuse_mode_for_kernel``). One shader per mode, compiled once per
+``diffuse_mode``: "separable" (the radiant intensity at the mean's direction times the positional
+lobe, cosine pulled out: 000 Eqs. 10-11 and app. C; the modified and original kernels'), "cosine"
+(Eq. 12's SG, cosine pulled out, 000 app. C), "sg-convolution" (003's 2-VSGL mode) or
+"clamped-cosine" (Eq. 12's SG times the clamped cosine, Tokuyoshi et al. 2024;
+``reference.vsgl_shading.diffuse_mode_for_kernel``; the specular is Eq. 12's in every mode). One shader per mode, compiled once per
 process. :class:`VSGLShading` keeps its output textures between frames (reallocated when the size
 changes); :meth:`VSGLShading.free` drops them.
 
@@ -60,7 +62,7 @@ from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, texture_from_array
 from .vsgl_generation import MAX_VSGL_COUNT
 
-_MODE_INDEX = {"cosine": 0, "sg-convolution": 1, "clamped-cosine": 2}
+_MODE_INDEX = {"cosine": 0, "sg-convolution": 1, "clamped-cosine": 2, "separable": 3}
 
 
 #: Largest radius in texels of the visibility filter (its cost grows with (2r + 1)²).
