@@ -25,9 +25,10 @@ stage's indirect light over those pixels, as a ratio to Cycles' on the same pixe
   carry);
 * VSGL ref, no visibility: the GPU's VSGL table (N = the scene's) shaded by the float64 reference
   (reference/vsgl_shading.shade): the lobe fit, clustering into Gaussians (000 app. B) and the
-  shading approximations, with 000 app. C's diffuse (cosine pulled out of the integral) and with
-  the incoming SG's clamped-cosine integral (Tokuyoshi et al. 2024); also at larger N
-  (--counts);
+  shading approximations, with the separable diffuse (000 Eqs. 10-11, the default of the
+  modified and original kernels), with 000 app. C's diffuse of Eq. 12's SG (cosine pulled out of
+  the integral) and with that SG's clamped-cosine integral (Tokuyoshi et al. 2024); also at
+  larger N (--counts);
 * GPU off / on: the GPU's shading pass on the same VSGLs without and with visibility, in the
   scene's diffuse mode (reference/vsgl_shading.diffuse_mode_for_kernel).
 
@@ -238,7 +239,8 @@ def budget(name, path, stride, samples, counts, seed=0):
         for count in counts:
             vsgls, _ = bench.vsgls(settings.overridden(vsgl_count=count, visibility=False))
             try:
-                for ref_mode, key in (("cosine", "vsgl_ref"), ("clamped-cosine", "vsgl_ref_clamped")):
+                for ref_mode, key in (("separable", "vsgl_ref_separable"), ("cosine", "vsgl_ref"),
+                                      ("clamped-cosine", "vsgl_ref_clamped")):
                     ref = np.zeros(len(position))
                     for _, _, generation in vsgls.generations:
                         table = {k: np.asarray(v, np.float64) for k, v in generation.read_table().items()}
@@ -264,15 +266,20 @@ def budget(name, path, stride, samples, counts, seed=0):
 def markdown(rows):
     lines = ["| scene | pixels | direct ours/Cycles | VPL exact, visible | VPL exact, no vis. | near-field share | "
              "VPL SG lobes (Eq. 6 sphere-normalized), no vis. | VPL SG lobes (hemisphere), no vis. | "
-             "VSGL ref, cosine pulled out, no vis. | VSGL ref, clamped cosine, no vis. | GPU off | GPU on | frame off |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "VSGL ref, separable, no vis. | VSGL ref, Eq. 12 cosine pulled out, no vis. | "
+             "VSGL ref, Eq. 12 clamped cosine, no vis. | GPU off | GPU on | frame off |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, f in rows.items():
+        def at_counts(prefix):
+            return ", ".join(f"{f[k]:.3f} (N = {k.rsplit('_', 1)[1]})" for k in f
+                             if k.startswith(prefix) and k.rsplit("_", 1)[1].isdigit())
+
         refs = ", ".join(f"{f[k]:.3f} (N = {k.rsplit('_', 1)[1]})" for k in f
-                         if k.startswith("vsgl_ref_") and not k.startswith("vsgl_ref_clamped"))
-        clamped = ", ".join(f"{f[k]:.3f} (N = {k.rsplit('_', 1)[1]})" for k in f if k.startswith("vsgl_ref_clamped_"))
+                         if k.startswith("vsgl_ref_") and k.rsplit("_", 1)[0] == "vsgl_ref")
+        separable, clamped = at_counts("vsgl_ref_separable_"), at_counts("vsgl_ref_clamped_")
         lines.append(f"| {name} | {f['pixels']} | {f['direct']:.3f} | {f['vpl_exact_visible']:.3f} ± "
                      f"{f['vpl_exact_visible_se']:.3f} | {f['vpl_exact']:.3f} | {f['vpl_near_share']:.3f} | "
-                     f"{f['vpl_sg_sphere']:.3f} | {f['vpl_sg']:.3f} | {refs} | {clamped} | {f['gpu_off']:.3f} | {f['gpu_on']:.3f} | {f['frame_off']:.3f} |")
+                     f"{f['vpl_sg_sphere']:.3f} | {f['vpl_sg']:.3f} | {separable} | {refs} | {clamped} | {f['gpu_off']:.3f} | {f['gpu_on']:.3f} | {f['frame_off']:.3f} |")
     return "\n".join(lines) + "\n"
 
 
