@@ -94,7 +94,7 @@ def exact_visibility(table, maps_per_vsgl, position, triangles, exclude_sigmas, 
 def diagnose(name, path, stride, settings_overrides, material=None):
     from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.pipeline import build_visibility
-    from vsgl_addon.reference.vsgl_shading import shade, vsgl_visibility
+    from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel, shade, vsgl_visibility
     from vsgl_addon.passes.vsgl_shading import ISM_MAX_RADIUS
 
     width, height = RESOLUTION
@@ -127,7 +127,7 @@ def diagnose(name, path, stride, settings_overrides, material=None):
                 table = {k: np.asarray(v, np.float64) for k, v in table.items()}
                 maps = atlas.count // len(table["variance"])
                 _, _, terms = shade(table, position, normal, view, rd[pick], f0[pick], roughness,
-                                    per_term=True)
+                                    diffuse_mode=diffuse_mode_for_kernel(settings.kernel), per_term=True)
                 weight = (terms.sum(axis=3) @ LUMINANCE)  # (P, N, 2)
                 v_ism = vsgl_visibility(atlas.read(), maps, table, position, normal, ISM_MAX_RADIUS)
                 v_exact = exact_visibility(table, maps, position, triangles, 1.0)

@@ -58,8 +58,13 @@ class Bench:
         self.gbuffer.free()
         self.scene_gpu.free()
 
-    def shade(self, tables, mode="cosine", repeats=1):
-        """(raw diffuse (h, w, 3), raw specular, median seconds) of shading with `tables`."""
+    def shade(self, tables, mode=None, repeats=1):
+        """(raw diffuse (h, w, 3), raw specular, median seconds) of shading with `tables`, in diffuse
+        `mode` (None: the modified kernel's, as the frame shades)."""
+        if mode is None:
+            from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel
+
+            mode = diffuse_mode_for_kernel("modified")
 
         def run():
             diffuse, _ = self.shading.run(self.inputs, self.gbuffer.camera_vector, tables, mode)
