@@ -24,10 +24,10 @@ tools/build_validation_scenes.py; tests/test_validation_scenes.py checks they st
   light (benchmarks/energy_budget.py --only sun_courtyard --stride 12 --samples 128 --counts 256
   4096; 0.47 when the RSM was fitted to the camera's frustum alone, which also kept these two
   figures near 1.8× and 2.7×: the missing south wall offset the VSGLs' excess). What is left is
-  the VSGL model, not the maps: the maps give the front what exact ray-cast visibility of the same
-  VSGLs from their shadow origins gives (2.30 and 2.30 at stride 6,
-  benchmarks/visibility_diagnosis.py --only sun_courtyard --material "Glossy tiles"; 1.51 with the
-  bare segment to each VSGL's mean); without visibility the VSGLs give the image 2.0× Cycles'
+  the VSGL model, not the maps: the maps give the front about what exact ray-cast visibility of the
+  same VSGLs from their shadow origins gives (1.77 and 1.68 at stride 6,
+  benchmarks/visibility_diagnosis.py --only sun_courtyard --material "Glossy tiles"; 1.02 with the
+  bare segment to each VSGL's mean; 2.30, 2.30 and 1.51 with Eq. 12's diffuse); without visibility the VSGLs give the image 2.0× Cycles'
   light where their brute-force VPLs give 1.4× (energy_budget: the clusters' Gaussians mix the
   sunlit ground, the wall's back and top, and float in the courtyard's air; the SG lobes add
   1.2×).
