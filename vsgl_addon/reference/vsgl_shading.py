@@ -29,9 +29,11 @@ lobes in the paper's "shared" form, 000 app. B.2). Then, per lobe:
   (its mean between floor and wall, ξv diagonal, λv broad) the receivers across the room then see
   the lobe centred behind the cluster's own walls, and the pulled-out cosine drops most of it: one
   corner VSGL gives 0.72 of its VPLs' light (brute force with SG lobes), the separable form 0.87
-  (tests/test_reference_vsgl_shading.py); in the suite's rooms corner VSGLs carried ~17 % of the
-  light and ~53 % of the loss against Cycles, while clustering itself loses nothing (total flux
-  ratio 1.017 clustered, 1.015 unclustered). The specular keeps Eq. 12's product (below). Far from the VSGL the two forms are the same point light
+  (tests/test_reference_vsgl_shading.py); in the suite's Cornell box and closed room the VSGLs
+  whose |ξ̄| is under 0.9 of a flat cluster's carry 18 % and 22 % of the diffuse light with Eq. 12
+  but give 39 % and 73 % of what the separable form adds (benchmarks/diffuse_mode_shares.py), and
+  the closed room's VSGLs then give 0.99 of Cycles' light against their SG-lobe VPLs' 1.01
+  (benchmarks/energy_budget.py). The specular keeps Eq. 12's product (below). Far from the VSGL the two forms are the same point light
   Iv(−ξµ) ⟨ξµ, n⟩/d² (000 app. C.1 derives Eq. 12 for small σv or large distances): their exponents
   differ by λv²(1 − ⟨ξµ, −ξv⟩²)/(2λσ) to first order, within 2 % at 100 σv for λv ≤ 10. Near a
   sharp lobe (λσ ≲ λv²) the separable form keeps the emission lobe's own width where Eq. 12 widens
