@@ -59,6 +59,7 @@ class FakeBackend:
         self.renders = []  # (width, height) of every view render
         self.light_builds = []  # seeds
         self.displayed = []
+        self.previews = []  # render_view's preview flag (the coarse image's thinned VPLs)
 
     def frame_renderer(self):
         return Thing()
@@ -68,8 +69,9 @@ class FakeBackend:
         self.light_builds.append(settings.seed)
         return Thing(seed=settings.seed, timings={})
 
-    def render_view(self, renderer, lights, settings, width, height, view, projection):
+    def render_view(self, renderer, lights, settings, width, height, view, projection, preview=False):
         assert not lights.freed and settings.seed == lights.seed
+        self.previews.append(preview)
         self.clock.now += FIXED_SECONDS + SECONDS_PER_PIXEL * width * height
         self.renders.append((width, height))
         return View(value=float(lights.seed), size=(width, height), counts={"vsgls": 16},
@@ -185,6 +187,17 @@ def test_a_scene_change_or_other_settings_rerun_the_light_passes(pipeline):
 def test_scale_one_makes_the_coarse_image_the_first_sample(pipeline):
     pipeline.step(describe, SETTINGS, 1.0, 2)
     assert pipeline.samples == 1 and pipeline.backend.renders == [REGION]
+    assert pipeline.backend.previews == [False]  # a sample: every VPL
+
+
+def test_only_the_coarse_image_is_a_preview(pipeline):
+    """The coarse image may thin the VPLs (view_gpu.GPUViewBackend.render_view); the samples that
+    replace it may not."""
+    for _ in range(50):
+        if pipeline.step(describe, SETTINGS, 0.25, 2) is None:
+            break
+    assert pipeline.backend.previews[0] is True and not any(pipeline.backend.previews[1:])
+    assert len(pipeline.backend.previews) > 2
 
 
 def test_a_failure_stops_until_the_scene_changes(pipeline):

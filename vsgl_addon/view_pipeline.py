@@ -230,7 +230,8 @@ class ViewPipeline:
         started = self.clock()
         target = self._ensure_target("target", full)
         view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, height,
-                                        request.view_matrix, request.projection_matrix)
+                                        request.view_matrix, request.projection_matrix,
+                                        preview=(width, height) != tuple(full))
         try:
             if (width, height) == tuple(full):
                 guide, own_guide = self.backend.guide_of(view), False
