@@ -60,6 +60,7 @@ class FakeBackend:
         self.light_builds = []  # seeds
         self.displayed = []
         self.previews = []  # render_view's preview flag (the coarse image's thinned VPLs)
+        self.guides = 0  # full-resolution guide G-buffers rendered
 
     def frame_renderer(self):
         return Thing()
@@ -67,7 +68,7 @@ class FakeBackend:
     def scene_lights(self, description, settings):
         self.clock.now += LIGHT_SECONDS
         self.light_builds.append(settings.seed)
-        return Thing(seed=settings.seed, timings={})
+        return Thing(seed=settings.seed, timings={}, scene=description)
 
     def render_view(self, renderer, lights, settings, width, height, view, projection, preview=False):
         assert not lights.freed and settings.seed == lights.seed
@@ -79,6 +80,7 @@ class FakeBackend:
 
     def guide(self, renderer, lights, width, height, view, projection):
         self.clock.now += 1e-7 * width * height
+        self.guides += 1
         return Thing(size=(width, height))
 
     def guide_of(self, view):
@@ -330,3 +332,41 @@ def test_closed_viewports_are_freed_and_a_settings_error_stops_every_viewport(vi
     assert views.step(describe) is views.pipelines[2]
     views.forget(2)
     assert views.gpu_resource_count() == 0 and Thing.alive == 0
+
+
+def test_the_guide_is_kept_across_light_changes_and_rebuilt_for_a_view_or_geometry_change(pipeline):
+    """The coarse image's full-resolution guide G-buffer: rendered once for a view and triangles,
+    kept when only a light (or a material) changed, rendered again when the view or the triangles
+    moved."""
+    from types import SimpleNamespace
+
+    corners = np.zeros((2, 3, 3), np.float32)
+
+    def scene(positions):
+        return lambda: SimpleNamespace(warnings=(), geometry=SimpleNamespace(positions=positions,
+                                                                              normals=np.ones_like(positions)))
+
+    def converge(describe_scene):
+        for _ in range(200):
+            if pipeline.step(describe_scene, SETTINGS, 0.25, 2) is None:
+                return
+        raise AssertionError("still busy")
+
+    backend = pipeline.backend
+    converge(scene(corners))
+    assert backend.guides == 1 and pipeline.guide_builds == 1
+    for _ in range(3):  # a light moved: a new description with the same triangles
+        pipeline.mark_scene_dirty()
+        converge(scene(corners.copy()))
+    assert backend.guides == 1 and len(backend.light_builds) == 8
+    moved = corners.copy()
+    moved[0, 0, 0] = 1.0
+    pipeline.mark_scene_dirty()
+    converge(scene(moved))
+    assert backend.guides == 2
+    pipeline.request_view(np.eye(4) * [1, 1, 1, 1] + np.eye(4, k=3) * 0.5, np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+    converge(scene(moved))
+    assert backend.guides == 3 and pipeline.guide is not None
+    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (100, 50))  # a resized region
+    converge(scene(moved))
+    assert backend.guides == 4 and pipeline.guide.size == (100, 50)

@@ -105,6 +105,7 @@ def test_view_updates_make_no_cpu_round_trip(demo):
             read_backs, upload_bytes = RoundTrips.read_backs, RoundTrips.upload_bytes
             steps = pipeline.steps
             _run(pipeline, lambda: demo, 0.25, 1)  # coarse, then one sample in bands (same seed)
+            assert pipeline.guide_builds == 1 + round(shift / 0.1)  # a new view: a new guide
             # Every render of this update (a loaded machine makes the bands many and small).
             renders = sum(1 for entry in list(pipeline.history)[-(pipeline.steps - steps):] if entry.get("level"))
             assert RoundTrips.read_backs == read_backs
@@ -151,6 +152,7 @@ def test_a_light_change_reads_back_only_the_views_totals_and_uploads_no_point_se
         entries = list(pipeline.history)[-(pipeline.steps - steps):]
         builds = sum(1 for entry in entries if entry.get("work") == "lights" or "light_seconds" in entry)
         assert builds == 2
+        assert pipeline.guide_builds == 1  # the triangles and the view stayed: the guide G-buffer too
         reads = RoundTrips.read_backs - read_backs
         views = next(entry["counts"] for entry in reversed(entries) if "counts" in entry)["rsm_views"]
         vpl_reads = builds * len(EXTRACTION_SLOTS) * views if vpl_shadows and pipeline.lights.vpls is not None else 0
