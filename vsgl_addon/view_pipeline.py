@@ -286,22 +286,28 @@ class ViewPipeline:
             entry["predicted_view_seconds"] = predicted
         return entry
 
+    def _guide_key(self):
+        scene = getattr(self.lights, "scene", None)
+        if self._geometry is None or self._geometry[0] is not scene:
+            self._geometry = (scene, geometry_key(scene))
+        return self._geometry[1] if self._geometry[1] is not None else ("state", self.lights_version)
+
+    def _guide_kept(self, request: ViewRequest) -> bool:
+        """The kept guide serves `request` with the current triangles."""
+        kept = self._guide_for
+        return self.guide is not None and kept[0] == self._guide_key() and same_view(kept[1], request)
+
     def _full_guide(self, request: ViewRequest):
         """The guide G-buffer at the region's size: kept across changes of the lights, materials or
         settings, rendered again when the view or the triangles changed (geometry_key; a scene
         without geometry arrays: when the light passes were rebuilt for a new scene state)."""
-        scene = getattr(self.lights, "scene", None)
-        if self._geometry is None or self._geometry[0] is not scene:
-            self._geometry = (scene, geometry_key(scene))
-        key = self._geometry[1] if self._geometry[1] is not None else ("state", self.lights_version)
-        kept = self._guide_for
-        if self.guide is None or kept[0] != key or not same_view(kept[1], request):
+        if not self._guide_kept(request):
             if self.guide is not None:
                 self.guide.free()
             self.guide = None
             self.guide = self.backend.guide(self.renderer, self.lights, request.region_size[0],
                                             request.region_size[1], request.view_matrix, request.projection_matrix)
-            self._guide_for = (key, request)
+            self._guide_for = (self._guide_key(), request)
             self.guide_builds += 1
         return self.guide
 
@@ -324,11 +330,20 @@ class ViewPipeline:
                 self.warnings = (*self.warnings, self.cost_model.warning)
         from .budget import coarse_factor
 
+        from .reference.vpl_culling import preview_stride
+
         self._model_settings = settings
         scene = getattr(self.lights, "scene", None)
         triangles = int(scene.geometry.triangle_count) if scene is not None else 0
+        # VPLs per RSM texel when the CPU knows the count (VPL shadows on): no read-back for it.
+        vpls = getattr(self.lights, "vpls", None)
+        known = getattr(vpls, "known_count", None)
+        views = sum(light.rsm_views for light in plan.lights if light.gets_rsm)
+        fraction = known / (views * settings.rsm_size ** 2) if known is not None and views else None
         self.coarse_factor, predicted = coarse_factor(plan, settings, full, scale, self.step_budget,
-                                                      self.cost_model, triangles)
+                                                      self.cost_model, triangles, fraction,
+                                                      preview_stride(settings.rsm_size ** 2),
+                                                      guide=not self._guide_kept(self.request))
         return predicted
 
     def _refine(self, describe_scene, settings: VSGLSettings, started: float, max_samples: int) -> dict:

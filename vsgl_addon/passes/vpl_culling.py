@@ -133,6 +133,11 @@ class VPLSet:
             self._count = min(_read_count(self.count_texture), self.capacity)
         return self._count
 
+    @property
+    def known_count(self) -> int | None:
+        """The count when known without a read-back (uploaded, or read before), else None."""
+        return self._count
+
     def free(self) -> None:
         if self.isms is not None:
             self.isms.free()
