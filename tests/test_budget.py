@@ -307,3 +307,31 @@ def test_the_viewport_s_first_coarse_image_follows_the_cost_model():
     pipeline.step(lambda: room, VSGLSettings(), 1.0)
     assert backend.renders[0] == (400, 300) and "predicted_view_seconds" not in pipeline.statistics
     pipeline.free()
+
+
+def test_the_view_prediction_counts_the_resolve_the_kept_guide_and_the_preview_stride():
+    """view_seconds: the joint bilateral resolve at the region's pixels (VIEW_RESOLVE_SECONDS per
+    10⁵), the full-resolution guide G-buffer only when the viewport has none kept, and the coarse
+    preview's VPL pass over one VPL of each block of S."""
+    room, plan = _plan(sharp=True)
+    assert plan.runs("vpl_pass")
+    model = B.CostModel.fallback()
+    settings = VSGLSettings(quality_mode="budget")
+    triangles = room.geometry.triangle_count
+    low, full = (20, 12), (800, 480)
+    bare = B.view_seconds(plan, settings, low, low, model, triangles)
+    features = B.frame_features(plan, settings, low, low, triangles)
+    steps = model.predict_steps({step: features[step] for step in B.VIEW_STEPS if step in features})
+    assert bare == pytest.approx(sum(steps.values()) + B.VIEW_RESOLVE_SECONDS * 20 * 12 / 1e5)
+    kept = B.view_seconds(plan, settings, low, full, model, triangles, guide=False)
+    assert kept == pytest.approx(sum(steps.values()) + B.VIEW_RESOLVE_SECONDS * 800 * 480 / 1e5)
+    guide = model.predict({"gbuffer": B.frame_features(plan, settings, full, full, triangles)["gbuffer"]})
+    assert B.view_seconds(plan, settings, low, full, model, triangles) == pytest.approx(kept + guide)
+    strided = B.view_seconds(plan, settings, low, full, model, triangles, vpl_fraction=0.5, vpl_stride=16)
+    every = B.view_seconds(plan, settings, low, full, model, triangles, vpl_fraction=0.5)
+    culled = B.frame_features(plan, settings, low, low, triangles, 0.5)["vpl_culling"]
+    per_vpl = model.coefficients["vpl_culling"][1] * culled[1]
+    assert every - strided == pytest.approx(per_vpl * 15 / 16)
+    # At full size the coarse image is a sample: the stride is not applied there.
+    assert B.coarse_factor(plan, settings, full, 1.0, 1e3, model, triangles, 0.5, 16) == (
+        1.0, pytest.approx(B.view_seconds(plan, settings, full, full, model, triangles, 0.5)))

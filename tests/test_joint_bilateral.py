@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from glsl_harness import as_gpu_floats, evaluate_glsl
-from vsgl_addon.reference.bilateral import (JBU_MIN_WEIGHT, jbu_footprint, jbu_range_weight,
+from vsgl_addon.reference.bilateral import (JBU_MIN_WEIGHT, jbu_apply, jbu_footprint, jbu_range_weight, jbu_weights,
                                             joint_bilateral_upsample)
 
 
@@ -172,3 +172,91 @@ def test_glsl_matches_reference():
     # Only pixels whose four weights sum to within float32 rounding of the fallback threshold, or
     # whose best fallback texels tie, may pick another branch on the GPU.
     assert close.mean() > 0.999, (close.mean(), np.argwhere(~close)[:5].ravel())
+
+
+# The upsampler as the viewport's resolve ran it before the weights were shared: the whole filter
+# per image (glsl/lib/bilateral.glsl's loop, each image's own texture size).
+_PER_IMAGE = """
+vec4 jbu_per_image(sampler2D low, sampler2D low_position, sampler2D low_normal, vec2 uv, vec3 position,
+                   vec3 normal, float footprint, float sigma_position, float normal_power)
+{
+  ivec2 size = textureSize(low, 0);
+  vec2 q = uv * vec2(size) - 0.5;
+  vec2 base_f = floor(q);
+  vec2 f = q - base_f;
+  ivec2 base = ivec2(base_f);
+  ivec2 hi = size - 1;
+  vec4 sum = vec4(0.0);
+  float weight_sum = 0.0;
+  for (int k = 0; k < 4; k++) {
+    ivec2 o = ivec2(k & 1, k >> 1);
+    ivec2 t = clamp(base + o, ivec2(0), hi);
+    float ws = (o.x == 0 ? 1.0 - f.x : f.x) * (o.y == 0 ? 1.0 - f.y : f.y);
+    float w = ws * jbu_range_weight(position, normal, texelFetch(low_position, t, 0),
+                                    texelFetch(low_normal, t, 0), footprint, sigma_position, normal_power);
+    sum += w * texelFetch(low, t, 0);
+    weight_sum += w;
+  }
+  if (weight_sum > JBU_MIN_WEIGHT) {
+    return sum / weight_sum;
+  }
+  float best = 0.0;
+  vec4 pick = vec4(0.0);
+  for (int j = -1; j <= 2; j++) {
+    for (int i = -1; i <= 2; i++) {
+      ivec2 t = clamp(base + ivec2(i, j), ivec2(0), hi);
+      vec4 p = texelFetch(low_position, t, 0);
+      if (p.a <= 0.0) {
+        continue;
+      }
+      vec2 dt = vec2(t) - q;
+      float w = jbu_range_weight(position, normal, p, texelFetch(low_normal, t, 0), footprint,
+                                 4.0 * sigma_position, normal_power) + 1e-6 / (1.0 + dot(dt, dt));
+      if (w > best) {
+        best = w;
+        pick = texelFetch(low, t, 0);
+      }
+    }
+  }
+  return pick;
+}
+"""
+
+
+@pytest.mark.gpu
+def test_shared_weights_give_the_per_image_filter_bit_for_bit():
+    """The resolve's six images with one jbu_weights per pixel (glsl/view/resolve.frag.glsl) against
+    the whole filter run per image: identical float32 results, a pass's 1x1 black texel included
+    (the viewport's image does not change, only its cost), over the four-texel, fallback and
+    background branches. The twin's jbu_apply of shared weights is the per-image twin too."""
+    rng = np.random.default_rng(7)
+    _, low_position, low_normal = _scene(rng, h=9, w=11, background=0.3)
+    low_position[:5, :5, 3] = 0.0  # a corner of background: no geometry among a pixel's sixteen
+    low_position, low_normal = (as_gpu_floats(a.reshape(-1, 4)).reshape(a.shape) for a in (low_position, low_normal))
+    images = {f"low_{k}": as_gpu_floats(rng.uniform(0.0, 3.0, low_position.shape).reshape(-1, 4)).reshape(low_position.shape)
+              for k in range(5)}
+    images["low_5"] = np.zeros((1, 1, 4))
+    n = 6000
+    uv, position, normal, footprint = _pixels(rng, low_position, low_normal, n)
+    footprint = rng.choice([1e-3, 0.05, 0.1, 1.0, 1e3], n)
+    uv, position, normal, footprint = (as_gpu_floats(a) for a in (uv, position, normal, footprint))
+    inputs = {"uv": uv, "position": position, "normal": normal, "footprint": footprint}
+    args = "low_position_image, low_normal_image, uv, position, normal, footprint, 1.0, 8.0"
+    shared = "JBUWeights jw = jbu_weights(" + args + ");\n" + "".join(
+        f"out{k} = jbu_apply(jw, low_{k});\n" for k in range(6))
+    per_image = "".join(f"out{k} = jbu_per_image(low_{k}, {args});\n" for k in range(6))
+    outputs = {f"out{k}": 4 for k in range(6)}
+    textures = dict(images, low_position_image=low_position, low_normal_image=low_normal)
+    got = evaluate_glsl(shared, inputs, outputs, libraries=["lib/bilateral.glsl"], images=textures)
+    before = evaluate_glsl(per_image, inputs, outputs, libraries=["lib/bilateral.glsl"], declarations=_PER_IMAGE,
+                           images=textures)
+    kinds = jbu_weights(low_position, low_normal, uv, position, normal, footprint).kind
+    assert {0, 1, 2} <= set(kinds.tolist())
+    for k in range(6):
+        assert np.array_equal(got[f"out{k}"], before[f"out{k}"]), k
+    assert (got["out5"] == 0).all()
+    jw = jbu_weights(low_position, low_normal, uv, position, normal, footprint)
+    for k in range(5):
+        np.testing.assert_array_equal(jbu_apply(jw, images[f"low_{k}"]),
+                                      joint_bilateral_upsample(images[f"low_{k}"], low_position, low_normal, uv,
+                                                               position, normal, footprint))

@@ -59,6 +59,8 @@ class FakeBackend:
         self.renders = []  # (width, height) of every view render
         self.light_builds = []  # seeds
         self.displayed = []
+        self.previews = []  # render_view's preview flag (the coarse image's thinned VPLs)
+        self.guides = 0  # full-resolution guide G-buffers rendered
 
     def frame_renderer(self):
         return Thing()
@@ -66,10 +68,11 @@ class FakeBackend:
     def scene_lights(self, description, settings):
         self.clock.now += LIGHT_SECONDS
         self.light_builds.append(settings.seed)
-        return Thing(seed=settings.seed, timings={})
+        return Thing(seed=settings.seed, timings={}, scene=description)
 
-    def render_view(self, renderer, lights, settings, width, height, view, projection):
+    def render_view(self, renderer, lights, settings, width, height, view, projection, preview=False):
         assert not lights.freed and settings.seed == lights.seed
+        self.previews.append(preview)
         self.clock.now += FIXED_SECONDS + SECONDS_PER_PIXEL * width * height
         self.renders.append((width, height))
         return View(value=float(lights.seed), size=(width, height), counts={"vsgls": 16},
@@ -77,6 +80,7 @@ class FakeBackend:
 
     def guide(self, renderer, lights, width, height, view, projection):
         self.clock.now += 1e-7 * width * height
+        self.guides += 1
         return Thing(size=(width, height))
 
     def guide_of(self, view):
@@ -185,6 +189,17 @@ def test_a_scene_change_or_other_settings_rerun_the_light_passes(pipeline):
 def test_scale_one_makes_the_coarse_image_the_first_sample(pipeline):
     pipeline.step(describe, SETTINGS, 1.0, 2)
     assert pipeline.samples == 1 and pipeline.backend.renders == [REGION]
+    assert pipeline.backend.previews == [False]  # a sample: every VPL
+
+
+def test_only_the_coarse_image_is_a_preview(pipeline):
+    """The coarse image may thin the VPLs (view_gpu.GPUViewBackend.render_view); the samples that
+    replace it may not."""
+    for _ in range(50):
+        if pipeline.step(describe, SETTINGS, 0.25, 2) is None:
+            break
+    assert pipeline.backend.previews[0] is True and not any(pipeline.backend.previews[1:])
+    assert len(pipeline.backend.previews) > 2
 
 
 def test_a_failure_stops_until_the_scene_changes(pipeline):
@@ -317,3 +332,41 @@ def test_closed_viewports_are_freed_and_a_settings_error_stops_every_viewport(vi
     assert views.step(describe) is views.pipelines[2]
     views.forget(2)
     assert views.gpu_resource_count() == 0 and Thing.alive == 0
+
+
+def test_the_guide_is_kept_across_light_changes_and_rebuilt_for_a_view_or_geometry_change(pipeline):
+    """The coarse image's full-resolution guide G-buffer: rendered once for a view and triangles,
+    kept when only a light (or a material) changed, rendered again when the view or the triangles
+    moved."""
+    from types import SimpleNamespace
+
+    corners = np.zeros((2, 3, 3), np.float32)
+
+    def scene(positions):
+        return lambda: SimpleNamespace(warnings=(), geometry=SimpleNamespace(positions=positions,
+                                                                              normals=np.ones_like(positions)))
+
+    def converge(describe_scene):
+        for _ in range(200):
+            if pipeline.step(describe_scene, SETTINGS, 0.25, 2) is None:
+                return
+        raise AssertionError("still busy")
+
+    backend = pipeline.backend
+    converge(scene(corners))
+    assert backend.guides == 1 and pipeline.guide_builds == 1
+    for _ in range(3):  # a light moved: a new description with the same triangles
+        pipeline.mark_scene_dirty()
+        converge(scene(corners.copy()))
+    assert backend.guides == 1 and len(backend.light_builds) == 8
+    moved = corners.copy()
+    moved[0, 0, 0] = 1.0
+    pipeline.mark_scene_dirty()
+    converge(scene(moved))
+    assert backend.guides == 2
+    pipeline.request_view(np.eye(4) * [1, 1, 1, 1] + np.eye(4, k=3) * 0.5, np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+    converge(scene(moved))
+    assert backend.guides == 3 and pipeline.guide is not None
+    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (100, 50))  # a resized region
+    converge(scene(moved))
+    assert backend.guides == 4 and pipeline.guide.size == (100, 50)

@@ -39,9 +39,9 @@ def wall_gbuffer(width, height, hole=False):
     return position, normal, albedo, np.linalg.inv(v2w), proj, v2w, inv_proj
 
 
-def run_pass(position, normal, albedo, vpls, w2v, proj, delta, seed=3, frame=0, interleave=1, offset=0):
+def run_pass(position, normal, albedo, vpls, w2v, proj, delta, seed=3, frame=0, interleave=1, offset=0, stride=1):
     textures = [texture_from_array(a) for a in (position, normal, albedo)]
-    result = pass_.run(*textures, vpls, w2v, proj, delta, seed, frame, interleave, offset)
+    result = pass_.run(*textures, vpls, w2v, proj, delta, seed, frame, interleave, offset, stride)
     image, counts = result.read(), result.read_counts()
     lists = result.read_lists()
     result.free()
@@ -162,3 +162,42 @@ def test_progressive_samples_and_denoise():
     assert np.all(np.isfinite(filtered))
     assert error(many) < 0.5 * error(one)
     assert error(filtered) < error(one)
+
+
+@pytest.mark.parametrize("stride, interleave", [(4, 1), (16, 1), (4, 2)])
+def test_strided_preview_shades_one_vpl_of_each_block_weighted_by_the_stride(stride, interleave):
+    """The coarse preview's pass: the image is the reference's sum over
+    reference.vpl_culling.strided_vpls (one jittered VPL of each block of S) times S, the interleave
+    subsets taken over the strided sequence; its jitter is the GLSL strided_vpl_jitter's."""
+    from glsl_harness import evaluate_glsl
+
+    position, normal, albedo, w2v, proj, *_ = wall_gbuffer(64, 48, hole=True)
+    vpls = _vpls(300)
+    delta, seed = 1e-3, 3
+    xi = vc.vpl_xi(np.arange(300), seed, 0)
+    image, _, _ = run_pass(position, normal, albedo, vpls, w2v, proj, delta, seed, interleave=interleave,
+                           stride=stride)
+    chosen = vc.strided_vpls(300, stride, seed)
+    # One of each block (the last, partial block's member may lie past the count: unbiased all the same).
+    assert 300 // stride <= len(chosen) <= -(-300 // stride) and np.all(np.diff(chosen // stride) >= 1)
+    if interleave == 1:
+        reference = stride * reference_image(position, normal, albedo, {k: v[chosen] for k, v in vpls.items()},
+                                             delta, xi[chosen])
+    else:
+        n2 = interleave * interleave
+        h, w = position.shape[:2]
+        ys, xs = np.mgrid[0:h, 0:w]
+        pixel_subset = (xs % interleave + interleave * (ys % interleave)) % n2
+        reference = np.zeros((h, w, 3))
+        for sub in range(n2):
+            members = chosen[(chosen // stride) % n2 == sub]
+            part = reference_image(position, normal, albedo, {k: v[members] for k, v in vpls.items()}, delta,
+                                   xi[members])
+            reference[pixel_subset == sub] = (stride * n2 * part)[pixel_subset == sub]
+    assert reference.max() > 0.0 and np.all(np.isfinite(image))
+    err = np.abs(image[..., :3] - reference)
+    assert np.all(err <= 2e-3 * reference + 1e-6 * reference.max()), f"worst {np.max(err / (reference + 1e-30)):.3g}"
+    k = np.arange(0, 5000, 7).astype(np.float64)
+    got = evaluate_glsl(f"float(strided_vpl_jitter(uint(k), {seed}u, {stride}u))", {"k": k},
+                        libraries=["lib/vpl_culling.glsl"])
+    np.testing.assert_array_equal(got, vc.strided_vpl_jitter(k.astype(np.int64), seed, stride))

@@ -75,6 +75,11 @@ FALLBACK_COEFFICIENTS = {
     "upscale": (2.6e-2,),
 }
 
+#: Seconds per 10⁵ of the region's pixels of the viewport's joint bilateral resolve (view_gpu.py,
+#: six images with shared weights): the demo's 1311 x 786 took 0.21-0.36 s on the reference machine.
+#: Not a step of F12's frames, so no calibration frame fits it.
+VIEW_RESOLVE_SECONDS = 2.5e-2
+
 #: Culled VPLs per pixel against δ, relative to δ = 10⁻³: benchmarks/results/vpl_caustics.md's
 #: "listed per pixel" on caustic_panel (2806, 1923, 1242, 346 at δ = 10⁻⁵ … 10⁻²; 004 Eq. 2's
 #: acceptance bound shrinks as δ grows), interpolated log-log, extended to 10⁻¹ with the last slope.
@@ -135,12 +140,13 @@ def scaled_size(width: int, height: int, scale: float) -> tuple[int, int]:
 
 
 def frame_features(plan, settings: VSGLSettings, size: tuple[int, int], full_size: tuple[int, int] | None = None,
-                   triangles: int = 0, vpl_fraction: float | None = None) -> dict:
+                   triangles: int = 0, vpl_fraction: float | None = None, vpl_stride: int = 1) -> dict:
     """step -> (k,) float64 features of one frame of ``plan`` rendered with ``settings`` at ``size``
     (w, h), upscaled to ``full_size`` when that differs; ``triangles``: the scene's. The lights' RSM
     sides follow the plan's rule for the settings' side (planner.rsm_size_for_share of their bounce
     estimates); ``vpl_fraction``: VPLs per RSM texel of the VPL pass's views (a frame of the scene
-    counted them), DEFAULT_VPL_FRACTION when unknown."""
+    counted them), DEFAULT_VPL_FRACTION when unknown; ``vpl_stride``: the VPL pass shades one VPL
+    of each block of that many (the viewport's coarse preview)."""
     w, h = size
     full_width, full_height = full_size or size
     pixels = w * h / 1e5
@@ -179,7 +185,7 @@ def frame_features(plan, settings: VSGLSettings, size: tuple[int, int], full_siz
         vpl_texels = vpl_views * settings.rsm_size * settings.rsm_size
         fraction = DEFAULT_VPL_FRACTION if vpl_fraction is None else vpl_fraction
         factor = interleave_factor(settings.vpl_interleave, w, h)
-        listed = fraction * vpl_texels * delta_listed(settings.delta) / (factor * factor)
+        listed = fraction * vpl_texels * delta_listed(settings.delta) / (factor * factor * max(int(vpl_stride), 1))
         out["vpl_extraction"] = (float(vpl_views), vpl_texels / 1e5)
         out["vpl_culling"] = (pixels, pixels * settings.vpl_samples * listed / 1e3)
     if runs("mrp_asg") and proxies:
@@ -567,27 +573,34 @@ COARSE_FACTORS = tuple(float(0.85 ** i) for i in range(19))  # 1 down to 0.054
 
 
 def view_seconds(plan, settings: VSGLSettings, size: tuple[int, int], full_size: tuple[int, int], model: CostModel,
-                 triangles: int = 0) -> float:
-    """Predicted seconds of one view render at ``size`` upsampled to ``full_size``: its view steps,
-    and below full size the full-resolution G-buffer that guides the upsampling."""
-    features = frame_features(plan, settings, size, size, triangles)
+                 triangles: int = 0, vpl_fraction: float | None = None, vpl_stride: int = 1,
+                 guide: bool = True) -> float:
+    """Predicted seconds of one view render at ``size`` resolved into ``full_size``: its view steps
+    (the VPL pass over one VPL of each ``vpl_stride``, the coarse preview's), the joint bilateral
+    resolve at ``full_size`` and, below full size with ``guide`` (the viewport has none kept for this
+    view and these triangles), the full-resolution G-buffer that guides the upsampling."""
+    features = frame_features(plan, settings, size, size, triangles, vpl_fraction, vpl_stride)
     steps = model.predict_steps({step: features[step] for step in VIEW_STEPS if step in features})
     seconds = sum(steps.values())
-    if tuple(size) != tuple(full_size):
-        guide = frame_features(plan, settings, full_size, full_size, triangles)["gbuffer"]
-        seconds += model.predict({"gbuffer": guide})
+    seconds += VIEW_RESOLVE_SECONDS * full_size[0] * full_size[1] / 1e5
+    if tuple(size) != tuple(full_size) and guide:
+        full = frame_features(plan, settings, full_size, full_size, triangles)["gbuffer"]
+        seconds += model.predict({"gbuffer": full})
     return float(seconds)
 
 
 def coarse_factor(plan, settings: VSGLSettings, full_size: tuple[int, int], scale: float, seconds: float,
-                  model: CostModel, triangles: int = 0) -> tuple[float, float]:
+                  model: CostModel, triangles: int = 0, vpl_fraction: float | None = None, vpl_stride: int = 1,
+                  guide: bool = True) -> tuple[float, float]:
     """(factor, predicted seconds): the largest of COARSE_FACTORS whose view render at ``scale`` ×
     factor of ``full_size`` the model predicts within ``seconds`` (the viewport's step budget), the
-    smallest when none is."""
+    smallest when none is; ``vpl_fraction``, ``vpl_stride``, ``guide`` as for :func:`view_seconds`
+    (the stride applies below full size only: at full size the coarse image is a sample)."""
     predicted = math.inf
     for factor in COARSE_FACTORS:
         size = scaled_size(*full_size, scale * factor)  # view_pipeline.view_size's rule
-        predicted = view_seconds(plan, settings, size, full_size, model, triangles)
+        stride = vpl_stride if tuple(size) != tuple(full_size) else 1
+        predicted = view_seconds(plan, settings, size, full_size, model, triangles, vpl_fraction, stride, guide)
         if predicted <= seconds:
             return factor, predicted
     return COARSE_FACTORS[-1], predicted

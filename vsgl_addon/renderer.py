@@ -273,10 +273,13 @@ class FrameRenderer:
             self._glossy_shading = None
 
     def render_view_textures(self, lights: SceneLights, settings: VSGLSettings, width: int, height: int,
-                             view_matrix, projection_matrix, timings: dict | None = None) -> ViewTextures:
+                             view_matrix, projection_matrix, timings: dict | None = None,
+                             vpl_stride: int = 1) -> ViewTextures:
         """One view's passes, with nothing read back: the images stay textures (the viewport draws
         them, render_view reads them). Without ``timings`` no wait for the GPU either (the caller
-        finishes what it times); with it, each pass is finished and its seconds stored under its step."""
+        finishes what it times); with it, each pass is finished and its seconds stored under its step.
+        ``vpl_stride`` S > 1: the glossy VPL pass shades every S-th VPL, weighted S (the viewport's
+        coarse preview; passes/vpl_culling.py run)."""
         scene = lights.scene
         clock = time.perf_counter()
 
@@ -323,7 +326,7 @@ class FrameRenderer:
                 # The glossy VPLs' cell (light-paths.md): sharp reflectors' specular light on the
                 # receivers' diffuse lobes, added to the diffuse VSGLs, which leave it out.
                 vpls_per_pixel = self._vpls.render(inputs, lights.vpls, view_matrix, projection_matrix, settings,
-                                                   diffuse, count=timings is not None)
+                                                   diffuse, count=timings is not None, stride=vpl_stride)
                 diffuse, caustics = self._vpls.diffuse, self._vpls.caustics
                 lap(vpl_culling.PASS.step, diffuse)
             elif timings is not None:

@@ -255,8 +255,17 @@ class GPUViewBackend:
     def gpu_resource_count(self) -> int:
         return len(self.point_cache) if self.point_cache is not None else 0
 
-    def render_view(self, renderer, lights, settings, width, height, view_matrix, projection_matrix):
-        return renderer.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix)
+    def render_view(self, renderer, lights, settings, width, height, view_matrix, projection_matrix,
+                    preview: bool = False):
+        """``preview``: the coarse image after a change, whose glossy VPL pass shades one VPL of each
+        block of S, weighted S (reference.vpl_culling.preview_stride: 16 at 128 x 128; on the demo
+        0.30 % relative RMSE at 82 x 49, 0.78 % at 328 x 197); the samples that refine it shade them
+        all, so the converged image is the same."""
+        from .reference.vpl_culling import preview_stride
+
+        stride = preview_stride(settings.rsm_size * settings.rsm_size) if preview else 1
+        return renderer.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix,
+                                             vpl_stride=stride)
 
     def guide(self, renderer, lights, width, height, view_matrix, projection_matrix):
         return renderer.guide(lights, width, height, view_matrix, projection_matrix)

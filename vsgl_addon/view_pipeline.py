@@ -10,7 +10,8 @@ STEP_BUDGET seconds, so the interface stays responsive:
   **light passes** (RSMs, VSGL tables) and, in the same step, a **coarse** image: the view passes at
   the resolution scale, upsampled to the viewport's pixels by the joint bilateral filter guided by
   the full-resolution G-buffer (glsl/lib/bilateral.glsl), so edges stay sharp;
-* after a view-only change, the coarse image alone: the light passes are kept;
+* after a view-only change, the coarse image alone: the light passes are kept; the full-resolution
+  guide is kept across changes that leave the view and the triangles (a light, a material);
 * then, while nothing changes, **samples** at full resolution, each in bands of rows sized to the
   budget from the measured time per pixel; every sample after the first one has light passes of a
   new seed (a new rotation of the VSGL lattice per light and view, pipeline._rotation), and the
@@ -72,6 +73,22 @@ class OverlayLook:
     encode_srgb: bool = False
 
 
+def geometry_key(scene) -> bytes | None:
+    """What the guide G-buffer's positions and normals depend on besides the view: the triangles'
+    corners and shading normals (a hash of their bytes); None for a scene without geometry arrays."""
+    geometry = getattr(scene, "geometry", None)
+    if geometry is None:
+        return None
+    import hashlib
+
+    digest = hashlib.blake2b(digest_size=16)
+    for array in (geometry.positions, geometry.normals):
+        array = np.ascontiguousarray(array)
+        digest.update(repr(array.shape).encode())
+        digest.update(array.tobytes())
+    return digest.digest()
+
+
 def view_size(region_size, scale: float) -> tuple[int, int]:
     """Pixels of a view render of a region of `region_size` (w, h) at resolution `scale`."""
     return tuple(max(1, int(round(side * scale))) for side in region_size)
@@ -97,6 +114,12 @@ class ViewPipeline:
         self.request: ViewRequest | None = None
         self.target = None  # accumulation images at the region's size
         self.sample_target = None  # the full-resolution sample being rendered band by band
+        # The full-resolution guide of the coarse image's upsampling (a G-buffer: positions, normals),
+        # kept while the view and the triangles stay: a light or material edit reuses it.
+        self.guide = None
+        self._guide_for = None  # (geometry key, request) of `guide`
+        self._geometry = None  # (scene description, geometry_key) of the last description hashed
+        self.guide_builds = 0
         self._accumulated_for = None  # (lights_version, request, scale) of the target's content
         self.samples = 0  # full-resolution samples in the target (0: it holds the coarse image)
         self._seeds_used: set[int] = set()
@@ -230,19 +253,11 @@ class ViewPipeline:
         started = self.clock()
         target = self._ensure_target("target", full)
         view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, height,
-                                        request.view_matrix, request.projection_matrix)
+                                        request.view_matrix, request.projection_matrix,
+                                        preview=(width, height) != tuple(full))
         try:
-            if (width, height) == tuple(full):
-                guide, own_guide = self.backend.guide_of(view), False
-            else:
-                guide = self.backend.guide(self.renderer, self.lights, full[0], full[1],
-                                           request.view_matrix, request.projection_matrix)
-                own_guide = True
-            try:
-                self.backend.resolve(view, guide, target, None, 1.0, add=False)
-            finally:
-                if own_guide:
-                    guide.free()
+            guide = self.backend.guide_of(view) if (width, height) == tuple(full) else self._full_guide(request)
+            self.backend.resolve(view, guide, target, None, 1.0, add=False)
             counts = view.counts  # lazy: the VPL count is read back only when the statistics are shown
         finally:
             view.free()
@@ -271,6 +286,31 @@ class ViewPipeline:
             entry["predicted_view_seconds"] = predicted
         return entry
 
+    def _guide_key(self):
+        scene = getattr(self.lights, "scene", None)
+        if self._geometry is None or self._geometry[0] is not scene:
+            self._geometry = (scene, geometry_key(scene))
+        return self._geometry[1] if self._geometry[1] is not None else ("state", self.lights_version)
+
+    def _guide_kept(self, request: ViewRequest) -> bool:
+        """The kept guide serves `request` with the current triangles."""
+        kept = self._guide_for
+        return self.guide is not None and kept[0] == self._guide_key() and same_view(kept[1], request)
+
+    def _full_guide(self, request: ViewRequest):
+        """The guide G-buffer at the region's size: kept across changes of the lights, materials or
+        settings, rendered again when the view or the triangles changed (geometry_key; a scene
+        without geometry arrays: when the light passes were rebuilt for a new scene state)."""
+        if not self._guide_kept(request):
+            if self.guide is not None:
+                self.guide.free()
+            self.guide = None
+            self.guide = self.backend.guide(self.renderer, self.lights, request.region_size[0],
+                                            request.region_size[1], request.view_matrix, request.projection_matrix)
+            self._guide_for = (self._guide_key(), request)
+            self.guide_builds += 1
+        return self.guide
+
     def _predict_coarse_factor(self, full, scale: float) -> float | None:
         """In Budget mode, with the backend's cost model (budget.py, the time budget's): the coarse
         factor whose view render it predicts within the step budget, once per new settings of the
@@ -290,11 +330,20 @@ class ViewPipeline:
                 self.warnings = (*self.warnings, self.cost_model.warning)
         from .budget import coarse_factor
 
+        from .reference.vpl_culling import preview_stride
+
         self._model_settings = settings
         scene = getattr(self.lights, "scene", None)
         triangles = int(scene.geometry.triangle_count) if scene is not None else 0
+        # VPLs per RSM texel when the CPU knows the count (VPL shadows on): no read-back for it.
+        vpls = getattr(self.lights, "vpls", None)
+        known = getattr(vpls, "known_count", None)
+        views = sum(light.rsm_views for light in plan.lights if light.gets_rsm)
+        fraction = known / (views * settings.rsm_size ** 2) if known is not None and views else None
         self.coarse_factor, predicted = coarse_factor(plan, settings, full, scale, self.step_budget,
-                                                      self.cost_model, triangles)
+                                                      self.cost_model, triangles, fraction,
+                                                      preview_stride(settings.rsm_size ** 2),
+                                                      guide=not self._guide_kept(self.request))
         return predicted
 
     def _refine(self, describe_scene, settings: VSGLSettings, started: float, max_samples: int) -> dict:
@@ -386,7 +435,7 @@ class ViewPipeline:
     def free(self) -> None:
         """Release every GPU resource; the next step starts from scratch."""
         self._free_lights()
-        for attribute in ("target", "sample_target"):
+        for attribute in ("target", "sample_target", "guide"):
             target = getattr(self, attribute)
             if target is not None:
                 target.free()
@@ -398,6 +447,8 @@ class ViewPipeline:
         if free_backend is not None:
             free_backend()
         self._accumulated_for = None
+        self._guide_for = None
+        self._geometry = None
         self.samples = 0
         self.has_image = False
         self.step_args = None
@@ -407,10 +458,10 @@ class ViewPipeline:
         self._band_times.clear()
 
     def gpu_resource_count(self) -> int:
-        """GPU objects held (0 after free()): light passes, renderer, accumulation targets."""
+        """GPU objects held (0 after free()): light passes, renderer, accumulation targets, guide."""
         backend_count = getattr(self.backend, "gpu_resource_count", None)
         return ((self.lights is not None) + (self.renderer is not None)
-                + sum(getattr(self, name) is not None for name in ("target", "sample_target"))
+                + sum(getattr(self, name) is not None for name in ("target", "sample_target", "guide"))
                 + (backend_count() if backend_count is not None else 0))
 
 

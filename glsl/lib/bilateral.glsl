@@ -43,39 +43,51 @@ float jbu_range_weight(vec3 position, vec3 normal, vec4 low_position, vec4 low_n
                                 normal_power);
 }
 
-// The upsampled value of `low` at texture coordinates `uv` of a pixel whose guide is (position,
-// normal). Falls back to the best-matching geometry texel of the 4x4 neighbourhood when the four
-// nearest all show other surfaces (a thin feature the low image missed), and to zero when none of
-// the sixteen is geometry.
-vec4 joint_bilateral_upsample(sampler2D low, sampler2D low_position, sampler2D low_normal, vec2 uv,
-                              vec3 position, vec3 normal, float footprint, float sigma_position,
-                              float normal_power)
+// The upsampler's weights at one pixel. They depend on the guides alone, so the images of one
+// render (all of the low guide's size, or a 1x1 black texel) share them: jbu_weights once per pixel,
+// jbu_apply per image (Kopf et al. 2007 eq. 2's sum with the weights kept). `kind` 0: the four
+// nearest texels from `base`, raw weights `weights` summing to `weight_sum` > JBU_MIN_WEIGHT; 1: the
+// one texel `pick`, the best-matching geometry texel of the 4x4 neighbourhood when the four nearest
+// all show other surfaces (a thin feature the low image missed); 2: none of the sixteen is geometry.
+struct JBUWeights {
+  ivec2 base;
+  ivec2 pick;
+  vec4 weights;
+  float weight_sum;
+  int kind;
+};
+
+JBUWeights jbu_weights(sampler2D low_position, sampler2D low_normal, vec2 uv, vec3 position, vec3 normal,
+                       float footprint, float sigma_position, float normal_power)
 {
-  ivec2 size = textureSize(low, 0);
+  JBUWeights jw;
+  ivec2 size = textureSize(low_position, 0);
   vec2 q = uv * vec2(size) - 0.5;
   vec2 base_f = floor(q);
   vec2 f = q - base_f;
-  ivec2 base = ivec2(base_f);
+  jw.base = ivec2(base_f);
+  jw.pick = ivec2(0);
   ivec2 hi = size - 1;
-  vec4 sum = vec4(0.0);
   float weight_sum = 0.0;
   for (int k = 0; k < 4; k++) {
     ivec2 o = ivec2(k & 1, k >> 1);
-    ivec2 t = clamp(base + o, ivec2(0), hi);
+    ivec2 t = clamp(jw.base + o, ivec2(0), hi);
     float ws = (o.x == 0 ? 1.0 - f.x : f.x) * (o.y == 0 ? 1.0 - f.y : f.y);
     float w = ws * jbu_range_weight(position, normal, texelFetch(low_position, t, 0),
                                     texelFetch(low_normal, t, 0), footprint, sigma_position, normal_power);
-    sum += w * texelFetch(low, t, 0);
+    jw.weights[k] = w;
     weight_sum += w;
   }
+  jw.weight_sum = weight_sum;
   if (weight_sum > JBU_MIN_WEIGHT) {
-    return sum / weight_sum;
+    jw.kind = 0;
+    return jw;
   }
+  jw.kind = 2;
   float best = 0.0;
-  vec4 pick = vec4(0.0);
   for (int j = -1; j <= 2; j++) {
     for (int i = -1; i <= 2; i++) {
-      ivec2 t = clamp(base + ivec2(i, j), ivec2(0), hi);
+      ivec2 t = clamp(jw.base + ivec2(i, j), ivec2(0), hi);
       vec4 p = texelFetch(low_position, t, 0);
       if (p.a <= 0.0) {
         continue;
@@ -86,11 +98,40 @@ vec4 joint_bilateral_upsample(sampler2D low, sampler2D low_position, sampler2D l
                                  4.0 * sigma_position, normal_power) + 1e-6 / (1.0 + dot(dt, dt));
       if (w > best) {
         best = w;
-        pick = texelFetch(low, t, 0);
+        jw.pick = t;
+        jw.kind = 1;
       }
     }
   }
-  return pick;
+  return jw;
+}
+
+// `low` resampled with the weights of jbu_weights. A 1x1 texture (a pass that did not run) reads
+// its one texel.
+vec4 jbu_apply(JBUWeights jw, sampler2D low)
+{
+  ivec2 hi = textureSize(low, 0) - 1;
+  if (jw.kind == 0) {
+    vec4 sum = vec4(0.0);
+    for (int k = 0; k < 4; k++) {
+      ivec2 t = clamp(jw.base + ivec2(k & 1, k >> 1), ivec2(0), hi);
+      sum += jw.weights[k] * texelFetch(low, t, 0);
+    }
+    return sum / jw.weight_sum;
+  }
+  return jw.kind == 1 ? texelFetch(low, min(jw.pick, hi), 0) : vec4(0.0);
+}
+
+// The upsampled value of `low` (of the low guide's size) at texture coordinates `uv` of a pixel
+// whose guide is (position, normal): falls back to the best-matching geometry texel of the 4x4
+// neighbourhood when the four nearest all show other surfaces, and to zero when none of the sixteen
+// is geometry.
+vec4 joint_bilateral_upsample(sampler2D low, sampler2D low_position, sampler2D low_normal, vec2 uv,
+                              vec3 position, vec3 normal, float footprint, float sigma_position,
+                              float normal_power)
+{
+  return jbu_apply(jbu_weights(low_position, low_normal, uv, position, normal, footprint, sigma_position,
+                               normal_power), low);
 }
 
 // World size of one low-resolution texel at `position`: the vertical extent of the view over

@@ -26,6 +26,12 @@ float vpl_xi(uint index, uint seed, uint frame)
   return (float(h >> 9u) + 0.5) * (1.0 / 8388608.0);
 }
 
+// The member of block k (VPLs k S ... k S + S - 1) a strided preview shades, in [0, S).
+uint strided_vpl_jitter(uint k, uint seed, uint stride)
+{
+  return pcg_hash(k + pcg_hash(seed)) % stride;
+}
+
 // p = min(I / (delta l^2), 1) (004 Eq. 2); 1 at l = 0 with I > 0, 0 where I = 0.
 float acceptance_probability(float intensity, float distance_squared, float delta)
 {

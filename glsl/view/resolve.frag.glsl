@@ -1,7 +1,8 @@
 // @require lib/bilateral.glsl
 // One view sample (vsgl_addon/view_gpu.py) into the viewport's accumulation images: each image of a
 // view render, upsampled to the guide's pixels by the joint bilateral filter (the identity when the
-// render has the guide's resolution), times `weight`. Outputs rgb = radiance (Blender's units),
+// render has the guide's resolution), times `weight`; the filter's weights are computed once per
+// pixel for all six images. Outputs rgb = radiance (Blender's units),
 // a = the guide's coverage, all times `weight` (added by blending when accumulating).
 void main()
 {
@@ -19,18 +20,15 @@ void main()
     return;
   }
   float footprint = jbu_footprint(camera, position.xyz, projection_11, float(textureSize(low_position, 0).y));
-  vec4 dd = joint_bilateral_upsample(low_direct_diffuse, low_position, low_normal, uv, position.xyz, normal,
-                                     footprint, sigma_position, normal_power);
-  vec4 ds = joint_bilateral_upsample(low_direct_specular, low_position, low_normal, uv, position.xyz, normal,
-                                     footprint, sigma_position, normal_power);
-  vec4 id = joint_bilateral_upsample(low_indirect_diffuse, low_position, low_normal, uv, position.xyz, normal,
-                                     footprint, sigma_position, normal_power);
-  vec4 is = joint_bilateral_upsample(low_indirect_specular, low_position, low_normal, uv, position.xyz, normal,
-                                     footprint, sigma_position, normal_power);
-  vec4 ic = joint_bilateral_upsample(low_indirect_caustics, low_position, low_normal, uv, position.xyz, normal,
-                                     footprint, sigma_position, normal_power);
-  vec4 ir = joint_bilateral_upsample(low_indirect_glossy_reflectors, low_position, low_normal, uv, position.xyz,
-                                     normal, footprint, sigma_position, normal_power);
+  // One set of weights for the six images: they share the render's low-resolution guide.
+  JBUWeights jw = jbu_weights(low_position, low_normal, uv, position.xyz, normal, footprint, sigma_position,
+                              normal_power);
+  vec4 dd = jbu_apply(jw, low_direct_diffuse);
+  vec4 ds = jbu_apply(jw, low_direct_specular);
+  vec4 id = jbu_apply(jw, low_indirect_diffuse);
+  vec4 is = jbu_apply(jw, low_indirect_specular);
+  vec4 ic = jbu_apply(jw, low_indirect_caustics);
+  vec4 ir = jbu_apply(jw, low_indirect_glossy_reflectors);
   // No NaN or Inf may reach a pixel.
   vec3 direct = dd.rgb + ds.rgb;
   direct = all(lessThan(abs(direct), vec3(1e30))) ? direct : vec3(0.0);

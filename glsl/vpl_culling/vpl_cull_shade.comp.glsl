@@ -20,6 +20,11 @@
 // sub-image sees a different subset, and the mean over the N^2 offsets is the full estimate.
 // Table rows per VPL (record k of VPL i at texel (i % W, 4 (i / W) + k)): position + roughness,
 // normal + scalar flux, incoming, Phi Rs + the VPL's shadow map.
+// Strided preview (the viewport's coarse image): with vpl_interleave.w = S > 1 only one VPL of each
+// block of S consecutive ones is culled and shaded, i = k S + pcg_hash(k + pcg_hash(seed)) % S
+// (i < count), weighted S: a jittered stratified subsample (the extraction's texel order makes the
+// blocks small patches of the reflectors; a fixed offset would keep whole RSM columns), whose
+// expectation over the jitter is the sum over all VPLs. The interleave subsets are taken over k.
 // VPL_VISIBILITY 1: each VPL's light on a pixel is weighted by its cluster's imperfect shadow map
 // (lib/ism.glsl, bilinear PCF; vsgl_addon/passes/vpl_culling.py VPL clusters): ism_params = (map side,
 // tiles per atlas row), vpl_map_origins texel m = map m's origin.
@@ -119,6 +124,8 @@ void main()
                 + vec4(0.0, 0.0, 0.0, p.w);
   }
 
+  uint stride = uint(max(vpl_interleave.w, 1));
+  uint strided = (count + stride - 1u) / stride;
   uint interleave = uint(max(vpl_interleave.x, 1));
   uint subsets = interleave * interleave;
   uint subset = (uint(pixel.x) % interleave + interleave * (uint(pixel.y) % interleave) + uint(vpl_interleave.y))
@@ -126,14 +133,14 @@ void main()
   vec3 radiance = vec3(0.0);
   // tile_used is the same for the whole group (read after a barrier), so an empty tile skips the
   // chunks, barriers included, without breaking uniform control flow.
-  uint chunk_end = tile_used ? count : 0u;
+  uint chunk_end = tile_used ? strided : 0u;
   for (uint base = 0u; base < chunk_end; base += 256u) {
     if (local == 0u) {
       chunk_count = 0u;
     }
     barrier();
-    uint i = base + local;
-    if (tile_used && i < count) {
+    uint i = (base + local) * stride + (stride > 1u ? strided_vpl_jitter(base + local, seed, stride) : 0u);
+    if (tile_used && base + local < strided && i < count) {
       vec4 r0 = vpl_record(i, 0);
       vec4 r1 = vpl_record(i, 1);
       vec4 r2 = vpl_record(i, 2);
@@ -157,7 +164,7 @@ void main()
     if (covered) {
       for (uint k = 0u; k < chunk_count; k++) {
         uint j = chunk_list[k];
-        if (j % subsets != subset) {
+        if ((j / stride) % subsets != subset) {
           continue;
         }
         vec4 r0 = vpl_record(j, 0);
@@ -185,6 +192,6 @@ void main()
     imageStore(vpl_tile_counts, tile, uvec4(tile_total));
   }
   if (inside) {
-    imageStore(vpl_radiance, pixel, vec4(albedo * (radiance * (float(subsets) / PI)), 0.0));
+    imageStore(vpl_radiance, pixel, vec4(albedo * (radiance * (float(subsets * stride) / PI)), 0.0));
   }
 }

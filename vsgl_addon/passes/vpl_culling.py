@@ -133,6 +133,11 @@ class VPLSet:
             self._count = min(_read_count(self.count_texture), self.capacity)
         return self._count
 
+    @property
+    def known_count(self) -> int | None:
+        """The count when known without a read-back (uploaded, or read before), else None."""
+        return self._count
+
     def free(self) -> None:
         if self.isms is not None:
             self.isms.free()
@@ -437,10 +442,11 @@ INTERLEAVE_FACTORS = (1, 2, 4, 8)
 
 
 def run(position, normal, albedo, vpls, world_to_view, projection, delta: float, seed: int = 0,
-        frame: int = 0, interleave: int = 1, interleave_offset: int = 0) -> VPLCullingResult:
+        frame: int = 0, interleave: int = 1, interleave_offset: int = 0, stride: int = 1) -> VPLCullingResult:
     """Cull and shade ``vpls`` for the receivers in the three (width, height) textures; ``seed`` and
     ``frame`` draw the VPLs' xi, ``interleave`` N and ``interleave_offset`` choose each pixel's
-    subset (progressive rendering steps both)."""
+    subset (progressive rendering steps both). ``stride`` S > 1: only every S-th VPL, weighted S
+    (reference.vpl_culling.strided_vpls; the viewport's coarse preview)."""
     if interleave not in INTERLEAVE_FACTORS:
         raise ValueError(f"interleave must be one of {INTERLEAVE_FACTORS}, got {interleave}")
     import gpu
@@ -466,7 +472,8 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
         shader.uniform_sampler("vpl_map_origins", vpl_set.map_origins)
     shader.uniform_float("vpl_params", (float(delta), 0.0, float(seed), float(frame)))
     shader.uniform_int("vpl_sizes", (TABLE_WIDTH, LIST_CAPACITY, tiles[0], tiles[1]))
-    shader.uniform_int("vpl_interleave", (int(interleave), int(interleave_offset), vpl_set.capacity, 0))
+    shader.uniform_int("vpl_interleave", (int(interleave), int(interleave_offset), vpl_set.capacity,
+                                          max(int(stride), 1)))
     shader.uniform_sampler("vpl_count", vpl_set.count_texture)
     shader.uniform_sampler("gbuffer_position", position)
     shader.uniform_sampler("gbuffer_normal", normal)
@@ -513,12 +520,13 @@ class VPLCaustics:
         self.caustics = self.diffuse = None
 
     def render(self, inputs, vpl_set: VPLSet, world_to_view, projection, settings, vsgl_diffuse,
-               count: bool = False) -> float | None:
+               count: bool = False, stride: int = 1) -> float | None:
         """Cull and shade ``vpl_set`` for ``inputs`` (a vsgl_shading.ShadingGBuffer): the mean of
         ``settings.vpl_samples`` draws (xi from the seed and the sample's number, the interleave
         offset stepping with them), then the cross-bilateral filter, into ``self.caustics``; and
         ``vsgl_diffuse`` + caustics into ``self.diffuse``, all on the GPU. ``count``: returns the VPLs
-        each pixel shaded after culling (tile lists read back, divided by N²), else None."""
+        each pixel shaded after culling (tile lists read back, divided by N²), else None. ``stride``:
+        every stride-th VPL alone, weighted stride (the viewport's coarse preview, run())."""
         from ..settings import interleave_factor
 
         width, height = inputs.width, inputs.height
@@ -529,7 +537,7 @@ class VPLCaustics:
         for step in range(samples):
             result = run(inputs.position, inputs.normal, inputs.diffuse_reflectance, vpl_set, world_to_view,
                          projection, settings.delta, settings.seed, step, factor,
-                         (settings.seed * samples + step) % (factor * factor))
+                         (settings.seed * samples + step) % (factor * factor), stride)
             if count:
                 listed += float((result.read_counts() * _tile_pixels(width, height)).sum()) / (width * height)
             total = (result.radiance if samples == 1 else

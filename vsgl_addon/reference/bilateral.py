@@ -10,7 +10,8 @@
   :func:`bilateral_range_weight` with positions in units of σ_x low-resolution texel footprints and
   both the off-plane and the tangential distance. When the four weights sum below JBU_MIN_WEIGHT,
   the best-matching geometry texel of the 4×4 neighbourhood is taken (four times wider σ_x, ties
-  towards the nearest texel), else zero;
+  towards the nearest texel), else zero. The weights depend on the guides alone: :func:`jbu_weights`
+  once per pixel, :func:`jbu_apply` per image of the render;
 * the cross-bilateral filter at equal resolution (004 section 6), the VPL pass's interleave
   denoising: a Gaussian window of the pixel distance times the range weight of the distance off the
   pixel's tangent plane alone, relative to its depth.
@@ -20,6 +21,8 @@ coverage in .a, normal.rgb.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -62,13 +65,26 @@ def jbu_footprint(camera, position, projection_11, low_height):
     return np.full(position.shape[:-1], extent)
 
 
-def joint_bilateral_upsample(low, low_position, low_normal, uv, position, normal, footprint,
-                             sigma_position=1.0, normal_power=8.0):
-    """The upsampled values of `low` (h, w, c) at texture coordinates `uv` (n, 2) of pixels with
-    guides `position` (n, 3), `normal` (n, 3) and `footprint` (n,): (n, c) float64."""
-    low, low_position, low_normal = f64(low), f64(low_position), f64(low_normal)
+@dataclass
+class JBUWeights:
+    """The upsampler's weights at n pixels (see the GLSL): `kind` 0 the four nearest texels from
+    `base` (n, 2) with raw `weights` (n, 4) summing to `weight_sum`; 1 the one texel `pick` (n, 2);
+    2 zero. They depend on the guides alone, so every image of one render shares them."""
+
+    base: np.ndarray
+    pick: np.ndarray
+    weights: np.ndarray
+    weight_sum: np.ndarray
+    kind: np.ndarray
+
+
+def jbu_weights(low_position, low_normal, uv, position, normal, footprint, sigma_position=1.0,
+                normal_power=8.0) -> JBUWeights:
+    """The weights of :func:`joint_bilateral_upsample` at texture coordinates `uv` (n, 2) of pixels with
+    guides `position` (n, 3), `normal` (n, 3) and `footprint` (n,), for images of `low_position`'s size."""
+    low_position, low_normal = f64(low_position), f64(low_normal)
     uv, position, normal, footprint = f64(uv), f64(position), f64(normal), f64(footprint)
-    h, w = low.shape[:2]
+    h, w = low_position.shape[:2]
     size = np.array([w, h], np.float64)
     q = uv * size - 0.5
     base_f = np.floor(q)
@@ -76,21 +92,18 @@ def joint_bilateral_upsample(low, low_position, low_normal, uv, position, normal
     base = base_f.astype(np.int64)
     hi = np.array([w - 1, h - 1])
     n = len(uv)
-    total = np.zeros((n, low.shape[-1]))
-    weight_sum = np.zeros(n)
+    weights = np.zeros((n, 4))
     for k in range(4):
         o = np.array([k & 1, k >> 1])
         t = np.clip(base + o, 0, hi)
         ws = (1.0 - f[:, 0] if o[0] == 0 else f[:, 0]) * (1.0 - f[:, 1] if o[1] == 0 else f[:, 1])
         wr = jbu_range_weight(position, normal, low_position[t[:, 1], t[:, 0]], low_normal[t[:, 1], t[:, 0]],
                               footprint, sigma_position, normal_power)
-        wk = ws * wr
-        total += wk[:, None] * low[t[:, 1], t[:, 0]]
-        weight_sum += wk
-    ok = weight_sum > JBU_MIN_WEIGHT
-    out = np.where(ok[:, None], total / np.where(ok, weight_sum, 1.0)[:, None], 0.0)
+        weights[:, k] = ws * wr
+    weight_sum = weights.sum(axis=1)
     best = np.zeros(n)
-    pick = np.zeros((n, low.shape[-1]))
+    pick = np.zeros((n, 2), np.int64)
+    found = np.zeros(n, bool)
     for j in range(-1, 3):
         for i in range(-1, 3):
             t = np.clip(base + np.array([i, j]), 0, hi)
@@ -100,8 +113,33 @@ def joint_bilateral_upsample(low, low_position, low_normal, uv, position, normal
                                   4.0 * sigma_position, normal_power) + 1e-6 / (1.0 + dot(dt, dt))
             better = (p[:, 3] > 0.0) & (wt > best)
             best = np.where(better, wt, best)
-            pick = np.where(better[:, None], low[t[:, 1], t[:, 0]], pick)
-    return np.where(ok[:, None], out, pick)
+            pick = np.where(better[:, None], t, pick)
+            found |= better
+    kind = np.where(weight_sum > JBU_MIN_WEIGHT, 0, np.where(found, 1, 2))
+    return JBUWeights(base, pick, weights, weight_sum, kind)
+
+
+def jbu_apply(jw: JBUWeights, low) -> np.ndarray:
+    """`low` (h, w, c) resampled with the weights `jw` (a 1×1 image: its one texel): (n, c) float64."""
+    low = f64(low)
+    hi = np.array([low.shape[1] - 1, low.shape[0] - 1])
+    total = np.zeros((len(jw.kind), low.shape[-1]))
+    for k in range(4):
+        t = np.clip(jw.base + np.array([k & 1, k >> 1]), 0, hi)
+        total += jw.weights[:, k, None] * low[t[:, 1], t[:, 0]]
+    ok = jw.kind == 0
+    out = total / np.where(ok, jw.weight_sum, 1.0)[:, None]
+    pick = np.minimum(jw.pick, hi)
+    picked = np.where((jw.kind == 1)[:, None], low[pick[:, 1], pick[:, 0]], 0.0)
+    return np.where(ok[:, None], out, picked)
+
+
+def joint_bilateral_upsample(low, low_position, low_normal, uv, position, normal, footprint,
+                             sigma_position=1.0, normal_power=8.0):
+    """The upsampled values of `low` (h, w, c, of `low_position`'s size) at texture coordinates `uv`
+    (n, 2) of pixels with guides `position` (n, 3), `normal` (n, 3) and `footprint` (n,): (n, c) float64."""
+    return jbu_apply(jbu_weights(low_position, low_normal, uv, position, normal, footprint, sigma_position,
+                                 normal_power), low)
 
 
 # --- Cross-bilateral filter at equal resolution ------------------------------------------------

@@ -210,6 +210,34 @@ def shade_glossy_vpls(receivers, receiver_normals, receiver_albedo, vpls, delta,
     return np.sum(radiance * weight[..., None], axis=1)
 
 
+#: VPLs a strided preview keeps of one RSM view's texels (the viewport's coarse image).
+PREVIEW_VPLS = 1024
+
+
+def preview_stride(rsm_texels: int) -> int:
+    """S of the strided preview: the VPLs of an RSM of `rsm_texels` texels thinned to PREVIEW_VPLS,
+    at least 1 (16 for a 128 x 128 RSM)."""
+    return max(int(rsm_texels) // PREVIEW_VPLS, 1)
+
+
+def strided_vpl_jitter(k, seed, stride):
+    """The member of block k (VPLs k S ... k S + S - 1) a strided preview shades, in [0, S)."""
+    k = np.asarray(k, np.uint64)
+    return (pcg_hash((k + pcg_hash(np.uint64(seed))) & 0xFFFFFFFF) % np.uint64(stride)).astype(np.int64)
+
+
+def strided_vpls(count: int, stride: int, seed: int) -> np.ndarray:
+    """Indices of the VPLs a strided preview shades, each weighted S (glsl/vpl_culling/
+    vpl_cull_shade.comp.glsl): one of each block of S consecutive VPLs, i = k S + jitter(k) < count,
+    a jittered stratified subsample whose expectation over the jitter is the full sum."""
+    stride = max(int(stride), 1)
+    k = np.arange((int(count) + stride - 1) // stride)
+    if stride == 1:
+        return k
+    i = k * stride + strided_vpl_jitter(k, seed, stride)
+    return i[i < int(count)]
+
+
 def glossy_vpls_from_rsm(position, normal, incoming, flux, rs, roughness, caustic_roughness):
     """The RSM texels of sharp reflectors (alpha < alpha_c, lit: flux > 0) as glossy VPLs; the
     texel arrays flattened, nothing resampled (the VPL set is as stable as the RSM)."""
