@@ -7,8 +7,8 @@
 // hemisphere folded over the diamond's edges.
 vec2 octahedral_encode(vec3 d)
 {
-  d /= max(abs(d.x) + abs(d.y) + abs(d.z), 1e-30);
-  vec2 xy = d.xy;
+  // Only x and y are divided: the fold needs z's sign alone, which the division keeps.
+  vec2 xy = d.xy / max(abs(d.x) + abs(d.y) + abs(d.z), 1e-30);
   vec2 sign_xy = vec2(xy.x >= 0.0 ? 1.0 : -1.0, xy.y >= 0.0 ? 1.0 : -1.0);
   return d.z < 0.0 ? (1.0 - abs(xy.yx)) * sign_xy : xy;
 }
