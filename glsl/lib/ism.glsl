@@ -7,8 +7,8 @@
 // hemisphere folded over the diamond's edges.
 vec2 octahedral_encode(vec3 d)
 {
-  d /= max(abs(d.x) + abs(d.y) + abs(d.z), 1e-30);
-  vec2 xy = d.xy;
+  // Only x and y are divided: the fold needs z's sign alone, which the division keeps.
+  vec2 xy = d.xy / max(abs(d.x) + abs(d.y) + abs(d.z), 1e-30);
   vec2 sign_xy = vec2(xy.x >= 0.0 ? 1.0 : -1.0, xy.y >= 0.0 ? 1.0 : -1.0);
   return d.z < 0.0 ? (1.0 - abs(xy.yx)) * sign_xy : xy;
 }
@@ -90,6 +90,32 @@ float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver,
   return lit / float((2 * radius + 1) * (2 * radius + 1));
 }
 
+// What ism_lookup_at needs of the map and atlas sizes, made once per pixel (not once per lookup).
+struct ISMLookup {
+  int size;
+  float size_f;          // float(size)
+  float inv_size;        // 1 / size: exact, the maps' sides are powers of two (passes/ism.py)
+  float texel_angle;     // sqrt(4 pi) / size, a texel's span in radians (ism_bias)
+  float last_corner;     // float(max(size - 2, 0)): the last 2x2 block inside the square
+  float last_texel;      // float(size - 1)
+  float blocks;          // 1, or 0 for a 1^2 map (its one texel)
+  vec2 inv_atlas_size;   // 1 / the atlas's size in texels
+};
+
+ISMLookup ism_lookup_constants(sampler2D atlas, int size)
+{
+  ISMLookup c;
+  c.size = size;
+  c.size_f = float(size);
+  c.inv_size = 1.0 / float(size);
+  c.texel_angle = 3.5449077018110318 / float(size);
+  c.last_corner = float(max(size - 2, 0));
+  c.last_texel = float(size - 1);
+  c.blocks = size > 1 ? 1.0 : 0.0;
+  c.inv_atlas_size = 1.0 / vec2(textureSize(atlas, 0));
+  return c;
+}
+
 // The lookup of the shading pass, one code path for its two filters (llvmpipe runs both sides of a
 // branch that differs between neighbouring pixels, and the body of any branch): `filtered` the
 // bilinear percentage-closer visibility (reference ism_pcf_bilinear): the test of ism_pcf on the four
@@ -99,23 +125,34 @@ float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver,
 // the same block with weights 0 or 1. The block is kept inside the square (clamped at its edges,
 // not wrapped across the folds: see the reference) and read by one textureGather of the four texels
 // around their shared corner (gather order: (0, 1), (1, 1), (1, 0), (0, 0)).
-// inv_atlas_size: 1 / the atlas's size in texels (once per pixel, not per lookup).
+// tile_corner: the map's tile's first texel + 1 (the gather's corner is between texels), `offset`
+// receiver - origin and `distance` its length. ism_bias and ism_texel's arithmetic, with the
+// division by the power-of-two size a multiplication (the same floats).
+float ism_lookup_at(sampler2D atlas, ISMLookup c, vec2 tile_corner, vec3 offset, float distance, vec3 normal,
+                    bool filtered)
+{
+  float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
+  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
+  float bias = (filtered ? 2.0 : 1.0) * distance * 3.5449077018110318 * c.inv_size *
+               (1.0 + min(tan_theta, ISM_MAX_SLOPE)) + 1e-3;
+  vec2 cell = (octahedral_encode(offset) * 0.5 + 0.5) * c.size_f - 0.5;
+  vec2 corner = clamp(floor(cell), vec2(0.0), vec2(c.last_corner));
+  // Nearest: floor(cell + 0.5), the texel holding the direction (ism_texel), is corner or corner + 1.
+  vec2 f = filtered ? clamp(cell - corner, 0.0, 1.0) : clamp(floor(cell + 0.5), 0.0, c.last_texel) - corner;
+  f *= c.blocks;
+  vec4 depth = textureGather(atlas, (tile_corner + corner) * c.inv_atlas_size, 0).wzxy;  // (c00, c10, c01, c11)
+  vec4 lit = vec4(lessThanEqual(vec4(distance), depth + bias));
+  return mix(mix(lit.x, lit.y, f.x), mix(lit.z, lit.w, f.x), f.y);
+}
+
+// ism_lookup_at of the map in tile `tile` (texels, of side `size`) from `origin`.
 float ism_lookup(sampler2D atlas, vec2 inv_atlas_size, ivec2 tile, int size, vec3 origin, vec3 receiver, vec3 normal,
                  bool filtered)
 {
+  ISMLookup c = ism_lookup_constants(atlas, size);
+  c.inv_atlas_size = inv_atlas_size;
   vec3 offset = receiver - origin;
-  float distance = length(offset);
-  float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
-  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
-  float bias = ism_bias(distance, size, tan_theta, filtered ? 2.0 : 1.0, 1e-3);
-  vec2 cell = (octahedral_encode(offset) * 0.5 + 0.5) * float(size) - 0.5;
-  vec2 corner = clamp(floor(cell), vec2(0.0), vec2(float(max(size - 2, 0))));
-  // Nearest: floor(cell + 0.5), the texel holding the direction (ism_texel), is corner or corner + 1.
-  vec2 f = filtered ? clamp(cell - corner, 0.0, 1.0) : clamp(floor(cell + 0.5), 0.0, float(size - 1)) - corner;
-  f *= size > 1 ? 1.0 : 0.0;  // a 1² map: its one texel
-  vec4 depth = textureGather(atlas, (vec2(tile) + corner + 1.0) * inv_atlas_size, 0).wzxy;  // (c00, c10, c01, c11)
-  vec4 lit = vec4(lessThanEqual(vec4(distance), depth + bias));
-  return mix(mix(lit.x, lit.y, f.x), mix(lit.z, lit.w, f.x), f.y);
+  return ism_lookup_at(atlas, c, vec2(tile) + 1.0, offset, length(offset), normal, filtered);
 }
 
 // Bilinear percentage-closer visibility (reference ism_pcf_bilinear; see ism_lookup): a filter of

@@ -15,9 +15,11 @@
 //
 // VSGL_VISIBILITY 1: each lobe's light is weighted by its visibility from the pixel, a filtered
 // lookup in the lobe position's imperfect shadow map (000 sec. 5; lib/ism.glsl, atlas of
-// vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, maps per VSGL (1: map i
-// at the VSGL's diffuse lobe's positional Gaussian (vsgl_addon/pipeline.py MAPS_PER_VSGL) for both lobes, or 2:
-// map 2i the diffuse lobe's, 2i + 1 the specular lobe's)).
+// vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, -, -); VSGL_ISM_MAPS, a
+// compile-time define, the maps per VSGL (1: map i at the VSGL's diffuse lobe's positional Gaussian
+// (vsgl_addon/pipeline.py MAPS_PER_VSGL) for both lobes, or 2: map 2i the diffuse lobe's, 2i + 1 the
+// specular lobe's). Map m lies in tile (m mod columns, m div columns); the loop steps the tile with
+// its maps instead of dividing (llvmpipe runs integer division lane by lane).
 // Each map is centred on its shadow origin (lib/ism.glsl ism_shadow_origin). A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
 // sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS.
 // Each map leaves out the lobe's own reflector; what that reflector hides (a flat one: all behind
@@ -26,20 +28,23 @@
 // (a floor and the metal sphere on it share a cluster).
 
 #if VSGL_VISIBILITY
-float vsgl_visibility(int map_index, vec3 mean, float variance, vec3 axis, VSGLReceiver rc, vec2 inv_atlas_size)
+// The map at tile_corner (ism_lookup_at) seen from the receiver rc.
+float vsgl_visibility(ISMLookup c, vec2 tile_corner, vec3 mean, float variance, vec3 axis, VSGLReceiver rc)
 {
-  int size = ism_params.x;
-  // map_index / columns in float (exact here: a quotient's rounding is far below the 0.5 / columns
-  // margin for any atlas of MAX_ATLAS_SIDE): llvmpipe runs an integer division lane by lane.
-  int row = int(floor((float(map_index) + 0.5) / float(ism_params.y)));
-  ivec2 tile = ivec2(map_index - row * ism_params.y, row) * size;
   vec3 origin = ism_shadow_origin(mean, variance, axis);
-  float distance = length(rc.position - origin);
-  float texel_angle = 3.5449077018110318 / float(size);  // sqrt(4 pi) / size
-  float radius = sqrt(max(variance, 0.0)) / max(distance, 1e-30) / texel_angle;
+  vec3 offset = rc.position - origin;
+  float distance = length(offset);
+  float radius = sqrt(max(variance, 0.0)) / max(distance, 1e-30) / c.texel_angle;
   // Under half a texel one texel; else the bilinear filter of about two texels (one code path).
   bool filtered = int(clamp(radius + 0.5, 0.0, float(VSGL_ISM_MAX_RADIUS))) != 0;
-  return ism_lookup(ism_atlas, inv_atlas_size, tile, size, origin, rc.position, rc.normal, filtered);
+  return ism_lookup_at(ism_atlas, c, tile_corner, offset, distance, rc.normal, filtered);
+}
+
+// The next map's tile_corner: one tile on, the row's first tile of the next row after its last.
+vec2 vsgl_next_tile(vec2 tile_corner, float tile_side, float row_end)
+{
+  tile_corner.x += tile_side;
+  return tile_corner.x < row_end ? tile_corner : vec2(1.0, tile_corner.y + tile_side);
 }
 #endif
 
@@ -64,7 +69,10 @@ void main()
   vec3 specular = vec3(0.0);
   vec3 fresnel = vec3(0.0);
 #if VSGL_VISIBILITY
-  vec2 inv_atlas_size = 1.0 / vec2(textureSize(ism_atlas, 0));
+  ISMLookup ism = ism_lookup_constants(ism_atlas, ism_params.x);
+  float tile_side = float(ism_params.x);
+  float row_end = float(ism_params.x * ism_params.y);  // past the row's last tile_corner.x
+  vec2 tile_corner = vec2(1.0);  // map 0's
 #endif
   for (int i = 0; i < vsgl_count; i++) {
     VSGLRecord vsgl = vsgl_table_load(i);
@@ -77,18 +85,19 @@ void main()
     vec3 specular_amplitude = vsgl.specular_amplitude;
 #if VSGL_VISIBILITY
     float reflector_side = vsgl_reflector_side_seen(vsgl.diffuse_axis, vsgl.diffuse_sharpness, diffuse_position);
-    // Branches on the uniform map count, not selects: a select would run both sides' lookups.
-    if (ism_params.z == 1) {
-      float visibility = vsgl_visibility(i, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc, inv_atlas_size);
-      diffuse_amplitude *= visibility * reflector_side;
-      specular_amplitude *= visibility;
-    }
-    else {
-      diffuse_amplitude *= reflector_side *
-                           vsgl_visibility(2 * i, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc, inv_atlas_size);
-      specular_amplitude *= vsgl_visibility(2 * i + 1, vsgl.specular_mean, vsgl.specular_variance,
-                                            vsgl.specular_axis, rc, inv_atlas_size);
-    }
+#if VSGL_ISM_MAPS == 1
+    float visibility = vsgl_visibility(ism, tile_corner, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc);
+    tile_corner = vsgl_next_tile(tile_corner, tile_side, row_end);
+    diffuse_amplitude *= visibility * reflector_side;
+    specular_amplitude *= visibility;
+#else
+    diffuse_amplitude *= reflector_side *
+                         vsgl_visibility(ism, tile_corner, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc);
+    tile_corner = vsgl_next_tile(tile_corner, tile_side, row_end);
+    specular_amplitude *= vsgl_visibility(ism, tile_corner, vsgl.specular_mean, vsgl.specular_variance,
+                                          vsgl.specular_axis, rc);
+    tile_corner = vsgl_next_tile(tile_corner, tile_side, row_end);
+#endif
 #endif
     vsgl_accumulate(rc, diffuse_position, diffuse_amplitude, vsgl.diffuse_axis, vsgl.diffuse_sharpness,
                     specular_position, specular_amplitude, vsgl.specular_axis, vsgl.specular_sharpness,

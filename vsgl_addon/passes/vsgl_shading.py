@@ -83,11 +83,17 @@ def _interface(visibility: bool = False) -> ShaderInterface:
     )
 
 
-def _shader_spec(diffuse_mode: str, visibility: bool = False) -> ShaderSpec:
+#: Maps per VSGL an ISM atlas can bring (VSGLTable.maps_per_vsgl), each a shader variant.
+MAPS_PER_VSGL_CHOICES = (1, 2)
+
+
+def _shader_spec(diffuse_mode: str, visibility: bool = False, maps_per_vsgl: int = 1) -> ShaderSpec:
+    # The map count is compiled in: the loop then neither branches on it nor divides map indices.
     return ShaderSpec(lambda: _interface(visibility), {"vertex": "fullscreen_triangle.vert.glsl",
                                                        "fragment": "vsgl_shading/vsgl_shading.frag.glsl"},
                       defines=lambda: {"VSGL_DIFFUSE_MODE": _MODE_INDEX[diffuse_mode],
-                                       "VSGL_VISIBILITY": int(visibility), "VSGL_ISM_MAX_RADIUS": ISM_MAX_RADIUS},
+                                       "VSGL_VISIBILITY": int(visibility), "VSGL_ISM_MAX_RADIUS": ISM_MAX_RADIUS,
+                                       "VSGL_ISM_MAPS": maps_per_vsgl},
                       code=lambda: {"fragment": GBUFFER.glsl() + SHADING_INPUTS.glsl("samplers_load")
                                                 + VSGL_TABLE.glsl("sampler_load")})
 
@@ -101,6 +107,10 @@ def run(gbuffer: "ShadingGBuffer", camera, tables, diffuse_mode: str = "cosine",
     return shading
 
 
+def _visibility_key(diffuse_mode: str, maps_per_vsgl: int) -> str:
+    return f"{diffuse_mode}+visibility" + ("" if maps_per_vsgl == 1 else f"+{maps_per_vsgl}maps")
+
+
 #: Shading inputs and VSGL shading are timed together, as the frame always ran them.
 SHADING_STEP = Step("vsgl_shading", "VSGL Shading")
 
@@ -109,19 +119,22 @@ PASS = GPUPass(
     label="VSGL Shading",
     step=SHADING_STEP,
     shaders={**{mode: _shader_spec(mode) for mode in _MODE_INDEX},
-             **{f"{mode}+visibility": _shader_spec(mode, True) for mode in _MODE_INDEX}},
+             **{_visibility_key(mode, maps): _shader_spec(mode, True, maps)
+                for mode in _MODE_INDEX for maps in MAPS_PER_VSGL_CHOICES}},
     reads=(GBUFFER.name, SHADING_INPUTS.name, VSGL_TABLE.name, "ism_atlas"),
     writes=("indirect",),
     run=run,
 )
 
 
-def shader(diffuse_mode: str = "cosine", visibility: bool = False):
+def shader(diffuse_mode: str = "cosine", visibility: bool = False, maps_per_vsgl: int = 1):
     """The shading shader for `diffuse_mode` (with VSGL visibility from imperfect shadow maps when
-    `visibility`), compiled on first use and cached for the process."""
+    `visibility`, ``maps_per_vsgl`` of them per VSGL), compiled on first use and cached for the process."""
     if diffuse_mode not in _MODE_INDEX:
         raise ValueError(f"diffuse_mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
-    return PASS.shader(f"{diffuse_mode}+visibility" if visibility else diffuse_mode)
+    if visibility and maps_per_vsgl not in MAPS_PER_VSGL_CHOICES:
+        raise ValueError(f"maps per VSGL must be one of {MAPS_PER_VSGL_CHOICES}, got {maps_per_vsgl}")
+    return PASS.shader(_visibility_key(diffuse_mode, maps_per_vsgl) if visibility else diffuse_mode)
 
 
 compile_shaders = PASS.compile_shaders
@@ -267,7 +280,6 @@ class VSGLShading:
         visibility = any(table.ism is not None for table in tables)
         if visibility and not all(table.ism is not None for table in tables):
             raise ValueError("either every table has imperfect shadow maps or none has")
-        program = shader(diffuse_mode, visibility)
         batch = _fullscreen_triangle()
         width, height = int(gbuffer.width), int(gbuffer.height)
         self._targets(width, height)
@@ -282,15 +294,20 @@ class VSGLShading:
                 gpu.state.viewport_set(0, 0, width, height)
                 gpu.state.depth_test_set("NONE")
                 gpu.state.depth_mask_set(False)
-                program.bind()
-                set_uniform(program.uniform_float, "camera", camera_uniform(camera))
-                set_uniform(program.uniform_int, "roughness_is_perceptual",
-                         1 if gbuffer.roughness_is_perceptual else 0)
-                program.uniform_sampler("gbuffer_position", gbuffer.position)
-                program.uniform_sampler("gbuffer_normal", gbuffer.normal)
-                program.uniform_sampler("shading_inputs_diffuse_reflectance", gbuffer.diffuse_reflectance)
-                program.uniform_sampler("shading_inputs_specular_f0", gbuffer.specular_f0)
+                program = None
                 for index, table in enumerate(tables):
+                    # One shader per maps-per-VSGL count; tables of one count share the bound one.
+                    wanted = shader(diffuse_mode, visibility, table.maps_per_vsgl if visibility else 1)
+                    if wanted is not program:
+                        program = wanted
+                        program.bind()
+                        set_uniform(program.uniform_float, "camera", camera_uniform(camera))
+                        set_uniform(program.uniform_int, "roughness_is_perceptual",
+                                    1 if gbuffer.roughness_is_perceptual else 0)
+                        program.uniform_sampler("gbuffer_position", gbuffer.position)
+                        program.uniform_sampler("gbuffer_normal", gbuffer.normal)
+                        program.uniform_sampler("shading_inputs_diffuse_reflectance", gbuffer.diffuse_reflectance)
+                        program.uniform_sampler("shading_inputs_specular_f0", gbuffer.specular_f0)
                     # The first table writes, the others add (ONE, ONE), alpha 0.
                     gpu.state.blend_set("NONE" if index == 0 else "ADDITIVE_PREMULT")
                     set_uniform(program.uniform_int, "accumulate", 0 if index == 0 else 1)
@@ -298,8 +315,7 @@ class VSGLShading:
                     set_uniform(program.uniform_int, "shared_positions", 1 if table.shared_positions else 0)
                     program.uniform_sampler("vsgl_table", table.texture)
                     if visibility:
-                        program.uniform_int("ism_params", (table.ism.size, table.ism.columns,
-                                                           table.maps_per_vsgl, 0))
+                        program.uniform_int("ism_params", (table.ism.size, table.ism.columns, 0, 0))
                         program.uniform_sampler("ism_atlas", table.ism.texture)
                     batch.draw(program)
         finally:
