@@ -21,9 +21,15 @@ the light the reflectors' *diffuse* flux Φ·Rd throws, float64, no visibility, 
 5. VSGLs, separable: the same VSGLs in specular mode "separable" (the positional lobe convolved
    with the receiver's ASG, the emission taken at −ξµ).
 
-Each as a ratio to step 1 on those pixels (luminance). Also Cycles' indirect glossy
-(GlossInd·GlossCol) on them, for scale, and every step's relative RMSE per pixel against step 1.
-Writes ``specular_receiver_split.md`` in the results directory.
+Then (unless --no-frame) the frame's own VSGL sets (renderer.SceneLights: the diffuse receivers'
+and, with MRP-ASG, the glossy receivers' without the proxies' specular flux) by the reference in
+both modes and by the GPU, and the rendered frame's indirect specular without and with MRP-ASG's
+part, visibility on and off.
+
+Each as a ratio to step 1 on those pixels (luminance), with its relative RMSE per pixel against
+step 1, and per receiver-roughness bin (``ALPHA_BINS``) for steps 3-5. Also Cycles' indirect
+glossy (GlossInd·GlossCol) on them, for scale. Writes ``specular_receiver_split.md`` in the
+results directory (``specular_receiver_split_all.md`` with ``--materials all``: every covered pixel).
 """
 
 from __future__ import annotations
@@ -46,6 +52,8 @@ from tradeoff.bench import Bench  # noqa: E402
 from tradeoff.demo import COVERED, log  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+# Receiver GGX α bins of the per-roughness comparison.
+ALPHA_BINS = ((0.0, 0.15), (0.15, 0.4), (0.4, 2.0))
 STEPS = ("exact", "sg_lobes", "sg_lobes_asg", "vsgl_product", "vsgl_separable")
 
 
@@ -172,6 +180,18 @@ def _figures(name, materials, pick, alpha, settings, light, truth):
     figures = {"scene": name, "materials": list(materials), "pixels": int(pick.sum()),
                "alpha": [float(alpha.min()), float(alpha.max())], "vsgl_count": settings.vsgl_count, "rows": rows}
     figures["cycles_glossy_mean_rgb"] = [float(x) for x in cycles.mean(axis=0)]
+    # Per receiver roughness: where each specular mode is the closer to the brute force.
+    bins = {}
+    for low, high in ALPHA_BINS:
+        here = (alpha >= low) & (alpha < high) & (exact > 0.0)
+        if here.sum() < 8:
+            continue
+        bins[f"{low}-{high}"] = {"pixels": int(here.sum()), **{
+            key: {"ratio": float((light[key] @ LUMINANCE)[here].sum() / exact[here].sum()),
+                  "rel_rmse": float(np.sqrt(np.mean(((light[key] @ LUMINANCE)[here] - exact[here]) ** 2))
+                                    / np.mean(exact[here]))}
+            for key in ("sg_lobes_asg", "vsgl_product", "vsgl_separable")}}
+    figures["alpha_bins"] = bins
     log(f"{name}: " + ", ".join(f"{k} {r['ratio']:.3f} (rel. RMSE {r['rel_rmse']:.3f})" for k, r in rows.items()))
     return figures
 
@@ -211,6 +231,14 @@ def markdown(all_figures, command):
                          + " ".join(f"{x:.5f}" for x in r["mean_rgb"]) + " |")
         lines.append(f"| {f['scene']}, {', '.join(f['materials'])} | {f['pixels']} | | Cycles GlossInd·GlossCol (all sources) | | | "
                      + " ".join(f"{x:.5f}" for x in f["cycles_glossy_mean_rgb"]) + " |")
+    lines += ["", "Per receiver roughness (luminance / exact, rel. RMSE per pixel vs exact):", "",
+              "| scene, material | GGX α | pixels | SG lobes, ASG receiver | VSGLs, Eq. 12 product | VSGLs, separable |",
+              "|---|---|---|---|---|---|"]
+    for f in all_figures:
+        for span, b in f.get("alpha_bins", {}).items():
+            cells = " | ".join(f"{b[k]['ratio']:.3f}, {b[k]['rel_rmse']:.3f}"
+                               for k in ("sg_lobes_asg", "vsgl_product", "vsgl_separable"))
+            lines.append(f"| {f['scene']}, {', '.join(f['materials'])} | {span} | {b['pixels']} | {cells} |")
     return "\n".join(lines) + "\n"
 
 
