@@ -77,6 +77,16 @@ lobes in the paper's "shared" form, 000 app. B.2). Then, per lobe:
   (``specular_cosine="lobe-axis"``, C = F G2 D(1)/(4 ci co) literally) overestimates by up to
   1/cos θo (×2 at 60°); against brute force (tests/test_reference_vsgl_shading.py) its specular
   error is 40-59 % where the default's is 24-38 %.
+  Specular mode ``"product"`` (the default, the GPU's) is that, with Eq. 12's SG. Mode
+  ``"separable"`` (measured, not shipped) carries the diffuse's separable form to the receiver:
+  Ls ≈ cv G(−ξµ; ξv, λv)/(2πσv²) · C(ξµ) ∫ G(ω; ξµ, λσ) Ǵ(ω) dω, the positional lobe convolved
+  with the receiver's ASG and the emission taken at the mean's direction. It is the point light at
+  N = M as the product is, but clustered it is worse on sharp receivers: over the positional lobe,
+  which straddles a flat cluster's plane, it keeps the emission of −ξµ where the product's
+  G(ω; −ξv, λv) fades towards grazing, so a sharp lobe aimed at the floor near grazing gets too much
+  (tests/test_reference_vsgl_shading.py: against exact VPLs 0.56 against 0.38 at α = 0.1; on the
+  demo's gold, the glossy receivers' VSGLs give 0.919 against 0.913 of the exact VPLs' light but
+  per-pixel RMSE 0.640 against 0.602: benchmarks/specular_receiver_split.py, docs/accuracy.md).
   Zero when co ≤ 0 (view below the shading normal: χ+). The receiver's α is clamped to
   ``ALPHA_MIN`` (λh = 2/α² ≤ 2e6, the range the SG/ASG float32 libraries are built for).
 
@@ -111,6 +121,7 @@ VARIANCE_FLOOR = VARIANCE_FLOOR_ABSOLUTE
 #: Smallest receiver GGX α (λh = 2/α² = 2e6).
 ALPHA_MIN = 1e-3
 DIFFUSE_MODES = ("separable", "cosine", "sg-convolution", "clamped-cosine")
+SPECULAR_MODES = ("product", "separable")
 SPECULAR_COSINES = ("normal", "lobe-axis")
 
 #: VSGL fields read by shading (a dict from ``vsgl.generate_vsgls`` or ``read_table``): each lobe
@@ -215,7 +226,8 @@ def _chunks(count, per_chunk):
 
 
 def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, roughness,
-          diffuse_mode="cosine", specular_cosine="normal", per_term=False, visibility=None):
+          diffuse_mode="cosine", specular_cosine="normal", per_term=False, visibility=None,
+          specular_mode="product"):
     """Indirect radiance (diffuse, specular), each (P, 3), at P shading points from N VSGLs.
 
     vsgls     dict with ``VSGL_KEYS`` (rows = VSGLs), e.g. from ``vsgl.generate_vsgls``.
@@ -224,10 +236,14 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
     The sum over VSGLs of both lobes (diffuse SG and specular SG of each VSGL).
     ``per_term=True`` also returns the (P, N, 2, 3) contributions (lobe 0 = VSGL diffuse SG).
     ``visibility`` (P, N, 2): each lobe's visibility from each point (:func:`vsgl_visibility`),
-    weighting its light; None: every lobe is seen.
+    weighting its light; None: every lobe is seen. ``specular_mode`` (``SPECULAR_MODES``): the
+    receivers' specular term from Eq. 12's SG ("product") or from the separable incoming radiance
+    ("separable"; the module documentation).
     """
     if diffuse_mode not in DIFFUSE_MODES:
         raise ValueError(f"diffuse mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
+    if specular_mode not in SPECULAR_MODES:
+        raise ValueError(f"specular mode must be one of {SPECULAR_MODES}, got {specular_mode!r}")
     position, normal, view, rd, f0, alpha = _receivers(position, normal, view, diffuse_reflectance,
                                                        specular_f0, roughness)
     count = len(f64(vsgls["diffuse_variance"]).reshape(-1))
@@ -249,18 +265,24 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
                 f64(vsgls[sharp_key]).reshape(-1)[rows][None])
             seen = 1.0 if visibility is None else f64(visibility)[:, rows, lobes.index(lobe), None]
             c_in = amplitude * scale[..., None] * seen
-            if diffuse_mode == "separable":
+            if "separable" in (diffuse_mode, specular_mode):
                 xi_mu, lam_sigma, sep_scale = vsgl_separable_lobe(
                     position[:, None], mean, variance, f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
                     f64(vsgls[sharp_key]).reshape(-1)[rows][None])
+            if diffuse_mode == "separable":
                 ld = (amplitude * sep_scale[..., None] * seen
                       * vsgl_diffuse_factor(xi_mu, lam_sigma, normal[:, None], "separable")[..., None]
                       * rd[:, None])
             else:
                 ld = c_in * vsgl_diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
                     * rd[:, None]
-            ls = c_in * vsgl_specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
-                                        alpha[:, None], f0[:, None], specular_cosine)
+            if specular_mode == "separable":
+                ls = (amplitude * sep_scale[..., None] * seen
+                      * vsgl_specular_factor(xi_mu, lam_sigma, view[:, None], normal[:, None], alpha[:, None],
+                                             f0[:, None], specular_cosine))
+            else:
+                ls = c_in * vsgl_specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
+                                                 alpha[:, None], f0[:, None], specular_cosine)
             diffuse += ld.sum(axis=1)
             specular += ls.sum(axis=1)
             if per_term:
