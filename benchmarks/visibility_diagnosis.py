@@ -21,11 +21,12 @@ diffuse approximation). Prints one line per scene and configuration. ``--materia
 pixels of that material (e.g. "Glossy tiles", sun_courtyard's north wall, whose courtyard face is
 in the sun's shadow).
 
-A second line splits the maps' lookup into its two factors: the maps alone (without the diffuse
-lobe's own-reflector side, reference/vsgl_shading.vsgl_reflector_side), the side alone, and exact
-visibility times the side; and gives the light the side takes from bent clusters (planarity, the
-diffuse lobe's mean direction length over a flat cluster's, under BENT_PLANARITY: clusters across
-corners, whose cap-of-normals model the side assumes convex) against flat ones. ``--map-stages``
+A second line gives what the diffuse lobe's own-reflector side (reference/vsgl_shading
+vsgl_reflector_side, which the shader no longer applies: pipeline.VSGL_OWN_REFLECTOR_SIGMAS) would
+do: the maps times the side, the side alone, exact visibility times the side, and the light the
+side would take from bent clusters (planarity, the diffuse lobe's mean direction length over a
+flat cluster's, under BENT_PLANARITY: clusters across corners, whose cap-of-normals model the side
+assumes convex) against flat ones. ``--map-stages``
 rebuilds every map with the float64 twin (reference/ism.py splat, close_gaps, pull_push; the
 largest difference to the GPU's maps is printed) and gives the maps' light without gap closing.
 """
@@ -117,7 +118,7 @@ def reference_maps(atlas, table, maps, first_map, points, point_area, gaps=True)
 
 def diagnose(name, path, stride, settings_overrides, material=None, map_stages=False):
     from vsgl_addon.passes.gpu_util import read_texture
-    from vsgl_addon.pipeline import POINT_SETS, build_visibility
+    from vsgl_addon.pipeline import POINT_SETS, VSGL_OWN_REFLECTOR_SIGMAS, build_visibility
     from vsgl_addon.reference.vsgl_shading import (FLAT_DIFFUSE_AXIS_LENGTH, diffuse_mode_for_kernel, shade,
                                                    vsgl_reflector_side, vsgl_visibility)
     from vsgl_addon.passes.vsgl_shading import ISM_MAX_RADIUS
@@ -162,15 +163,15 @@ def diagnose(name, path, stride, settings_overrides, material=None, map_stages=F
                 weight = (terms.sum(axis=3) @ LUMINANCE)  # (P, N, 2)
                 depths = atlas.read()
                 v_ism = vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS)
-                v_maps = vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS, reflector_side=False)
+                v_maps = vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS, reflector_side=True)
                 side = np.ones(v_ism.shape)
                 side[:, :, 0] = vsgl_reflector_side(table["diffuse_mean"][None], table["diffuse_axis"][None],
                                                     table["diffuse_sharpness"][None], position[:, None])
-                v_exact = exact_visibility(table, maps, position, triangles, 1.0)
+                v_exact = exact_visibility(table, maps, position, triangles, VSGL_OWN_REFLECTOR_SIGMAS)
                 v_exact0 = exact_visibility(table, maps, position, triangles, 0.0, pushed=False)
                 sharpness = table["diffuse_sharpness"]
                 bent = sharpness / (1.0 + sharpness) / FLAT_DIFFUSE_AXIS_LENGTH < BENT_PLANARITY  # (N,)
-                taken = weight[:, :, 0] * v_maps[:, :, 0] * (1.0 - side[:, :, 0])  # (P, N)
+                taken = weight[:, :, 0] * v_ism[:, :, 0] * (1.0 - side[:, :, 0])  # (P, N)
                 sums["off"] += weight.sum()
                 sums["ism"] += (weight * v_ism).sum()
                 sums["exact"] += (weight * v_exact).sum()
@@ -198,12 +199,12 @@ def diagnose(name, path, stride, settings_overrides, material=None, map_stages=F
         bench.free()
     cycles = float((truth["indirect"][pick] @ LUMINANCE).sum())
     line = (f"{name}{'' if material is None else f' ({material})'} {settings_overrides}: pixels {pick.sum()}, ours/Cycles off {sums['off'] / cycles:.3f}, "
-            f"ISM {sums['ism'] / cycles:.3f}, exact (shadow origin, 1 sigma excluded) {sums['exact'] / cycles:.3f}, "
+            f"ISM {sums['ism'] / cycles:.3f}, exact (shadow origin, {VSGL_OWN_REFLECTOR_SIGMAS} sigma excluded) {sums['exact'] / cycles:.3f}, "
             f"exact (bare segment to the mean) {sums['exact_mean0'] / cycles:.3f}; ISM over-shadows "
             f"{over / sums['off']:.3f} and leaks {under / sums['off']:.3f} of the unshadowed light")
     log(line)
-    split = (f"  maps alone (no own-reflector side) {sums['maps'] / cycles:.3f}, the side alone {sums['side'] / cycles:.3f}, "
-             f"exact x side {sums['exact_side'] / cycles:.3f}; the side takes {sums['side_bent'] / cycles:.3f} of Cycles' "
+    split = (f"  with the own-reflector side: ISM x side {sums['maps'] / cycles:.3f}, the side alone {sums['side'] / cycles:.3f}, "
+             f"exact x side {sums['exact_side'] / cycles:.3f}; the side would take {sums['side_bent'] / cycles:.3f} of Cycles' "
              f"light from bent clusters (planarity < {BENT_PLANARITY}), {sums['side_flat'] / cycles:.3f} from flat ones")
     if map_stages:
         split += (f"; maps without gap closing {sums['no_gaps'] / cycles:.3f} (float64 rebuild; its texels "

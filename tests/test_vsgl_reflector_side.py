@@ -119,8 +119,8 @@ def test_glsl_matches_the_reference():
 
 
 def test_the_lookup_is_the_maps_times_the_side():
-    """vsgl_visibility's reflector_side=False (the maps alone, benchmarks/visibility_diagnosis.py)
-    times the diffuse lobe's side is the default lookup; the specular lobe has no side."""
+    """vsgl_visibility's default (the maps alone, as the shader) times the diffuse lobe's side is its
+    reflector_side=True lookup (benchmarks/visibility_diagnosis.py); the specular lobe has no side."""
     rng = np.random.default_rng(7)
     count, size = 3, 8
     axis = rng.normal(size=(count, 3))
@@ -131,8 +131,8 @@ def test_the_lookup_is_the_maps_times_the_side():
     position = rng.normal(size=(50, 3)) * 2.0
     normal = rng.normal(size=(50, 3))
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    full = vs.vsgl_visibility(depths, 1, vsgls, position, normal, 1)
-    maps = vs.vsgl_visibility(depths, 1, vsgls, position, normal, 1, reflector_side=False)
+    full = vs.vsgl_visibility(depths, 1, vsgls, position, normal, 1, reflector_side=True)
+    maps = vs.vsgl_visibility(depths, 1, vsgls, position, normal, 1)
     side = vs.vsgl_reflector_side(vsgls["diffuse_mean"][None], axis[None], vsgls["diffuse_sharpness"][None],
                                   position[:, None])
     assert np.allclose(full[..., 0], maps[..., 0] * side)

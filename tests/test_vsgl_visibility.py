@@ -144,7 +144,7 @@ def test_maps_made_from_the_tables_on_the_gpu_give_the_frame_of_origins_made_on_
         area = float(pipeline.triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
         for table in vsgls.table_arrays():
             origins, sets, distance = ism.vsgl_map_origins(table, pipeline.MAPS_PER_VSGL, first_map,
-                                                           pipeline.POINT_SETS, pipeline.OWN_REFLECTOR_SIGMAS)
+                                                           pipeline.POINT_SETS, pipeline.VSGL_OWN_REFLECTOR_SIGMAS)
             size = ism_pass.fitting_size(len(origins), settings.ism_size)
             vsgls.isms.append(ism_pass.PASS.run(points, origins, sets, size, min_distance=distance, point_area=area))
             first_map += len(origins)

@@ -20,10 +20,8 @@
 // map 2i the diffuse lobe's, 2i + 1 the specular lobe's)).
 // Each map is centred on its shadow origin (lib/ism.glsl ism_shadow_origin). A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
 // sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS.
-// Each map leaves out the lobe's own reflector; what that reflector hides (a flat one: all behind
-// its plane) takes the diffuse lobe's vsgl_reflector_side (lib/vsgl_shading.glsl). The specular
-// lobe keeps its map alone: its position and the diffuse axis may belong to different reflectors
-// (a floor and the metal sphere on it share a cluster).
+// Each map leaves out only the points nearest its origin (vsgl_addon/pipeline.py
+// VSGL_OWN_REFLECTOR_SIGMAS), so a flat reflector's own surface hides what lies behind it.
 
 #if VSGL_VISIBILITY
 float vsgl_visibility(int map_index, vec3 mean, float variance, vec3 axis, VSGLReceiver rc, vec2 inv_atlas_size)
@@ -76,16 +74,15 @@ void main()
     vec3 diffuse_amplitude = vsgl.diffuse_amplitude;
     vec3 specular_amplitude = vsgl.specular_amplitude;
 #if VSGL_VISIBILITY
-    float reflector_side = vsgl_reflector_side_seen(vsgl.diffuse_axis, vsgl.diffuse_sharpness, diffuse_position);
     // Branches on the uniform map count, not selects: a select would run both sides' lookups.
     if (ism_params.z == 1) {
       float visibility = vsgl_visibility(i, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc, inv_atlas_size);
-      diffuse_amplitude *= visibility * reflector_side;
+      diffuse_amplitude *= visibility;
       specular_amplitude *= visibility;
     }
     else {
-      diffuse_amplitude *= reflector_side *
-                           vsgl_visibility(2 * i, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc, inv_atlas_size);
+      diffuse_amplitude *= vsgl_visibility(2 * i, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc,
+                                           inv_atlas_size);
       specular_amplitude *= vsgl_visibility(2 * i + 1, vsgl.specular_mean, vsgl.specular_variance,
                                             vsgl.specular_axis, rc, inv_atlas_size);
     }

@@ -392,15 +392,15 @@ def vsgl_reflector_side(mean, axis, sharpness, position):
     return np.clip(1.0 + sin_elevation / np.maximum(sin_c, 1e-4), 0.0, 1.0)
 
 
-def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius, reflector_side=True):
+def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius, reflector_side=False):
     """(P, N, 2) visibility of each VSGL lobe from P shading points (glsl/vsgl_shading's
     vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) from the lobe's shadow origin
     (reference.ism.shadow_origin) in its map of
     ``depths`` (maps, S, S), map maps_per_vsgl·i (+ 1 for the specular lobe with two maps per
     VSGL; with one, both lobes take the map of the VSGL's diffuse lobe position ``diffuse_mean``): one texel where σ_v / distance is under half a texel (or ``max_radius`` is 0), else the
-    bilinear filter of about two texels (reference.ism.ism_pcf_bilinear); the diffuse lobe's times
-    :func:`vsgl_reflector_side` (``reflector_side=False``: the maps alone, as
-    benchmarks/visibility_diagnosis.py separates the two)."""
+    bilinear filter of about two texels (reference.ism.ism_pcf_bilinear). ``reflector_side``: the
+    diffuse lobe's times :func:`vsgl_reflector_side`, which the shader no longer applies
+    (pipeline.VSGL_OWN_REFLECTOR_SIGMAS says why; benchmarks/visibility_diagnosis.py measures it)."""
     from . import ism
 
     position, normal = f64(position).reshape(-1, 3), f64(normal).reshape(-1, 3)
