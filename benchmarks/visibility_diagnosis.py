@@ -105,10 +105,11 @@ def exact_visibility(table, maps_per_vsgl, position, triangles, exclude_sigmas, 
 def reference_maps(atlas, table, maps, first_map, points, point_area, gaps=True):
     """(M, S, S) the table's maps rebuilt by the float64 twin (pipeline.build_visibility's origins,
     point sets and own-reflector distance), with or without gap closing."""
-    from vsgl_addon.pipeline import OWN_REFLECTOR_SIGMAS, POINT_SETS
+    from vsgl_addon.pipeline import POINT_SETS, VSGL_OWN_REFLECTOR_SIGMAS
     from vsgl_addon.reference import ism
 
-    origins, sets, min_distance = ism.vsgl_map_origins(table, maps, first_map, POINT_SETS, OWN_REFLECTOR_SIGMAS)
+    origins, sets, min_distance = ism.vsgl_map_origins(table, maps, first_map, POINT_SETS,
+                                                       VSGL_OWN_REFLECTOR_SIGMAS)
     result = []
     for origin, index, near in zip(origins, sets, min_distance):
         depth = ism.splat(points.positions[index], origin, atlas.size, near, points.normals[index], point_area)

@@ -382,7 +382,12 @@ def vsgl_reflector_side(mean, axis, sharpness, position):
     back of a thin wall then lights the wall's own shaded front. The imperfect shadow map cannot
     stop that light (its origin sits on the reflector, whose own points it leaves out). A curved
     reflector's normals tilt by up to θc, so receivers down to θc below the plane keep a share (the
-    brute-force share of a spherical cap's texels facing them: tests/test_vsgl_visibility.py)."""
+    brute-force share of a spherical cap's texels facing them: tests/test_vsgl_visibility.py).
+
+    The shader no longer applies it (vsgl_visibility's ``reflector_side``): the VSGLs' maps keep
+    their own reflector's surface (pipeline.VSGL_OWN_REFLECTOR_SIGMAS), and the cap model assumes a
+    bent cluster convex, where a room corner's cluster is concave and lights the receivers between
+    its walls (benchmarks/visibility_diagnosis.py gives what it would take)."""
     planarity = np.clip(f64(sharpness) / (1.0 + f64(sharpness)) / FLAT_DIFFUSE_AXIS_LENGTH, 0.0, 1.0)
     cos_c = 2.0 * planarity - 1.0
     sin_c = np.sqrt(np.maximum(1.0 - cos_c * cos_c, 0.0))
