@@ -116,3 +116,25 @@ def test_glsl_matches_the_reference():
                          libraries=["lib/vsgl_shading.glsl"])
     assert np.all(np.isfinite(seen))
     assert np.max(np.abs(seen - want)) < 2e-3, np.max(np.abs(seen - want))
+
+
+def test_the_lookup_is_the_maps_times_the_side():
+    """vsgl_visibility's default (the maps alone, as the shader) times the diffuse lobe's side is its
+    reflector_side=True lookup (benchmarks/visibility_diagnosis.py); the specular lobe has no side."""
+    rng = np.random.default_rng(7)
+    count, size = 3, 8
+    axis = rng.normal(size=(count, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    vsgls = {"diffuse_mean": rng.normal(size=(count, 3)), "diffuse_variance": rng.uniform(0.01, 0.5, count),
+             "diffuse_axis": axis, "diffuse_sharpness": rng.uniform(0.2, 3.0, count), "specular_axis": axis}
+    depths = rng.uniform(0.5, 4.0, (count, size, size))
+    position = rng.normal(size=(50, 3)) * 2.0
+    normal = rng.normal(size=(50, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    full = vs.vsgl_visibility(depths, 1, vsgls, position, normal, 1, reflector_side=True)
+    maps = vs.vsgl_visibility(depths, 1, vsgls, position, normal, 1)
+    side = vs.vsgl_reflector_side(vsgls["diffuse_mean"][None], axis[None], vsgls["diffuse_sharpness"][None],
+                                  position[:, None])
+    assert np.allclose(full[..., 0], maps[..., 0] * side)
+    assert np.array_equal(full[..., 1], maps[..., 1])
+    assert (side < 1.0).any()  # some receivers lie behind a lobe's plane

@@ -253,8 +253,20 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
 #: al. 2008 give each map its own subset; 64 keep neighbouring maps' holes apart at a small memory).
 POINT_SETS = 64
 #: Points within this many σ_v of a map's origin are its own reflector, not an occluder of its light
-#: (0.5 and 2 give the occluder scene the same light, benchmarks/visibility_diagnosis.py).
+#: (0.5 and 2 give the occluder scene the same light, benchmarks/visibility_diagnosis.py): the VPL
+#: clusters' maps (passes/vpl_culling.py), whose half-space leaves out their reflector's plane too.
 OWN_REFLECTOR_SIGMAS = 1.0
+#: The same for the VSGLs' maps. A flat cluster's shadow origin sits SHADOW_ORIGIN_SIGMAS = 0.5 σ_v
+#: off its surface (reference/ism.py shadow_origin), so with 0.3 σ_v its own surface stays in its
+#: map and hides what lies behind it (the sunlit back of a thin wall no longer lights the wall's
+#: shaded front through the hole a 1 σ_v ball cut around the origin), which the diffuse lobe's
+#: own-reflector side (reference/vsgl_shading.py vsgl_reflector_side) did by a model that assumes
+#: a bent cluster convex: it also took the light a room corner's cluster gives the receivers
+#: between its walls. Float64 maps of the same VSGLs (benchmarks/visibility_diagnosis.py, stride 6,
+#: N = 256): the 24-light room 0.834 -> 0.863 of Cycles, the courtyard 1.488 -> 1.451, the Cornell
+#: box 0.898 -> 0.905 (1 σ_v with the side -> 0.3 σ_v without; 0.5 σ_v without gives the courtyard
+#: 1.499, 0.1 σ_v the room 0.855).
+VSGL_OWN_REFLECTOR_SIGMAS = 0.3
 
 
 #: Imperfect shadow maps per VSGL: 1, at its diffuse lobe's positional Gaussian for both lobes (000
@@ -283,7 +295,7 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
         # Each map's origin, point set and own-reflector distance made from the table texture on
         # the GPU (passes/ism.py vsgl_map_origins): the tables stay on the GPU.
         origins = ism_pass.vsgl_map_origins(table.texture, table.count, MAPS_PER_VSGL, first_map, POINT_SETS,
-                                            OWN_REFLECTOR_SIGMAS)
+                                            VSGL_OWN_REFLECTOR_SIGMAS)
         size = ism_pass.fitting_size(origins.count, settings.ism_size)
         vsgls.isms.append(ism_pass.PASS.run(points, origins, None, size, point_area=point_area,
                                             timed=timed, point_textures=textures))

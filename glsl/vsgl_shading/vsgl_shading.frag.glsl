@@ -22,10 +22,8 @@
 // its maps instead of dividing (llvmpipe runs integer division lane by lane).
 // Each map is centred on its shadow origin (lib/ism.glsl ism_shadow_origin). A VSGL is a Gaussian of positions, not a point: the filter's radius in texels is its spread
 // sigma_v seen from the pixel, sigma_v / distance radians, up to VSGL_ISM_MAX_RADIUS.
-// Each map leaves out the lobe's own reflector; what that reflector hides (a flat one: all behind
-// its plane) takes the diffuse lobe's vsgl_reflector_side (lib/vsgl_shading.glsl). The specular
-// lobe keeps its map alone: its position and the diffuse axis may belong to different reflectors
-// (a floor and the metal sphere on it share a cluster).
+// Each map leaves out only the points nearest its origin (vsgl_addon/pipeline.py
+// VSGL_OWN_REFLECTOR_SIGMAS), so a flat reflector's own surface hides what lies behind it.
 
 #if VSGL_VISIBILITY
 // The map at tile_corner (ism_lookup_at) seen from the receiver rc.
@@ -84,15 +82,13 @@ void main()
     vec3 diffuse_amplitude = vsgl.diffuse_amplitude;
     vec3 specular_amplitude = vsgl.specular_amplitude;
 #if VSGL_VISIBILITY
-    float reflector_side = vsgl_reflector_side_seen(vsgl.diffuse_axis, vsgl.diffuse_sharpness, diffuse_position);
 #if VSGL_ISM_MAPS == 1
     float visibility = vsgl_visibility(ism, tile_corner, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc);
     tile_corner = vsgl_next_tile(tile_corner, tile_side, row_end);
-    diffuse_amplitude *= visibility * reflector_side;
+    diffuse_amplitude *= visibility;
     specular_amplitude *= visibility;
 #else
-    diffuse_amplitude *= reflector_side *
-                         vsgl_visibility(ism, tile_corner, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc);
+    diffuse_amplitude *= vsgl_visibility(ism, tile_corner, vsgl.diffuse_mean, vsgl.diffuse_variance, vsgl.diffuse_axis, rc);
     tile_corner = vsgl_next_tile(tile_corner, tile_side, row_end);
     specular_amplitude *= vsgl_visibility(ism, tile_corner, vsgl.specular_mean, vsgl.specular_variance,
                                           vsgl.specular_axis, rc);

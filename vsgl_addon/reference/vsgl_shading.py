@@ -404,7 +404,12 @@ def vsgl_reflector_side(mean, axis, sharpness, position):
     back of a thin wall then lights the wall's own shaded front. The imperfect shadow map cannot
     stop that light (its origin sits on the reflector, whose own points it leaves out). A curved
     reflector's normals tilt by up to θc, so receivers down to θc below the plane keep a share (the
-    brute-force share of a spherical cap's texels facing them: tests/test_vsgl_visibility.py)."""
+    brute-force share of a spherical cap's texels facing them: tests/test_vsgl_visibility.py).
+
+    The shader no longer applies it (vsgl_visibility's ``reflector_side``): the VSGLs' maps keep
+    their own reflector's surface (pipeline.VSGL_OWN_REFLECTOR_SIGMAS), and the cap model assumes a
+    bent cluster convex, where a room corner's cluster is concave and lights the receivers between
+    its walls (benchmarks/visibility_diagnosis.py gives what it would take)."""
     planarity = np.clip(f64(sharpness) / (1.0 + f64(sharpness)) / FLAT_DIFFUSE_AXIS_LENGTH, 0.0, 1.0)
     cos_c = 2.0 * planarity - 1.0
     sin_c = np.sqrt(np.maximum(1.0 - cos_c * cos_c, 0.0))
@@ -414,14 +419,15 @@ def vsgl_reflector_side(mean, axis, sharpness, position):
     return np.clip(1.0 + sin_elevation / np.maximum(sin_c, 1e-4), 0.0, 1.0)
 
 
-def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
+def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius, reflector_side=False):
     """(P, N, 2) visibility of each VSGL lobe from P shading points (glsl/vsgl_shading's
     vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) from the lobe's shadow origin
     (reference.ism.shadow_origin) in its map of
     ``depths`` (maps, S, S), map maps_per_vsgl·i (+ 1 for the specular lobe with two maps per
     VSGL; with one, both lobes take the map of the VSGL's diffuse lobe position ``diffuse_mean``): one texel where σ_v / distance is under half a texel (or ``max_radius`` is 0), else the
-    bilinear filter of about two texels (reference.ism.ism_pcf_bilinear); the diffuse lobe's times
-    :func:`vsgl_reflector_side`."""
+    bilinear filter of about two texels (reference.ism.ism_pcf_bilinear). ``reflector_side``: the
+    diffuse lobe's times :func:`vsgl_reflector_side`, which the shader no longer applies
+    (pipeline.VSGL_OWN_REFLECTOR_SIGMAS says why; benchmarks/visibility_diagnosis.py measures it)."""
     from . import ism
 
     position, normal = f64(position).reshape(-1, 3), f64(normal).reshape(-1, 3)
@@ -448,6 +454,8 @@ def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius):
                 depth = depths[maps_per_vsgl * i + lobe]
                 result[here, i, lobe] = (ism.ism_pcf(depth, mean, position[here], 0, normals=normal[here]) if r == 0
                                          else ism.ism_pcf_bilinear(depth, mean, position[here], normals=normal[here]))
+    if not reflector_side:
+        return result
     # The diffuse lobe's own reflector (vsgl_reflector_side); with one map per VSGL the specular
     # lobe took the diffuse lobe's map lookup above, without it.
     result[:, :, 0] *= vsgl_reflector_side(f64(vsgls["diffuse_mean"]).reshape(1, -1, 3),
