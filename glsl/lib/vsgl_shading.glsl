@@ -86,26 +86,6 @@ float vsgl_diffuse_factor(vec3 axis_in, float sharpness_in, vec3 normal, int mod
   return sg_integral(sharpness_in) * (1.0 / PI) * max(dot(axis_in, normal), 0.0);
 }
 
-// The share of a VSGL's diffuse lobe its own reflector does not hide from `receiver` (reference
-// vsgl_reflector_side): 1 + sin(elevation of the receiver above the lobe's mean plane) / sin(theta_c),
-// clamped to [0, 1], theta_c the half-angle of the cap of normals that gives the lobe's mean
-// direction length |xi| = lam / (1 + lam): cos theta_c = 2 |xi| / |xi|_flat - 1 with |xi|_flat = 2/3,
-// each texel's diffuse lobe being the lambda = 2 SG (000 app. B.1). A flat reflector lights nothing
-// behind its plane; the VSGL's isotropic Gaussian of positions and its lobe would (Eq. 12).
-float vsgl_reflector_side(vec3 mean, vec3 axis, float sharpness, vec3 receiver)
-{
-  float planarity = clamp(1.5 * sharpness / (1.0 + sharpness), 0.0, 1.0);
-  float cos_c = 2.0 * planarity - 1.0;
-  float sin_c = sqrt(max(1.0 - cos_c * cos_c, 0.0));
-  vec3 offset = receiver - mean;
-  float distance = length(offset);
-  if (!(distance > 0.0)) {
-    return 1.0;
-  }
-  float sin_elevation = dot(axis, offset) / distance;
-  return clamp(1.0 + sin_elevation / max(sin_c, 1e-4), 0.0, 1.0);
-}
-
 // What the specular of a shading point needs, computed once per pixel.
 struct VSGLReceiver {
   vec3 position;
@@ -219,18 +199,6 @@ VSGLPosition vsgl_position(vec3 shading_position, vec3 mean, float variance)
   p.lam_sigma = dist * (dist / var);
   p.inv_area = 1.0 / (TWO_PI * var);
   return p;
-}
-
-// vsgl_reflector_side from the diffuse lobe's VSGLPosition seen from the receiver (its mean is the
-// lobe's mean): sin(elevation) = -axis . xi_mu, no second distance; a receiver at the mean
-// (lam_sigma = 0) gets 1, as there.
-float vsgl_reflector_side_seen(vec3 axis, float sharpness, VSGLPosition at)
-{
-  float planarity = clamp(1.5 * sharpness / (1.0 + sharpness), 0.0, 1.0);
-  float cos_c = 2.0 * planarity - 1.0;
-  float sin_c = sqrt(max(1.0 - cos_c * cos_c, 0.0));
-  float sin_elevation = at.lam_sigma > 0.0 ? -dot(axis, at.xi_mu) : 1.0;
-  return clamp(1.0 + sin_elevation / max(sin_c, 1e-4), 0.0, 1.0);
 }
 
 // Adds both lobes of one VSGL (its diffuse and its specular SG), each at its own position
