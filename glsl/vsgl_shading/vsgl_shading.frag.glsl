@@ -6,8 +6,9 @@
 // and normal attachments and the shading inputs (unpacked by the generated code of
 // vsgl_addon/layouts.py GBUFFER and SHADING_INPUTS; vsgl_addon/passes/vsgl_shading.py documents them). For each VSGL of the table (RGBA32F,
 // one VSGLRecord per column, fetched by the generated vsgl_table_load: vsgl_addon/layouts.py
-// VSGL_TABLE) both lobes are added, each at its own position (glsl/lib/vsgl_shading.glsl), computed once per VSGL when the table says both lobes
-// share it (`shared_positions`, the paper's positional distribution). Outputs: indirect
+// VSGL_TABLE) both lobes are added, each at its own position (glsl/lib/vsgl_shading.glsl), computed once per VSGL when the table's lobes
+// share it (VSGL_SHARED_POSITIONS, a compile-time define: the paper's positional distribution, one
+// per table, vsgl_addon/passes/vsgl_shading.py VSGLTable.shared_positions). Outputs: indirect
 // diffuse = Rd * sum, indirect specular = F0 * sum_s + sum_f (Schlick is linear in F0); alpha =
 // coverage, or 0 when `accumulate` is set (later tables are added by blending).
 // VSGL_DIFFUSE_MODE is a compile-time define (0: cosine pulled out, 1: 003's SG convolution, 2: the
@@ -75,10 +76,11 @@ void main()
   for (int i = 0; i < vsgl_count; i++) {
     VSGLRecord vsgl = vsgl_table_load(i);
     VSGLPosition diffuse_position = vsgl_position(rc.position, vsgl.diffuse_mean, vsgl.diffuse_variance);
+#if VSGL_SHARED_POSITIONS
     VSGLPosition specular_position = diffuse_position;
-    if (shared_positions == 0) {
-      specular_position = vsgl_position(rc.position, vsgl.specular_mean, vsgl.specular_variance);
-    }
+#else
+    VSGLPosition specular_position = vsgl_position(rc.position, vsgl.specular_mean, vsgl.specular_variance);
+#endif
     vec3 diffuse_amplitude = vsgl.diffuse_amplitude;
     vec3 specular_amplitude = vsgl.specular_amplitude;
 #if VSGL_VISIBILITY

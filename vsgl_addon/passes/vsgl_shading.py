@@ -72,7 +72,7 @@ ISM_MAX_RADIUS = 1
 def _interface(visibility: bool = False) -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("INT", "vsgl_count"), ("INT", "accumulate"),
-                        ("INT", "roughness_is_perceptual"), ("INT", "shared_positions")]
+                        ("INT", "roughness_is_perceptual")]
         + ([("IVEC4", "ism_params")] if visibility else []),
         samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal")]
         + [("FLOAT_2D", f"shading_inputs_{name}") for name in SHADING_INPUTS.slot_names]
@@ -87,13 +87,16 @@ def _interface(visibility: bool = False) -> ShaderInterface:
 MAPS_PER_VSGL_CHOICES = (1, 2)
 
 
-def _shader_spec(diffuse_mode: str, visibility: bool = False, maps_per_vsgl: int = 1) -> ShaderSpec:
-    # The map count is compiled in: the loop then neither branches on it nor divides map indices.
+def _shader_spec(diffuse_mode: str, visibility: bool = False, maps_per_vsgl: int = 1,
+                 shared_positions: bool = False) -> ShaderSpec:
+    # The map count and the table's positional distribution are compiled in: the loop then neither
+    # branches on them nor divides map indices (llvmpipe runs both sides of a branch, uniform or not).
     return ShaderSpec(lambda: _interface(visibility), {"vertex": "fullscreen_triangle.vert.glsl",
                                                        "fragment": "vsgl_shading/vsgl_shading.frag.glsl"},
                       defines=lambda: {"VSGL_DIFFUSE_MODE": _MODE_INDEX[diffuse_mode],
                                        "VSGL_VISIBILITY": int(visibility), "VSGL_ISM_MAX_RADIUS": ISM_MAX_RADIUS,
-                                       "VSGL_ISM_MAPS": maps_per_vsgl},
+                                       "VSGL_ISM_MAPS": maps_per_vsgl,
+                                       "VSGL_SHARED_POSITIONS": int(shared_positions)},
                       code=lambda: {"fragment": GBUFFER.glsl() + SHADING_INPUTS.glsl("samplers_load")
                                                 + VSGL_TABLE.glsl("sampler_load")})
 
@@ -107,8 +110,17 @@ def run(gbuffer: "ShadingGBuffer", camera, tables, diffuse_mode: str = "cosine",
     return shading
 
 
-def _visibility_key(diffuse_mode: str, maps_per_vsgl: int) -> str:
-    return f"{diffuse_mode}+visibility" + ("" if maps_per_vsgl == 1 else f"+{maps_per_vsgl}maps")
+def _key(diffuse_mode: str, visibility: bool = False, maps_per_vsgl: int = 1, shared_positions: bool = False) -> str:
+    return (diffuse_mode + ("+visibility" if visibility else "")
+            + (f"+{maps_per_vsgl}maps" if visibility and maps_per_vsgl != 1 else "")
+            + ("+shared" if shared_positions else ""))
+
+
+#: Every variant: diffuse mode × (no visibility, or visibility with each map count) × positional
+#: distribution, 4 × 3 × 2 = 24 shaders.
+_VARIANTS = tuple((mode, visibility, maps, shared) for mode in _MODE_INDEX
+                  for visibility, maps in ((False, 1),) + tuple((True, m) for m in MAPS_PER_VSGL_CHOICES)
+                  for shared in (False, True))
 
 
 #: Shading inputs and VSGL shading are timed together, as the frame always ran them.
@@ -118,23 +130,23 @@ PASS = GPUPass(
     name="vsgl_shading",
     label="VSGL Shading",
     step=SHADING_STEP,
-    shaders={**{mode: _shader_spec(mode) for mode in _MODE_INDEX},
-             **{_visibility_key(mode, maps): _shader_spec(mode, True, maps)
-                for mode in _MODE_INDEX for maps in MAPS_PER_VSGL_CHOICES}},
+    shaders={_key(*variant): _shader_spec(*variant) for variant in _VARIANTS},
     reads=(GBUFFER.name, SHADING_INPUTS.name, VSGL_TABLE.name, "ism_atlas"),
     writes=("indirect",),
     run=run,
 )
 
 
-def shader(diffuse_mode: str = "cosine", visibility: bool = False, maps_per_vsgl: int = 1):
+def shader(diffuse_mode: str = "cosine", visibility: bool = False, maps_per_vsgl: int = 1,
+           shared_positions: bool = False):
     """The shading shader for `diffuse_mode` (with VSGL visibility from imperfect shadow maps when
-    `visibility`, ``maps_per_vsgl`` of them per VSGL), compiled on first use and cached for the process."""
+    `visibility`, ``maps_per_vsgl`` of them per VSGL; for tables whose lobes share their positions when
+    `shared_positions`), compiled on first use and cached for the process."""
     if diffuse_mode not in _MODE_INDEX:
         raise ValueError(f"diffuse_mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
     if visibility and maps_per_vsgl not in MAPS_PER_VSGL_CHOICES:
         raise ValueError(f"maps per VSGL must be one of {MAPS_PER_VSGL_CHOICES}, got {maps_per_vsgl}")
-    return PASS.shader(_visibility_key(diffuse_mode, maps_per_vsgl) if visibility else diffuse_mode)
+    return PASS.shader(_key(diffuse_mode, visibility, maps_per_vsgl if visibility else 1, bool(shared_positions)))
 
 
 compile_shaders = PASS.compile_shaders
@@ -296,8 +308,10 @@ class VSGLShading:
                 gpu.state.depth_mask_set(False)
                 program = None
                 for index, table in enumerate(tables):
-                    # One shader per maps-per-VSGL count; tables of one count share the bound one.
-                    wanted = shader(diffuse_mode, visibility, table.maps_per_vsgl if visibility else 1)
+                    # One shader per maps-per-VSGL count and positional distribution; tables of one
+                    # variant share the bound one.
+                    wanted = shader(diffuse_mode, visibility, table.maps_per_vsgl if visibility else 1,
+                                    table.shared_positions)
                     if wanted is not program:
                         program = wanted
                         program.bind()
@@ -312,7 +326,6 @@ class VSGLShading:
                     gpu.state.blend_set("NONE" if index == 0 else "ADDITIVE_PREMULT")
                     set_uniform(program.uniform_int, "accumulate", 0 if index == 0 else 1)
                     set_uniform(program.uniform_int, "vsgl_count", int(table.count))
-                    set_uniform(program.uniform_int, "shared_positions", 1 if table.shared_positions else 0)
                     program.uniform_sampler("vsgl_table", table.texture)
                     if visibility:
                         program.uniform_int("ism_params", (table.ism.size, table.ism.columns, 0, 0))
