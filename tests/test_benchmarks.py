@@ -30,6 +30,19 @@ def test_vsgl_shading_cost_benchmark_prints_its_table_and_ratios():
     assert "| 256² | 1024 |" in result.stdout and "4× the VSGLs" in result.stdout
 
 
+def test_pass_ab_runs_vsgl_shadings_four_variants_against_heads_glsl():
+    result = _run("benchmarks/pass_ab.py", "--pass", "vsgl_shading", "--old", "HEAD", "--scenes", "demo", "--size", 32,
+                  "--repeats", 1, "--vsgl-count", 64, timeout=300)
+    assert result.returncode == 0, result.stderr
+    rows = [line for line in result.stdout.splitlines() if line.startswith("| demo |")]
+    assert [row.split(" | ")[1] for row in rows] == [f"visibility {v}, {p}" for v in ("off", "on")
+                                                     for p in ("per-lobe", "shared")]
+    assert all(row.endswith("| True |") for row in rows), result.stdout  # finite
+    glsl_clean = subprocess.run(["git", "diff", "--quiet", "HEAD", "--", "glsl"], cwd=REPO).returncode == 0
+    if glsl_clean:  # the same GLSL on both sides
+        assert all(row.endswith("| True | True |") for row in rows), result.stdout
+
+
 def test_speed_accuracy_benchmark_quick_run_writes_table_plot_and_targets():
     # The quick run writes into the repository (benchmarks/results/*_quick.*, gitignored): remove
     # what an earlier run left there first, so that only this run's files can pass the checks.
