@@ -36,12 +36,9 @@ TILE = 16
 VOLUMES = ("spheroid", "vpl_sphere", "enclosing_sphere")
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--delta", type=float, nargs="+", default=[1e-3])
-    parser.add_argument("--size", type=int, nargs=2, default=[WIDTH, HEIGHT], metavar=("W", "H"))
-    parser.add_argument("--vpl-stride", type=int, default=1)
-    args = parser.parse_args(argv)
+def culling_inputs(args):
+    """caustic_panel's G-buffer and VPLs at args.size, every args.vpl_stride-th VPL with its ξ, the
+    camera's matrices and, per args.delta, the three bounding volumes (shared with vpl_bounds_diag.py)."""
     import bpy
 
     from build_validation_scenes import scene_path
@@ -85,6 +82,17 @@ def main(argv=None) -> int:
         volumes[delta] = {"spheroid": (centre, axes, rotation),
                           "vpl_sphere": (vpls["position"], np.repeat((axes[:, 0] + offset)[:, None], 3, 1), identity),
                           "enclosing_sphere": (centre, np.repeat(axes[:, :1], 3, 1), identity)}
+    return position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--delta", type=float, nargs="+", default=[1e-3])
+    parser.add_argument("--size", type=int, nargs=2, default=[WIDTH, HEIGHT], metavar=("W", "H"))
+    parser.add_argument("--vpl-stride", type=int, default=1)
+    args = parser.parse_args(argv)
+    width, height = args.size
+    position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc = culling_inputs(args)
     false_pos = {delta: dict.fromkeys(VOLUMES, 0) for delta in args.delta}
     accepted_total = dict.fromkeys(args.delta, 0)
     pixels = 0

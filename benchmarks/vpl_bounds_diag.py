@@ -25,10 +25,8 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from vpl_caustics import HEIGHT, WIDTH, collect_vpls  # noqa: E402
-
-TILE = 16
-VOLUMES = ("spheroid", "vpl_sphere", "enclosing_sphere")
+from vpl_bounds import TILE, culling_inputs  # noqa: E402
+from vpl_caustics import HEIGHT, WIDTH  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -37,49 +35,8 @@ def main(argv=None) -> int:
     parser.add_argument("--size", type=int, nargs=2, default=[WIDTH, HEIGHT], metavar=("W", "H"))
     parser.add_argument("--vpl-stride", type=int, default=1)
     args = parser.parse_args(argv)
-    import bpy
-
-    from build_validation_scenes import scene_path
-    from tradeoff.bench import Bench
-    from vsgl_addon import register
-    from vsgl_addon.gpu_context import ensure_gpu_context
-    from vsgl_addon.reference import vpl_culling as vc
-    from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
-
-    register()
-    ensure_gpu_context()
-    bpy.ops.wm.open_mainfile(filepath=str(scene_path("caustic_panel")), load_ui=False)
-    settings = VSGLSettings.from_properties(bpy.context.scene.vsgl)
-    description = extract_scene(bpy.context.evaluated_depsgraph_get())
     width, height = args.size
-    bench = Bench(description, width, height)
-    try:
-        vpls = collect_vpls(bench, description, settings)
-        arrays = bench.gbuffer.to_numpy()
-    finally:
-        bench.free()
-    position = arrays["position"].astype(np.float64)
-    normal = arrays["normal"][..., :3].astype(np.float64)
-    generated = len(vpls["roughness"])
-    # ξ of every generated VPL (Eq. 3's one draw per light), then the subsample.
-    keep = np.arange(0, generated, max(args.vpl_stride, 1))
-    xi = vc.vpl_xi(np.arange(generated), 0, 0)[keep]
-    vpls = {key: np.asarray(value)[keep] for key, value in vpls.items()}
-    count = len(keep)
-    w2v = np.asarray(description.camera.view_matrix(), np.float64)
-    proj = np.asarray(description.camera.projection_matrix(), np.float64)
-    inv_proj, v2w = np.linalg.inv(proj), np.linalg.inv(w2v)
-    identity = np.broadcast_to(np.eye(3), (count, 3, 3))
-    volumes = {}
-    for delta in args.delta:
-        centre, axes, rotation = vc.glossy_bounding_volumes(vpls, delta, xi)
-        offset = np.linalg.norm(centre - vpls["position"], axis=-1)
-        # 004 §7: the VPL-centred sphere of radius r_α (the NDF's maximum in Eq. 9), which is the
-        # spheroid's farthest point from q, |c − q| + r_u = r/α; the enclosing sphere (c, r_u).
-        volumes[delta] = {"spheroid": (centre, axes, rotation),
-                          "vpl_sphere": (vpls["position"], np.repeat((axes[:, 0] + offset)[:, None], 3, 1), identity),
-                          "enclosing_sphere": (centre, np.repeat(axes[:, :1], 3, 1), identity)}
+    position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc = culling_inputs(args)
     BINS = 8  # depth sub-ranges per tile for the 2.5D variant
     fp = {d: 0 for d in args.delta}; fp25 = {d: 0 for d in args.delta}; fppt = {d: 0 for d in args.delta}; fpany = {d: 0 for d in args.delta}; fpsph = {d: 0 for d in args.delta}; fpvol = {d: 0 for d in args.delta}; acc = {d: 0 for d in args.delta}
     spans = []; tile_px = []
