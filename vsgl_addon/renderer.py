@@ -157,14 +157,12 @@ class SceneLights:
                         _finish(table_set.isms[-1].texture)
             timings[ism.PASS.step.name] = time.perf_counter() - clock
             clock = time.perf_counter()
-            if caustics and settings.visibility and settings.vpl_visibility:
-                # The VPLs' clusters and their shadow maps' origins are made on the CPU.
-                found = vpl_culling.scene_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness)
-                vpls = vpl_culling.upload_visible_vpls(found, scene_gpu, settings, settings.rsm_size)
-            elif caustics:
-                # Made on the GPU, with nothing read back or uploaded: the viewport rebuilds them per change.
-                vpls = vpl_culling.extract_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness)
-                _finish(vpls.table)
+            if caustics:
+                # Made on the GPU, with their clusters' shadow maps when VPL shadows are on, with nothing
+                # read back: the viewport rebuilds them per change.
+                shadows = settings if settings.visibility and settings.vpl_visibility else None
+                vpls = vpl_culling.extract_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness, shadows)
+                _finish(vpls.table if vpls.isms is None else vpls.isms.texture)
             timings[VPL_EXTRACTION.name] = time.perf_counter() - clock
             clock = time.perf_counter()
             if settings.visibility and proxies:

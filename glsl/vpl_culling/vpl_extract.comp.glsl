@@ -1,4 +1,5 @@
 // @require lib/vpl_extraction.glsl
+// @require lib/vpl_clusters.glsl
 //
 // The glossy VPLs of one RSM view on the GPU (004 section 3; twin: reference/vpl_culling.py
 // extract_glossy_vpls), a stream compaction in texel order. Texel t = x + side y (row-major) belongs
@@ -11,7 +12,9 @@
 // set is as stable as the RSM.
 // extract_sizes = (RSM side, table capacity in VPLs, table width W, run table width); record k of
 // slot i goes to texel (i % W, 4 (i / W) + k), as passes/vpl_culling.py vpl_table lays it out; run r's
-// count and slot are texel (r % run table width, r / run table width).
+// count and slot are texel (r % run table width, r / run table width). extract_params = (alpha_c, the
+// view's index among the frame's VPL views, or -1): with an index, record 3's w is the VPL's shadow
+// map (vpl_cluster_map, lib/vpl_clusters.glsl), which the culling's visibility lookup reads.
 void main()
 {
   int side = extract_sizes.x;
@@ -35,6 +38,9 @@ void main()
                               texelFetch(rsm_flux_specular, texel, 0), extract_light, extract_params.x,
                               record0, record1, record2, record3)) {
 #if VPL_EXTRACT_WRITE
+      if (extract_params.y >= 0.0) {
+        record3.w = float(vpl_cluster_map(texel, int(extract_params.y), side));
+      }
       if (slot < uint(extract_sizes.y)) {
         ivec2 origin = ivec2(int(slot) % width, 4 * (int(slot) / width));
         imageStore(vpl_table_out, origin, record0);

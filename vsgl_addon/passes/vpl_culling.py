@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..layouts import GBUFFER, RSM, SHADING_INPUTS
+from ..reference import vpl_clusters as _clusters
 from ..reference.vpl_culling import VPL_ALPHA_MIN
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
@@ -168,65 +169,38 @@ def upload_vpls(vpls) -> VPLSet:
 #: each cluster of VPLs, the texels of one CLUSTER_TEXELS² block of one RSM view, one imperfect shadow
 #: map (000 §5's ISMs, passes/ism.py) at the cluster's flux-weighted mean moved off its surface
 #: (reference.ism.shadow_origin, as a VSGL's), leaving out its own reflector's points (within
-#: pipeline.OWN_REFLECTOR_SIGMAS σ, and the half-space of cluster_planes). Why not the maps of the
-#: VSGLs: the diffuse receivers' VSGLs hold no sharp reflector's specular flux, so a metal panel has
-#: no VSGL of its own there; and a map per VPL (tens of thousands) is too many. A block is a few
-#: centimetres of reflector at the suite's sizes, so its map's origin is near each VPL;
-#: benchmarks/vpl_visibility.py measures the error against ray-cast visibility (its occluded
-#: caustic: relative RMSE 1.05 against the unshadowed image's 1.97; polished_metal_floor, where
-#: nearly nothing is occluded: 0.33 against 0.01).
-CLUSTER_TEXELS = 16
+#: pipeline.OWN_REFLECTOR_SIGMAS σ, and the half-space of cluster_planes; the maths:
+#: reference/vpl_clusters.py). Why not the maps of the VSGLs: the diffuse receivers' VSGLs hold no
+#: sharp reflector's specular flux, so a metal panel has no VSGL of its own there; and a map per VPL
+#: (tens of thousands) is too many. A block is a few centimetres of reflector at the suite's sizes, so
+#: its map's origin is near each VPL; benchmarks/vpl_visibility.py measures the error against
+#: ray-cast visibility (its occluded caustic: relative RMSE 1.05 against the unshadowed image's 1.97;
+#: polished_metal_floor, where nearly nothing is occluded: 0.33 against 0.01).
+CLUSTER_TEXELS = _clusters.CLUSTER_TEXELS
+CLUSTER_PLANE_SLACK = _clusters.CLUSTER_PLANE_SLACK
+cluster_planes = _clusters.cluster_planes
 
 
 def vpl_clusters(vpls, view_size: int):
-    """(cluster per VPL, origins (C, 3), σ (C,), half-spaces (C, 4)) of the VPLs of scene_vpls: the
-    texels of one CLUSTER_TEXELS² block of one view form a cluster; its origin is the Φ-weighted
-    mean position moved off the surface along the mean normal (reference.ism.shadow_origin), its
-    map's half-space that of :func:`cluster_planes`."""
+    """(cluster per VPL, origins (C, 3), σ (C,), half-spaces (C, 4)) of the occupied clusters of the
+    VPLs of scene_vpls, in map order (the float64 reference of the GPU's cluster table,
+    reference.vpl_clusters.vpl_cluster_origins, without its empty maps): the texels of one
+    CLUSTER_TEXELS² block of one view form a cluster; its origin is the Φ-weighted mean position
+    moved off the surface along the mean normal (reference.ism.shadow_origin), its map's half-space
+    that of :func:`cluster_planes`."""
     from ..reference.ism import shadow_origin
 
-    texel = np.asarray(vpls["texel"], np.int64)
-    blocks = max(1, math.ceil(view_size / CLUSTER_TEXELS))
-    block = (texel // view_size) // CLUSTER_TEXELS * blocks + (texel % view_size) // CLUSTER_TEXELS
-    key = np.asarray(vpls["view"], np.int64) * blocks * blocks + block
-    keys, cluster = np.unique(key, return_inverse=True)
-    weight = np.max(vpls["flux"] * vpls["rs"], axis=-1) + 1e-30
-    total = np.bincount(cluster, weight, len(keys))
-    mean = np.stack([np.bincount(cluster, weight * vpls["position"][:, k], len(keys)) for k in range(3)], -1)
-    mean /= total[:, None]
-    spread = np.bincount(cluster, weight * np.sum((vpls["position"] - mean[cluster]) ** 2, axis=-1), len(keys))
-    variance = spread / total / 3.0  # per axis, as a VSGL's σ_v²
-    axis = np.stack([np.bincount(cluster, weight * vpls["normal"][:, k], len(keys)) for k in range(3)], -1)
-    axis /= np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-30)
+    keys, cluster = np.unique(_clusters.vpl_cluster_map(vpls["texel"], vpls["view"], view_size),
+                              return_inverse=True)
+    mean, variance, axis, _ = _clusters.cluster_statistics(vpls, cluster, len(keys))
     origins = shadow_origin(mean, variance, axis)
     return cluster, origins, np.sqrt(variance), cluster_planes(vpls["position"], cluster, origins, axis)
 
 
-#: Metres above its VPLs' plane a cluster's map starts (the floor of reference.ism.ism_bias): the
-#: reflector's own points, sampled from float32 triangles, lie within rounding of that plane.
-CLUSTER_PLANE_SLACK = 1e-3
-
-
-def cluster_planes(positions, cluster, origins, axis) -> np.ndarray:
-    """(C, 4) half-space of each cluster's map (reference.ism.keeps_point: n · (p − origin) ≥ c): the
-    points above the plane through its highest VPL along its mean normal n, plus
-    CLUSTER_PLANE_SLACK. A glossy VPL's light leaves into the hemisphere of its normal, so on a
-    flat cluster (every normal n) a segment from a VPL to a receiver it lights stays above the
-    plane of its start, and a point below the highest VPL's plane can only block it where it
-    leaves the surface, inside the slack: leaving such points out is exact there. Kept, the
-    reflector's own surface, seen edge-on from an origin just above it, splats a band of near
-    depths at the map's horizon, which pull-push then spreads into the sparse texels above it:
-    a mirror floor shadowed the wall behind it and the objects on it (validation suite,
-    polished_metal_floor). On a curved cluster this is an approximation: a VPL whose normal leans
-    off n lights receivers a little below that plane, and what stands there is not in its map."""
-    heights = np.einsum("ij,ij->i", np.asarray(positions, np.float64) - origins[cluster], axis[cluster])
-    top = np.full(len(origins), -np.inf)
-    np.maximum.at(top, cluster, heights)
-    return np.concatenate([axis, (top + CLUSTER_PLANE_SLACK)[:, None]], axis=-1)
-
-
 def upload_visible_vpls(vpls, scene_gpu, settings, view_size: int, first_map: int = 0) -> VPLSet:
-    """:func:`upload_vpls` with the clusters' imperfect shadow maps (settings.ism_size, ism_points)."""
+    """:func:`upload_vpls` with the clusters' imperfect shadow maps (settings.ism_size, ism_points),
+    made on the CPU from VPLs read back (tests, benchmarks/vpl_visibility.py; the renderer makes them
+    on the GPU, :func:`extract_vpls` with ``shadows``)."""
     from ..pipeline import OWN_REFLECTOR_SIGMAS, POINT_SETS
     from ..scene_points import triangle_areas
     from . import ism
@@ -331,12 +305,14 @@ def empty_vpl_set(capacity: int) -> VPLSet:
     return VPLSet(table, None, count_texture=_count_texture(0), capacity=int(capacity))
 
 
-def extract_view(vpl_set: VPLSet, textures, size: int, light, caustic_roughness: float) -> None:
+def extract_view(vpl_set: VPLSet, textures, size: int, light, caustic_roughness: float, view_index: int = -1) -> None:
     """Append the glossy VPLs of one RSM view to ``vpl_set`` on the GPU, in row-major texel order
     after the VPLs already in it (glsl/vpl_culling/vpl_extract.comp.glsl: the kept texels per run, the
     scan of vpl_extract_scan.comp.glsl, then the records). ``textures``: the view's RSM slots by name
-    (EXTRACTION_SLOTS), ``size`` its side; ``light`` (x, y, z, w) of reference light_vector. Nothing
-    is read back; the set's count stays on the GPU."""
+    (EXTRACTION_SLOTS), ``size`` its side; ``light`` (x, y, z, w) of reference light_vector.
+    ``view_index`` ≥ 0 (the view's place among the frame's VPL views): each record gets its VPL's
+    shadow map (reference.vpl_clusters.vpl_cluster_map). Nothing is read back; the set's count stays
+    on the GPU."""
     import gpu
 
     size = int(size)
@@ -351,7 +327,7 @@ def extract_view(vpl_set: VPLSet, textures, size: int, light, caustic_roughness:
         shader.uniform_int("extract_sizes", (size, vpl_set.capacity, TABLE_WIDTH, RUN_TABLE_WIDTH))
         # The count stage keeps no record: the compiler drops the light, whose only use is w_i.
         set_uniform(shader.uniform_float, "extract_light", tuple(float(v) for v in light))
-        shader.uniform_float("extract_params", (float(caustic_roughness), 0.0, 0.0, 0.0))
+        shader.uniform_float("extract_params", (float(caustic_roughness), float(view_index), 0.0, 0.0))
         for name in EXTRACTION_SLOTS:
             shader.uniform_sampler(f"rsm_{name}", textures[name])
         if key == "extract_count":
@@ -370,22 +346,122 @@ def extract_view(vpl_set: VPLSet, textures, size: int, light, caustic_roughness:
             gpu.compute.dispatch(shader, groups, 1, 1)
 
 
-def extract_vpls(scene_gpu, rsm_size: int, caustic_roughness: float) -> VPLSet:
+def _cluster_interface() -> ShaderInterface:
+    side = CLUSTER_TEXELS * CLUSTER_TEXELS
+    return ShaderInterface(
+        push_constants=[("IVEC4", "cluster_sizes"), ("VEC4", "cluster_light"), ("VEC4", "cluster_params")],
+        samplers=[("FLOAT_2D", "rsm_position"), ("FLOAT_2D", "rsm_normal"), ("FLOAT_2D", "rsm_flux_specular")],
+        images=[("RGBA32F", "FLOAT_2D", "ism_origins")],
+        local_group_size=(CLUSTER_TEXELS, CLUSTER_TEXELS, 1),
+        shared=f"shared vec4 cluster_sums_a[{side}]; shared vec4 cluster_sums_b[{side}];",
+    )
+
+
+def _cluster_sets_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("IVEC4", "cluster_set_params")],
+        images=[("RGBA32F", "FLOAT_2D", "ism_origins")],
+        local_group_size=(SCAN_GROUP, 1, 1),
+        shared=f"shared uint prefix_sum_values[{SCAN_GROUP}];",
+    )
+
+
+def _cluster_defines() -> dict:
+    return {"VPL_CLUSTER_TEXELS": CLUSTER_TEXELS,
+            "VPL_CLUSTER_WEIGHT_FLOOR": repr(float(_clusters.CLUSTER_WEIGHT_FLOOR)),
+            "VPL_EMPTY_CLUSTER_DISTANCE": repr(float(_clusters.EMPTY_CLUSTER_DISTANCE))}
+
+
+def cluster_view(origins, textures, size: int, light, caustic_roughness: float, view_index: int,
+                 own_reflector_sigmas: float) -> None:
+    """Write the splat's table of the maps of one RSM view's VPL clusters into ``origins`` (a
+    passes/ism.py MapOrigins; columns vpl_cluster_map of ``view_index``), on the GPU
+    (glsl/vpl_culling/vpl_clusters.comp.glsl: a work group per block; twin
+    reference.vpl_clusters.vpl_cluster_origins). The point sets follow in :func:`cluster_sets`."""
+    import gpu
+
+    blocks = _clusters.cluster_blocks(size)
+    shader = PASS.shader("clusters")
+    shader.bind()
+    shader.uniform_int("cluster_sizes", (int(size), int(view_index), 0, 0))
+    # The clusters use no w_i: the compiler drops the light, its only use.
+    set_uniform(shader.uniform_float, "cluster_light", tuple(float(v) for v in light))
+    shader.uniform_float("cluster_params", (float(caustic_roughness), float(own_reflector_sigmas),
+                                            float(CLUSTER_PLANE_SLACK), 0.0))
+    for name in EXTRACTION_SLOTS:
+        shader.uniform_sampler(f"rsm_{name}", textures[name])
+    shader.image("ism_origins", origins.texture)
+    gpu.compute.dispatch(shader, blocks, blocks, 1)
+
+
+def cluster_sets(origins, first_map: int, point_sets: int) -> None:
+    """Give every map of ``origins`` its point set, (first map + occupied maps before it) mod
+    ``point_sets`` (glsl/vpl_culling/vpl_cluster_sets.comp.glsl, one work group), once every view's
+    :func:`cluster_view` ran."""
+    import gpu
+
+    if origins.count:
+        shader = PASS.shader("cluster_sets")
+        shader.bind()
+        shader.uniform_int("cluster_set_params", (int(origins.count), int(first_map), int(point_sets), 0))
+        shader.image("ism_origins", origins.texture)
+        gpu.compute.dispatch(shader, 1, 1, 1)
+
+
+def extract_vpls(scene_gpu, rsm_size: int, caustic_roughness: float, shadows=None, first_map: int = 0) -> VPLSet:
     """The glossy VPLs of every light made on the GPU (004 §3): :func:`scene_vpls`' set, in its
     order, without a read-back. Each light's RSM views (seen by diffuse rays) are rendered, turned
     into VPLs by :func:`extract_view` and dropped. The table has room for every texel of the views
-    (64 bytes a texel, 4/5 of the RSM's colour attachments), since the count stays on the GPU."""
+    (64 bytes a texel, 4/5 of the RSM's colour attachments), since the count stays on the GPU.
+    ``shadows`` (a VSGLSettings: ism_size, ism_points, seed): with the clusters' imperfect shadow
+    maps, their table made on the GPU from each view (:func:`cluster_view`, :func:`cluster_sets`;
+    the twin of :func:`upload_visible_vpls`' maps, point sets from ``first_map``), so nothing is read
+    back either. The atlas holds a map per block of every view (blocks² a view), empty where a block
+    has no VPL: sized so, it needs no count from the GPU."""
     from ..reference.vpl_culling import light_vector
     from .rsm import render_rsm_views, visible_view_specs
 
     lights = scene_gpu.scene.lights
     specs = [visible_view_specs(scene_gpu, light) for light in lights]
-    vpl_set = empty_vpl_set(sum(map(len, specs)) * int(rsm_size) ** 2)
+    views = sum(map(len, specs))
+    vpl_set = empty_vpl_set(views * int(rsm_size) ** 2)
+    origins = None
+    if shadows is not None:
+        import gpu
+
+        from ..pipeline import OWN_REFLECTOR_SIGMAS
+        from .ism import MapOrigins
+
+        maps = views * _clusters.cluster_blocks(rsm_size) ** 2
+        origins = MapOrigins(gpu.types.GPUTexture((max(maps, 1), 3), format="RGBA32F"), maps)
+    view_index = 0
     for index, light in enumerate(lights):
         for view in render_rsm_views(scene_gpu, index, rsm_size, "diffuse", specs=specs[index]):
-            extract_view(vpl_set, view.textures, rsm_size, light_vector(light), caustic_roughness)
+            extract_view(vpl_set, view.textures, rsm_size, light_vector(light), caustic_roughness,
+                         view_index if origins is not None else -1)
+            if origins is not None:
+                cluster_view(origins, view.textures, rsm_size, light_vector(light), caustic_roughness,
+                             view_index, OWN_REFLECTOR_SIGMAS)
             view.free()
+            view_index += 1
+    if origins is not None and origins.count:
+        vpl_set.isms, vpl_set.map_origins = _cluster_maps(scene_gpu, shadows, origins, first_map), origins.texture
     return vpl_set
+
+
+def _cluster_maps(scene_gpu, settings, origins, first_map: int):
+    """The ISM atlas of the clusters' maps of ``origins`` (settings.ism_size, ism_points)."""
+    from ..pipeline import POINT_SETS
+    from ..scene_points import triangle_areas
+    from . import ism
+
+    cluster_sets(origins, first_map, POINT_SETS)
+    points = scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
+    point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
+    # The VSGL maps' point sets on the GPU (kept across the viewport's builds), not a second upload.
+    textures = scene_gpu.point_textures(settings.ism_points, POINT_SETS, settings.seed)
+    return ism.PASS.run(points, origins, None, ism.fitting_size(origins.count, settings.ism_size),
+                        point_area=point_area, point_textures=textures)
 
 
 def vpl_table(vpls) -> np.ndarray:
@@ -569,9 +645,15 @@ PASS = GPUPass(
              "denoise": ShaderSpec(_denoise_interface, {"compute": "vpl_culling/vpl_denoise.comp.glsl"}),
              "add": ShaderSpec(_add_interface, {"compute": "vpl_culling/vpl_add.comp.glsl"}),
              "extract_count": ShaderSpec(lambda: _extract_interface(False), {"compute": "vpl_culling/vpl_extract.comp.glsl"},
-                                         defines=lambda: {"VPL_EXTRACT_WRITE": 0, "VPL_EXTRACT_RUN": EXTRACT_RUN}),
+                                         defines=lambda: {"VPL_EXTRACT_WRITE": 0, "VPL_EXTRACT_RUN": EXTRACT_RUN,
+                                                          **_cluster_defines()}),
              "extract_write": ShaderSpec(lambda: _extract_interface(True), {"compute": "vpl_culling/vpl_extract.comp.glsl"},
-                                         defines=lambda: {"VPL_EXTRACT_WRITE": 1, "VPL_EXTRACT_RUN": EXTRACT_RUN}),
+                                         defines=lambda: {"VPL_EXTRACT_WRITE": 1, "VPL_EXTRACT_RUN": EXTRACT_RUN,
+                                                          **_cluster_defines()}),
+             "clusters": ShaderSpec(_cluster_interface, {"compute": "vpl_culling/vpl_clusters.comp.glsl"},
+                                    defines=_cluster_defines),
+             "cluster_sets": ShaderSpec(_cluster_sets_interface, {"compute": "vpl_culling/vpl_cluster_sets.comp.glsl"},
+                                        defines=lambda: {"PREFIX_SUM_SIZE": SCAN_GROUP}),
              "extract_scan": ShaderSpec(_scan_interface, {"compute": "vpl_culling/vpl_extract_scan.comp.glsl"},
                                         defines=lambda: {"PREFIX_SUM_SIZE": SCAN_GROUP})},
     reads=(GBUFFER.name, SHADING_INPUTS.name, RSM.name),
