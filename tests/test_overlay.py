@@ -367,13 +367,11 @@ def test_a_light_change_keeps_the_point_sets_and_reads_back_no_vsgl_table(demo):
     """Two viewports, a light moved: the shared light passes' builds read back only the planner's
     one-column view tables (160 bytes each; no VSGL table, no VPL count), upload no shadow-map point
     set (kept by the set's backend across builds of the same triangles), and closing the viewports
-    drops the kept sets. VPL shadows off: with them the VPLs' clusters are made on the CPU, which
-    test_view_pipeline_gpu pins."""
-    from dataclasses import replace
-
+    drops the kept sets. VPL shadows on (the default): their clusters are made on the GPU too."""
     from vsgl_addon.layouts import VSGL_TABLE
 
-    settings = replace(SETTINGS, vpl_visibility=False)
+    settings = SETTINGS
+    assert settings.vpl_visibility
 
     light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
     location = light.location.copy()

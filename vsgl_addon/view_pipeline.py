@@ -335,7 +335,8 @@ class ViewPipeline:
         self._model_settings = settings
         scene = getattr(self.lights, "scene", None)
         triangles = int(scene.geometry.triangle_count) if scene is not None else 0
-        # VPLs per RSM texel when the CPU knows the count (VPL shadows on): no read-back for it.
+        # VPLs per RSM texel when the CPU knows the count (read before, for the statistics): no
+        # read-back for it; else the cost model's default fraction.
         vpls = getattr(self.lights, "vpls", None)
         known = getattr(vpls, "known_count", None)
         views = sum(light.rsm_views for light in plan.lights if light.gets_rsm)
