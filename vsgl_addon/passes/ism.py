@@ -162,7 +162,9 @@ def upload_points(points) -> tuple:
 class MapOrigins:
     """The splat's table on the GPU: an RGBA32F texture of ``count`` columns (row 0: origin xyz,
     point set; row 1: minimum distance; row 2: the half-space, zero: every point kept), as
-    :func:`build_ism_atlas` makes from numpy arrays."""
+    :func:`build_ism_atlas` makes from numpy arrays; made on the GPU by :func:`vsgl_map_origins` from
+    a VSGL table and by passes/vpl_culling.py cluster_view from the VPLs' RSM views (its row 1's y:
+    1 where the block has a VPL)."""
 
     texture: object
     count: int
