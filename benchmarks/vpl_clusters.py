@@ -2,6 +2,7 @@
 """The VPL shadows' clusters made on the GPU against the CPU path they replaced, in one run (not a test).
 
     .venv/bin/python benchmarks/vpl_clusters.py [--scenes caustic_panel demo] [--size 240x180] [--repeats 3]
+        [--rsm-size N] [--output vpl_clusters]
 
 Per scene (the validation suite's, each with its saved settings: VPL shadows on; demo.blend), one
 frame of FrameRenderer after a warm-up frame, twice in the same session:
@@ -16,7 +17,8 @@ and the images compared (largest absolute difference of each image, and relative
 value), with the bytes each frame reads back (its images, the planner's totals, the VPL count for the
 frame's counts, and on the CPU path the VPLs) and uploads, and the light build's VPL step
 (`vpl_extraction`, median of the repeats; wall clock on a shared 2-core llvmpipe machine: read the
-ratio). Writes benchmarks/results/vpl_clusters.{md,json}.
+ratio). ``--rsm-size``: every scene at that RSM side instead of its own (more blocks, so more
+empty maps in the GPU's atlas). Writes benchmarks/results/<output>.{md,json}.
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ def _cpu_extract(original):
     return extract
 
 
-def measure(name: str, size, repeats: int) -> dict:
+def measure(name: str, size, repeats: int, rsm_size: int | None = None) -> dict:
     import bpy
 
     from validation_suite import DEMO, open_scene
@@ -64,6 +66,8 @@ def measure(name: str, size, repeats: int) -> dict:
 
     scene = open_scene(DEMO if name == "demo" else scene_path(name))
     settings = VSGLSettings.from_properties(scene.vsgl)
+    if rsm_size is not None:
+        settings = settings.overridden(rsm_size=rsm_size)
     description = extract_scene(bpy.context.evaluated_depsgraph_get())
     original = vpl_culling.extract_vpls
     paths = {"cpu": _cpu_extract(original), "gpu": original}
@@ -95,7 +99,7 @@ def measure(name: str, size, repeats: int) -> dict:
         cpu, gpu = np.asarray(cpu, np.float64)[..., :3], np.asarray(gpu, np.float64)[..., :3]
         largest = float(np.abs(gpu - cpu).max())
         differences[image] = {"max_abs": largest, "max_rel": largest / max(float(np.abs(cpu).max()), 1e-30)}
-    return {"scene": name, "vpls": vpls, "size": list(size), "differences": differences,
+    return {"scene": name, "vpls": vpls, "size": list(size), "rsm_size": settings.rsm_size, "differences": differences,
             "cpu_read_back_bytes": traffic["cpu"][0], "gpu_read_back_bytes": traffic["gpu"][0],
             "cpu_upload_bytes": traffic["cpu"][1], "gpu_upload_bytes": traffic["gpu"][1],
             "cpu_vpl_step_ms": 1e3 * statistics.median(seconds["cpu"]),
@@ -107,13 +111,13 @@ def markdown(rows, command: str) -> str:
              f"`{command}`: one frame per path after a warm-up frame, each scene's saved settings (VPL "
              "shadows on). Largest difference over every image (direct, "
              "indirect diffuse and specular, caustics), absolute and relative to that image's largest value.", "",
-             "| scene | VPLs | max abs diff | max rel diff | read back per frame CPU → GPU (bytes, its images included) "
+             "| scene | RSM | VPLs | max abs diff | max rel diff | read back per frame CPU → GPU (bytes, its images included) "
              "| uploaded CPU → GPU (bytes) "
-             "| VPL step CPU → GPU (ms, median) |", "|---|---|---|---|---|---|---|"]
+             "| VPL step CPU → GPU (ms, median) |", "|---|---|---|---|---|---|---|---|"]
     for row in rows:
         worst = max(row["differences"].values(), key=lambda d: d["max_rel"])
         largest = max(d["max_abs"] for d in row["differences"].values())
-        lines.append(f"| {row['scene']} | {row['vpls']} | {largest:.3g} | {worst['max_rel']:.3g} "
+        lines.append(f"| {row['scene']} | {row['rsm_size']}² | {row['vpls']} | {largest:.3g} | {worst['max_rel']:.3g} "
                      f"| {row['cpu_read_back_bytes']} → {row['gpu_read_back_bytes']} "
                      f"| {row['cpu_upload_bytes']} → {row['gpu_upload_bytes']} "
                      f"| {row['cpu_vpl_step_ms']:.0f} → {row['gpu_vpl_step_ms']:.0f} |")
@@ -125,6 +129,8 @@ def main(argv=None) -> int:
     parser.add_argument("--scenes", nargs="+", default=["caustic_panel", "demo"])
     parser.add_argument("--size", default="240x180")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--rsm-size", type=int, default=None)
+    parser.add_argument("--output", default="vpl_clusters")
     arguments = parser.parse_args(argv)
     from vsgl_addon import register
     from vsgl_addon.gpu_context import ensure_gpu_context
@@ -132,13 +138,13 @@ def main(argv=None) -> int:
     ensure_gpu_context()
     register()
     size = tuple(int(v) for v in arguments.size.lower().split("x"))
-    rows = [measure(name, size, arguments.repeats) for name in arguments.scenes]
+    rows = [measure(name, size, arguments.repeats, arguments.rsm_size) for name in arguments.scenes]
     command = "  ".join(["benchmarks/vpl_clusters.py", *(argv if argv is not None else sys.argv[1:])]).strip()
     text = markdown(rows, f".venv/bin/python {command}")
     print(text)
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "vpl_clusters.json").write_text(json.dumps(rows, indent=2))
-    (RESULTS / "vpl_clusters.md").write_text(text)
+    (RESULTS / f"{arguments.output}.json").write_text(json.dumps(rows, indent=2))
+    (RESULTS / f"{arguments.output}.md").write_text(text)
     return 0
 
 
