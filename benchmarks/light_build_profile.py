@@ -40,6 +40,10 @@ REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results"
 SCENES = ("demo", "occluder", "cornell_box", "caustic_panel")
 IMAGE_SIZE = (160, 90)
+# The window of benchmarks/interactive.py (its 1600 × 900 screen's 3D viewport), its preview scale, samples.
+VIEWPORT_REGION = (1311, 786)
+VIEWPORT_SCALE = 0.25
+VIEWPORT_SAMPLES = 2
 IMAGES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_specular",
           "indirect_glossy_reflectors", "indirect_caustics")
 
@@ -105,6 +109,7 @@ def measure(repo: Path, name: str, repeats: int, image_path: Path | None) -> dic
         sets.append(lobe)
         return f"rsm_vsgl[{lobe}]"
 
+    originals = renderer.render_scene_vsgls, renderer.build_visibility, renderer.plan_frame
     contract.GPUPass.shader = named_shader
     gpu.compute.dispatch = timed_dispatch
     renderer.render_scene_vsgls = wrap(
@@ -146,8 +151,43 @@ def measure(repo: Path, name: str, repeats: int, image_path: Path | None) -> dic
             lights.free()
     finally:
         cache.free()
+        contract.GPUPass.shader, gpu.compute.dispatch = shader_of, dispatch
+        renderer.render_scene_vsgls, renderer.build_visibility, renderer.plan_frame = originals
     return {"scene": name, "plan_sets": list(dict.fromkeys(sets)), "cold_build": runs[0]["stages"]["build"],
-            "runs": runs[1:]}
+            "runs": runs[1:], "viewport": viewport_steps(bpy, light, settings, repeats)}
+
+
+def viewport_steps(bpy, light, settings, repeats: int) -> list[dict]:
+    """The Rendered viewport's first step after a light moved, without the window: a
+    view_pipeline.ViewPipeline on the real passes through the camera at VIEWPORT_REGION, scale 0.25,
+    stepped once per move (the light passes of the new state, then the coarse image): the step's
+    seconds and its light passes' (what benchmarks/interactive.py's "first step" column times in
+    the window)."""
+    from vsgl_addon.scene import extract_scene
+    from vsgl_addon.view_pipeline import ViewPipeline
+
+    def describe():
+        return extract_scene(bpy.context.evaluated_depsgraph_get())
+
+    camera = describe().camera
+    pipeline = ViewPipeline()
+    steps = []
+    try:
+        pipeline.request_view(camera.view_matrix(), camera.projection_matrix(), VIEWPORT_REGION)
+        for index in range(repeats + 1):
+            light.location.x += 0.05 * (1 if index % 2 == 0 else -1)
+            bpy.context.view_layer.update()
+            pipeline.mark_scene_dirty()
+            pipeline.step(describe, settings, VIEWPORT_SCALE, VIEWPORT_SAMPLES)
+            entry = pipeline.history[-1]
+            if "error" in entry:
+                raise RuntimeError(entry["error"])
+            if index:  # the first one compiles the view passes' shaders
+                steps.append({"seconds": entry["seconds"], "light_seconds": entry.get("light_seconds", 0.0),
+                              "level": entry.get("level"), "size": list(entry.get("size") or ())})
+    finally:
+        pipeline.free()
+    return steps
 
 
 def _medians(children: list[dict]) -> dict:
@@ -157,7 +197,10 @@ def _medians(children: list[dict]) -> dict:
     for part in ("stages", "shaders"):
         keys = sorted({key for run in runs for key in run[part]})
         median[part] = {key: statistics.median(run[part].get(key, 0.0) for run in runs) for key in keys}
-    return {"plan_sets": children[0]["plan_sets"], "builds": len(runs),
+    steps = [step for child in children for step in child["viewport"]]
+    median["stages"]["viewport: change → first image (step)"] = statistics.median(step["seconds"] for step in steps)
+    median["stages"]["viewport: its light passes"] = statistics.median(step["light_seconds"] for step in steps)
+    return {"plan_sets": children[0]["plan_sets"], "builds": len(runs), "viewport_steps": steps,
             "cold_build": statistics.median(child["cold_build"] for child in children), **median}
 
 
