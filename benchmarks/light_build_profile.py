@@ -20,8 +20,8 @@ shaders, timed apart as "cold"), in ``--rounds`` fresh processes per checkout. S
 ``--baseline REV``: the same measurement of an export of commit REV (``git archive``) in the same run,
 round by round in alternation with this checkout (absolute times are noisy on this shared 2-core
 llvmpipe machine: read the ratios), and the frame each build lights (FrameRenderer.render_view
-through the scene's camera at 160 × 90) compared between the two: the largest absolute difference
-of each image. Writes benchmarks/results/light_build_profile.{md,json} unless --no-write.
+through the scene's camera at 160 × 90) compared between the two: each image's largest absolute
+difference over its largest value. Writes benchmarks/results/light_build_profile.{md,json} unless --no-write.
 """
 
 from __future__ import annotations
@@ -224,7 +224,7 @@ def _table(rows: list[dict], baseline: bool) -> str:
         if before is not None:
             lines.append(f"Cold first build (shaders compiled): {_ms(before['cold_build'])} → "
                          f"{_ms(current['cold_build'])} ms. Frame at {IMAGE_SIZE[0]}×{IMAGE_SIZE[1]}, "
-                         "largest absolute difference per image: "
+                         "largest absolute difference per image over its largest value: "
                          + ", ".join(f"{key} {value:.2e}" for key, value in row["image_difference"].items()) + ".\n")
             lines.append("| stage | before (ms) | after (ms) | after / before |\n|---|---|---|---|")
         else:
@@ -287,9 +287,14 @@ def main(argv=None) -> int:
                 row[label] = _medians(children[label])
             if base is not None:
                 old, new = (np.load(temporary / f"{label}_{name}.npz") for label in ("baseline", "current"))
-                row["image_difference"] = {key: float(np.max(np.abs(old[key] - new[key]))) for key in IMAGES}
+                # Largest absolute difference over the image's largest value (0: identical).
+                row["image_difference"] = {key: float(np.max(np.abs(old[key] - new[key]))
+                                                      / max(float(np.max(np.abs(old[key]))), 1e-30))
+                                           for key in IMAGES}
             rows.append(row)
-            print(json.dumps({label: row[label]["stages"].get("build") for label, _ in variants}), flush=True)
+            print(json.dumps({"scene": name, **{label: row[label]["stages"].get("build") for label, _ in variants},
+                              **({"image_difference": row["image_difference"]} if base is not None else {})}),
+                  flush=True)
     if arguments.no_write:
         return 0
     RESULTS.mkdir(parents=True, exist_ok=True)
