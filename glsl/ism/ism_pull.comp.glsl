@@ -23,7 +23,7 @@ void main()
         }
       }
       else {
-        vec4 below = texelFetch(ism_fine, child, 0);
+        vec4 below = imageLoad(ism_fine, child);
         if (below.g > 0.5) {
           total += below.r;
           count += 1.0;

@@ -19,11 +19,11 @@ void main()
     depth = valid ? uintBitsToFloat(bits) : 0.0;
   }
   else {
-    vec4 own = texelFetch(ism_own, texel, 0);
+    vec4 own = imageLoad(ism_own, texel);
     valid = own.g > 0.5;
     depth = own.r;
   }
-  vec4 parent = texelFetch(ism_parent, texel / 2, 0);
+  vec4 parent = imageLoad(ism_parent, texel / 2);
 #if ISM_PUSH_FINAL
   float known = valid ? depth : (parent.g > 0.5 ? parent.r : ISM_UNKNOWN_DEPTH);
   imageStore(ism_filled, texel, vec4(known, 0.0, 0.0, 0.0));

@@ -14,16 +14,16 @@ void main()
   if (point >= ism_params.x || map_index >= ism_params.y) {
     return;
   }
-  vec4 origin = texelFetch(ism_origins, ivec2(map_index, 0), 0);
-  vec3 offset = texelFetch(scene_points, ivec2(point, int(origin.w + 0.5)), 0).xyz - origin.xyz;
+  vec4 origin = imageLoad(ism_origins, ivec2(map_index, 0));
+  vec3 offset = imageLoad(scene_points, ivec2(point, int(origin.w + 0.5))).xyz - origin.xyz;
   float distance = length(offset);
-  float min_distance = texelFetch(ism_origins, ivec2(map_index, 1), 0).x;
+  float min_distance = imageLoad(ism_origins, ivec2(map_index, 1)).x;
   if (!(distance > min_distance)) {
     return;  // the origin's own point, or a non-finite one
   }
   // Row 2: the map's half-space (n, c), points with n . offset < c left out (reference keeps_point;
   // (0, 0) keeps all): a flat reflector's own surface and what lies behind it.
-  vec4 plane = texelFetch(ism_origins, ivec2(map_index, 2), 0);
+  vec4 plane = imageLoad(ism_origins, ivec2(map_index, 2));
   if (dot(plane.xyz, offset) < plane.w) {
     return;
   }
@@ -33,7 +33,7 @@ void main()
   uint bits = floatBitsToUint(distance);
   // The texels the point's share of the surface covers (reference splat_radius): single-texel
   // splats leave holes in near occluders that the points behind them fill.
-  vec3 normal = texelFetch(scene_point_normals, ivec2(point, int(origin.w + 0.5)), 0).xyz;
+  vec3 normal = imageLoad(scene_point_normals, ivec2(point, int(origin.w + 0.5))).xyz;
   // The local texel's solid angle (2/size)^2 (|d|_1/|d|)^3 (reference texel_solid_angle).
   float l1_ratio = (abs(offset.x) + abs(offset.y) + abs(offset.z)) / distance;
   float texel = 4.0 / float(size * size) * l1_ratio * l1_ratio * l1_ratio;

@@ -106,10 +106,15 @@ void main()
   RSMViewConstants view = view_constants_load(0);
   vec4 links = light_links_fetch(light_links, int(view.light_links_rows + 0.5), int(view.light_index + 0.5),
                                  object_index_flat);
+#if RSM_SPLIT_DRAWS
+  // Only the two draws of a light with non-blocking objects discard: a shader that may discard
+  // loses the early depth test, and with it the one-draw case ran 1.8× slower on llvmpipe
+  // (benchmarks/light_build_profile.py), so that case compiles without it (passes/rsm.py).
   bool blocks = links.y > 0.5;
   if ((rsm_mode.x == 1 && !blocks) || (rsm_mode.x == 2 && blocks)) {
     discard;
   }
+#endif
   // The texel reflects the light only if its object receives it (light linking) and, for one
   // receiver lobe's VSGLs, is seen by that lobe's rays.
   float lit = links.x * (rsm_mode.y == 1 ? links.z : 1.0) * (rsm_mode.y == 2 ? links.w : 1.0);

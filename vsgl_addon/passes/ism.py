@@ -49,8 +49,10 @@ def _splat_interface() -> ShaderInterface:
     return ShaderInterface(
         # (points per set, map count, map side, tiles per atlas row)
         push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_point_area")],
-        samplers=[("FLOAT_2D", "scene_points"), ("FLOAT_2D", "scene_point_normals"), ("FLOAT_2D", "ism_origins")],
-        images=[("R32UI", "UINT_2D", "ism_atlas")],
+        # Inputs read as images, not samplers: on llvmpipe an imageLoad costs a fraction of a
+        # texelFetch (benchmarks/light_build_profile.py), the same texels either way.
+        images=[("R32UI", "UINT_2D", "ism_atlas"), ("RGBA32F", "FLOAT_2D", "scene_points"),
+                ("RGBA32F", "FLOAT_2D", "scene_point_normals"), ("RGBA32F", "FLOAT_2D", "ism_origins")],
         local_group_size=_GROUP,
     )
 
@@ -72,15 +74,16 @@ def _close_interface() -> ShaderInterface:
 
 
 def _pull_interface() -> ShaderInterface:
-    return ShaderInterface(push_constants=[("INT", "ism_first_level")], samplers=[("FLOAT_2D", "ism_fine")],
-                           images=[("R32UI", "UINT_2D", "ism_atlas"), ("RG32F", "FLOAT_2D", "ism_coarse")],
+    return ShaderInterface(push_constants=[("INT", "ism_first_level")],
+                           images=[("R32UI", "UINT_2D", "ism_atlas"), ("RG32F", "FLOAT_2D", "ism_fine"),
+                                   ("RG32F", "FLOAT_2D", "ism_coarse")],
                            local_group_size=_LEVEL_GROUP)
 
 
 def _push_interface(final: bool = False) -> ShaderInterface:
     return ShaderInterface(push_constants=[("INT", "ism_first_level")],
-                           samplers=[("FLOAT_2D", "ism_own"), ("FLOAT_2D", "ism_parent")],
-                           images=[("R32UI", "UINT_2D", "ism_atlas"),
+                           images=[("R32UI", "UINT_2D", "ism_atlas"), ("RG32F", "FLOAT_2D", "ism_own"),
+                                   ("RG32F", "FLOAT_2D", "ism_parent"),
                                    ("R32F" if final else "RG32F", "FLOAT_2D", "ism_filled")],
                            local_group_size=_LEVEL_GROUP)
 
@@ -237,9 +240,9 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         splat.bind()
         splat.uniform_int("ism_params", (points.points_per_set, count, size, columns))
         splat.uniform_float("ism_point_area", float(point_area))
-        splat.uniform_sampler("scene_points", point_texture)
-        splat.uniform_sampler("scene_point_normals", normal_texture)
-        splat.uniform_sampler("ism_origins", origin_texture)
+        splat.image("scene_points", point_texture)
+        splat.image("scene_point_normals", normal_texture)
+        splat.image("ism_origins", origin_texture)
         splat.image("ism_atlas", atlas)
         gpu.compute.dispatch(splat, _groups(points.points_per_set, _GROUP[0]), count, 1)
     if timed:
@@ -263,7 +266,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         coarse = gpu.types.GPUTexture((width >> level, height >> level), format="RG32F")
         pull.bind()
         pull.uniform_int("ism_first_level", 1 if level == 1 else 0)
-        pull.uniform_sampler("ism_fine", pulled[-1] if pulled else PASS.resource("unread", lambda: _unknown(1, 1)))
+        pull.image("ism_fine", pulled[-1] if pulled else PASS.resource("unread", lambda: _unknown(1, 1)))
         pull.image("ism_atlas", atlas)
         pull.image("ism_coarse", coarse)
         gpu.compute.dispatch(pull, _groups(width >> level, _LEVEL_GROUP[0]), _groups(height >> level, _LEVEL_GROUP[1]), 1)
@@ -278,8 +281,8 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         target = gpu.types.GPUTexture((width >> level, height >> level), format="RG32F" if level else "R32F")
         push.bind()
         push.uniform_int("ism_first_level", 1 if level == 0 else 0)
-        push.uniform_sampler("ism_own", pulled[level - 1] if level > 0 else filled)
-        push.uniform_sampler("ism_parent", filled)
+        push.image("ism_own", pulled[level - 1] if level > 0 else filled)
+        push.image("ism_parent", filled)
         push.image("ism_atlas", atlas)
         push.image("ism_filled", target)
         gpu.compute.dispatch(push, _groups(width >> level, _LEVEL_GROUP[0]), _groups(height >> level, _LEVEL_GROUP[1]), 1)
@@ -289,8 +292,8 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         target = gpu.types.GPUTexture((width, height), format="R32F")
         push.bind()
         push.uniform_int("ism_first_level", 1)
-        push.uniform_sampler("ism_own", filled)
-        push.uniform_sampler("ism_parent", filled)
+        push.image("ism_own", filled)
+        push.image("ism_parent", filled)
         push.image("ism_atlas", atlas)
         push.image("ism_filled", target)
         gpu.compute.dispatch(push, _groups(width, _LEVEL_GROUP[0]), _groups(height, _LEVEL_GROUP[1]), 1)
@@ -302,7 +305,11 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
 
 def _unknown(width: int, height: int):
     """An RG32F texture of unknowns (g = 0): the parent of a level with none above it."""
-    return texture_from_array(np.zeros((height, width, 4), np.float32))
+    import gpu
+
+    texture = gpu.types.GPUTexture((width, height), format="RG32F")
+    texture.clear(format="FLOAT", value=(0.0, 0.0))
+    return texture
 
 
 PASS = GPUPass(

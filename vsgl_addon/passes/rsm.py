@@ -91,10 +91,11 @@ def _interface():
     )
 
 
-def shader():
+def shader(split_draws: bool = True):
     """The RSM shader (glsl/rsm/rsm.frag.glsl after the scene's vertex stage), compiled on first use
-    and cached for the process."""
-    return PASS.shader()
+    and cached for the process. ``split_draws``: the variant whose draws cover the blockers or the
+    rest (rsm_mode.x); else the one that draws every object (DRAW_ALL) and never discards."""
+    return PASS.shader("rsm" if split_draws else "rsm_one_draw")
 
 
 def free_shaders() -> None:
@@ -208,7 +209,6 @@ def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int,
     from ..proxies import proxy_table_array
 
     light = scene_gpu.scene.lights[light_index]
-    program = shader()
     targets = [textures[name] for name in RSM_LAYOUT.slot_names]
     framebuffer = gpu.types.GPUFrameBuffer(depth_slot=textures["depth"], color_slots=targets)
     constants = texture_from_array(_view_constants(light, spec, light_index, light_links_rows(scene_gpu.scene),
@@ -217,8 +217,9 @@ def _render(scene_gpu: SceneGPU, light_index: int, spec: RSMViewSpec, size: int,
     # Shadow linking and objects that cast no shadow: the blockers first, writing depth (the shadow
     # map direct light reads), then the rest depth-tested only, so they reflect light without
     # occluding it (what lies behind such an object is not in the map: one layer per texel).
-    draws = [(DRAW_BLOCKERS, True), (DRAW_NON_BLOCKERS, False)] if scene_gpu.has_non_blockers(light_index) \
-        else [(DRAW_ALL, True)]
+    split = scene_gpu.has_non_blockers(light_index)
+    draws = [(DRAW_BLOCKERS, True), (DRAW_NON_BLOCKERS, False)] if split else [(DRAW_ALL, True)]
+    program = shader(split)
     with framebuffer.bind():
         framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
         gpu.state.viewport_set(0, 0, size, size)
@@ -294,10 +295,12 @@ PASS = GPUPass(
     name="rsm",
     label="Reflective Shadow Maps",
     step=LIGHT_PASSES,
-    shaders={"rsm": ShaderSpec(_interface, {"vertex": VERTEX_STAGE, "fragment": "rsm/rsm.frag.glsl"},
-                               code=lambda: {"fragment": RSM_LAYOUT.glsl("outputs_store")
-                                                         + RSM_VIEW.glsl("sampler_load")
-                                                         + PROXY_TABLE.glsl("sampler_load")})},
+    shaders={key: ShaderSpec(_interface, {"vertex": VERTEX_STAGE, "fragment": "rsm/rsm.frag.glsl"},
+                             defines=lambda split=split: {"RSM_SPLIT_DRAWS": int(split)},
+                             code=lambda: {"fragment": RSM_LAYOUT.glsl("outputs_store")
+                                                       + RSM_VIEW.glsl("sampler_load")
+                                                       + PROXY_TABLE.glsl("sampler_load")})
+             for key, split in (("rsm", True), ("rsm_one_draw", False))},
     reads=("scene",),
     writes=(RSM_LAYOUT.name, "rsm_depth"),
     run=render_rsm_views,
