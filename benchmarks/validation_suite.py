@@ -109,6 +109,33 @@ def scene_with_truth(name: str, path: Path, width: int, height: int, regenerate:
     return settings, truth, extract_scene(bpy.context.evaluated_depsgraph_get())
 
 
+def sampled_pixels(bench: Bench, truth: dict, stride: int, materials=None):
+    """The shading inputs of every `stride`-th pixel (both ways) of `bench`'s camera G-buffer that
+    it and the truth cover (of the named `materials` only, when given), float64: (pick (h, w) mask,
+    position, normal, view (unit, towards the eye), Rd, F0, GGX α (clamped at 1e-3)), each (P, ...)."""
+    from vsgl_addon.passes.gpu_util import read_texture
+
+    width, height = bench.width, bench.height
+    arrays = bench.gbuffer.to_numpy()
+    rd_img = read_texture(bench.inputs.diffuse_reflectance, width, height)[..., :3]
+    f0_img = read_texture(bench.inputs.specular_f0, width, height)[..., :3]
+    pick = np.zeros((height, width), bool)
+    pick[stride // 2::stride, stride // 2::stride] = True
+    pick &= (arrays["position"][..., 3] > COVERED) & (truth["alpha"] > COVERED)
+    if materials is not None:
+        wanted = [i for i, name in enumerate(bench.materials) if name in materials]
+        pick &= np.isin(bench.material_index, wanted)
+    position = arrays["position"][..., :3][pick].astype(np.float64)
+    normal = arrays["normal"][..., :3][pick].astype(np.float64)
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
+    alpha = np.maximum(arrays["normal"][..., 3][pick].astype(np.float64) ** 2, 1e-3)
+    rd, f0 = rd_img[pick].astype(np.float64), f0_img[pick].astype(np.float64)
+    camera = np.asarray(bench.gbuffer.camera_vector, np.float64).reshape(-1)
+    view = camera[:3] - position if camera.shape[0] == 3 or camera[3] > 0 else np.broadcast_to(camera[:3], position.shape)
+    view = view / np.linalg.norm(view, axis=-1, keepdims=True)
+    return pick, position, normal, view, rd, f0, alpha
+
+
 def robust_errors(truth: dict, mask: np.ndarray, ours: np.ndarray) -> dict:
     """Relative RMSE (noise-corrected and plain) with ours and the truth's seeds clamped at the
     truth's ROBUST_PERCENTILE-th percentile: a few extreme pixels no longer dominate."""
