@@ -149,6 +149,16 @@ def robust_errors(truth: dict, mask: np.ndarray, ours: np.ndarray) -> dict:
     return {"rel_robust": corrected / mean, "rel_robust_measured": measured / mean, "robust_limit": limit}
 
 
+def frame_errors(truth: dict, frame) -> tuple[dict, np.ndarray]:
+    """(tradeoff.metrics.Errors' figures of `frame`'s indirect light over the pixels it and the truth
+    cover, with robust_errors' added; the indirect diffuse + specular image, float64)."""
+    check = Errors(truth, frame.coverage)
+    both = check(frame.indirect_diffuse, frame.indirect_specular)
+    ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
+    both.update(robust_errors(truth, check.mask, ours))
+    return both, ours
+
+
 def measure_scene(name: str, path: Path, about: str, width: int, height: int, regenerate: bool) -> dict:
     from vsgl_addon.renderer import FrameRenderer
 
@@ -161,10 +171,7 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
         for shadowed in (not settings.visibility, settings.visibility):
             for _ in range(2):  # the first frame compiles shaders and warms llvmpipe
                 frame = renderer.render(description, settings.overridden(visibility=shadowed), width, height)
-            check = Errors(truth, frame.coverage)
-            both = check(frame.indirect_diffuse, frame.indirect_specular)
-            ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
-            both.update(robust_errors(truth, check.mask, ours))
+            both, ours = frame_errors(truth, frame)
             images["on" if shadowed else "off"] = ours
             visibility["on" if shadowed else "off"] = {
                 "mean_ratio": both["mean_ratio"], "rel": both["rel"], "rel_robust": both["rel_robust"],
@@ -181,10 +188,7 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
         region[mask] = luminance >= np.quantile(luminance, 1.0 - CAUSTIC_FRACTION)
         truth_region = float(truth["indirect"][region].astype(np.float64).mean())
         for on, shown in frames.items():
-            check = Errors(truth, shown.coverage)
-            both = check(shown.indirect_diffuse, shown.indirect_specular)
-            ours = (shown.indirect_diffuse + shown.indirect_specular).astype(np.float64)
-            both.update(robust_errors(truth, check.mask, ours))
+            both, ours = frame_errors(truth, shown)
             images["caustics_on" if on else "caustics_off"] = ours
             caustics["on" if on else "off"] = {
                 "mean_ratio": both["mean_ratio"], "rel": both["rel"], "rel_robust": both["rel_robust"],
