@@ -25,37 +25,23 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from validation_suite import scene_with_truth, suite  # noqa: E402
+from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
 from build_validation_scenes import RESOLUTION  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
-from tradeoff.demo import COVERED, log  # noqa: E402
+from tradeoff.demo import log  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 MODES = ("cosine", "separable")
 
 
 def shares(name, path, stride, planarity_limit):
-    from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.reference.vsgl_shading import FLAT_DIFFUSE_AXIS_LENGTH, shade
 
     width, height = RESOLUTION
     settings, truth, description = scene_with_truth(name, path, width, height)
     bench = Bench(description, width, height)
     try:
-        arrays = bench.gbuffer.to_numpy()
-        rd_img = read_texture(bench.inputs.diffuse_reflectance, width, height)[..., :3]
-        f0_img = read_texture(bench.inputs.specular_f0, width, height)[..., :3]
-        pick = np.zeros((height, width), bool)
-        pick[stride // 2::stride, stride // 2::stride] = True
-        pick &= (arrays["position"][..., 3] > COVERED) & (truth["alpha"] > COVERED)
-        position = arrays["position"][..., :3][pick].astype(np.float64)
-        normal = arrays["normal"][..., :3][pick].astype(np.float64)
-        normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
-        alpha = np.maximum(arrays["normal"][..., 3][pick].astype(np.float64) ** 2, 1e-3)
-        rd, f0 = rd_img[pick].astype(np.float64), f0_img[pick].astype(np.float64)
-        camera = np.asarray(bench.gbuffer.camera_vector, np.float64).reshape(-1)
-        view = camera[:3] - position if camera.shape[0] == 3 or camera[3] > 0 else np.broadcast_to(camera[:3], position.shape)
-        view = view / np.linalg.norm(view, axis=-1, keepdims=True)
+        pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride)
         cycles = float((truth["indirect"][pick] @ LUMINANCE).sum())
         total = dict.fromkeys(MODES, 0.0)
         bent = dict.fromkeys(MODES, 0.0)

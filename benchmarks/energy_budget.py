@@ -50,10 +50,10 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from validation_suite import scene_with_truth, suite  # noqa: E402
+from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
 from build_validation_scenes import RESOLUTION  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
-from tradeoff.demo import COVERED, log  # noqa: E402
+from tradeoff.demo import log  # noqa: E402
 from vsgl_addon.reference.sg import DIFFUSE_HEMISPHERE_SCALE  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -62,13 +62,16 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 SEGMENT_END_OFFSET = 2e-3
 
 
-def segments_blocked(starts, ends, triangles, chunk_rays=8192, chunk_triangles=64):
-    """(R,) True where a triangle crosses the segment start→end (Möller–Trumbore), hits within
-    SEGMENT_END_OFFSET of either end left out."""
+def segments_blocked(starts, ends, triangles, chunk_rays=8192, chunk_triangles=64, t_min=None, t_max=None):
+    """(R,) True where a triangle crosses the segment start→end (Möller–Trumbore) at a parameter in
+    (t_min, t_max) (per segment, of its length; by default hits within SEGMENT_END_OFFSET of either
+    end are left out)."""
     d = ends - starts
     length = np.linalg.norm(d, axis=-1)
-    t_min = SEGMENT_END_OFFSET / np.maximum(length, 1e-30)
-    t_max = 1.0 - t_min
+    if t_min is None:
+        t_min = SEGMENT_END_OFFSET / np.maximum(length, 1e-30)
+    if t_max is None:
+        t_max = 1.0 - SEGMENT_END_OFFSET / np.maximum(length, 1e-30)
     blocked = np.zeros(len(starts), bool)
     v0, e1, e2 = triangles[:, 0], triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
     for r0 in range(0, len(starts), chunk_rays):
@@ -186,7 +189,6 @@ def visible_share(contrib, v, position, triangles, samples, rng):
 
 
 def budget(name, path, stride, samples, counts, seed=0):
-    from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.pipeline import build_visibility
     from vsgl_addon.renderer import FrameRenderer
     from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel, shade
@@ -202,20 +204,7 @@ def budget(name, path, stride, samples, counts, seed=0):
     bench = Bench(description, width, height)
     figures = {}
     try:
-        arrays = bench.gbuffer.to_numpy()
-        rd_img = read_texture(bench.inputs.diffuse_reflectance, width, height)[..., :3]
-        f0_img = read_texture(bench.inputs.specular_f0, width, height)[..., :3]
-        pick = np.zeros((height, width), bool)
-        pick[stride // 2::stride, stride // 2::stride] = True
-        pick &= (arrays["position"][..., 3] > COVERED) & (truth["alpha"] > COVERED)
-        position = arrays["position"][..., :3][pick].astype(np.float64)
-        normal = arrays["normal"][..., :3][pick].astype(np.float64)
-        normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
-        alpha = np.maximum(arrays["normal"][..., 3][pick].astype(np.float64) ** 2, 1e-3)
-        rd, f0 = rd_img[pick].astype(np.float64), f0_img[pick].astype(np.float64)
-        camera = np.asarray(bench.gbuffer.camera_vector, np.float64).reshape(-1)
-        view = camera[:3] - position if camera.shape[0] == 3 or camera[3] > 0 else np.broadcast_to(camera[:3], position.shape)
-        view = view / np.linalg.norm(view, axis=-1, keepdims=True)
+        pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride)
         cycles = float((truth["indirect"][pick] @ LUMINANCE).sum())
         figures["direct"] = float((frame.direct[pick] @ LUMINANCE).sum() / (truth["direct"][pick] @ LUMINANCE).sum())
         figures["frame_off"] = float((frame.indirect[pick] @ LUMINANCE).sum() / cycles)

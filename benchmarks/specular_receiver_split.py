@@ -45,40 +45,16 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from validation_suite import scene_with_truth, suite  # noqa: E402
+from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
 from build_validation_scenes import RESOLUTION  # noqa: E402
 from energy_budget import rsm_vpls  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
-from tradeoff.demo import COVERED, log  # noqa: E402
+from tradeoff.demo import log  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 # Receiver GGX α bins of the per-roughness comparison.
 ALPHA_BINS = ((0.0, 0.15), (0.15, 0.4), (0.4, 2.0))
 STEPS = ("exact", "sg_lobes", "sg_lobes_asg", "vsgl_product", "vsgl_separable")
-
-
-def receivers(bench, truth, stride, materials):
-    from vsgl_addon.passes.gpu_util import read_texture
-
-    width, height = bench.width, bench.height
-    arrays = bench.gbuffer.to_numpy()
-    rd_img = read_texture(bench.inputs.diffuse_reflectance, width, height)[..., :3]
-    f0_img = read_texture(bench.inputs.specular_f0, width, height)[..., :3]
-    pick = np.zeros((height, width), bool)
-    pick[stride // 2::stride, stride // 2::stride] = True
-    pick &= (arrays["position"][..., 3] > COVERED) & (truth["alpha"] > COVERED)
-    if "all" not in materials:
-        wanted = [i for i, name in enumerate(bench.materials) if name in materials]
-        pick &= np.isin(bench.material_index, wanted)
-    position = arrays["position"][..., :3][pick].astype(np.float64)
-    normal = arrays["normal"][..., :3][pick].astype(np.float64)
-    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
-    alpha = np.maximum(arrays["normal"][..., 3][pick].astype(np.float64) ** 2, 1e-3)
-    rd, f0 = rd_img[pick].astype(np.float64), f0_img[pick].astype(np.float64)
-    camera = np.asarray(bench.gbuffer.camera_vector, np.float64).reshape(-1)
-    view = camera[:3] - position if camera.shape[0] == 3 or camera[3] > 0 else np.broadcast_to(camera[:3], position.shape)
-    view = view / np.linalg.norm(view, axis=-1, keepdims=True)
-    return pick, position, normal, view, rd, f0, alpha
 
 
 def split(name, path, stride, materials, counts, frame_sets=True):
@@ -90,7 +66,8 @@ def split(name, path, stride, materials, counts, frame_sets=True):
     bench = Bench(description, width, height)
     light = {}
     try:
-        pick, position, normal, view, rd, f0, alpha = receivers(bench, truth, stride, materials)
+        pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride,
+                                                                      None if "all" in materials else materials)
         log(f"{name}: {int(pick.sum())} pixels of {materials}, GGX alpha {alpha.min():.3f}-{alpha.max():.3f}")
         v = rsm_vpls(bench.scene_gpu, settings.rsm_size)
         vpls = VPLs(v["position"], v["normal"], v["flux"], v["rd"], np.zeros_like(v["rs"]), v["alpha"], v["incoming"])

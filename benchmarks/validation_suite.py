@@ -109,6 +109,33 @@ def scene_with_truth(name: str, path: Path, width: int, height: int, regenerate:
     return settings, truth, extract_scene(bpy.context.evaluated_depsgraph_get())
 
 
+def sampled_pixels(bench: Bench, truth: dict, stride: int, materials=None):
+    """The shading inputs of every `stride`-th pixel (both ways) of `bench`'s camera G-buffer that
+    it and the truth cover (of the named `materials` only, when given), float64: (pick (h, w) mask,
+    position, normal, view (unit, towards the eye), Rd, F0, GGX α (clamped at 1e-3)), each (P, ...)."""
+    from vsgl_addon.passes.gpu_util import read_texture
+
+    width, height = bench.width, bench.height
+    arrays = bench.gbuffer.to_numpy()
+    rd_img = read_texture(bench.inputs.diffuse_reflectance, width, height)[..., :3]
+    f0_img = read_texture(bench.inputs.specular_f0, width, height)[..., :3]
+    pick = np.zeros((height, width), bool)
+    pick[stride // 2::stride, stride // 2::stride] = True
+    pick &= (arrays["position"][..., 3] > COVERED) & (truth["alpha"] > COVERED)
+    if materials is not None:
+        wanted = [i for i, name in enumerate(bench.materials) if name in materials]
+        pick &= np.isin(bench.material_index, wanted)
+    position = arrays["position"][..., :3][pick].astype(np.float64)
+    normal = arrays["normal"][..., :3][pick].astype(np.float64)
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
+    alpha = np.maximum(arrays["normal"][..., 3][pick].astype(np.float64) ** 2, 1e-3)
+    rd, f0 = rd_img[pick].astype(np.float64), f0_img[pick].astype(np.float64)
+    camera = np.asarray(bench.gbuffer.camera_vector, np.float64).reshape(-1)
+    view = camera[:3] - position if camera.shape[0] == 3 or camera[3] > 0 else np.broadcast_to(camera[:3], position.shape)
+    view = view / np.linalg.norm(view, axis=-1, keepdims=True)
+    return pick, position, normal, view, rd, f0, alpha
+
+
 def robust_errors(truth: dict, mask: np.ndarray, ours: np.ndarray) -> dict:
     """Relative RMSE (noise-corrected and plain) with ours and the truth's seeds clamped at the
     truth's ROBUST_PERCENTILE-th percentile: a few extreme pixels no longer dominate."""
@@ -120,6 +147,16 @@ def robust_errors(truth: dict, mask: np.ndarray, ours: np.ndarray) -> dict:
     corrected = math.sqrt(max(float(np.mean((x - a) * (x - b))), 0.0))
     measured = float(np.sqrt(np.mean((x - 0.5 * (a + b)) ** 2)))
     return {"rel_robust": corrected / mean, "rel_robust_measured": measured / mean, "robust_limit": limit}
+
+
+def frame_errors(truth: dict, frame) -> tuple[dict, np.ndarray]:
+    """(tradeoff.metrics.Errors' figures of `frame`'s indirect light over the pixels it and the truth
+    cover, with robust_errors' added; the indirect diffuse + specular image, float64)."""
+    check = Errors(truth, frame.coverage)
+    both = check(frame.indirect_diffuse, frame.indirect_specular)
+    ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
+    both.update(robust_errors(truth, check.mask, ours))
+    return both, ours
 
 
 def measure_scene(name: str, path: Path, about: str, width: int, height: int, regenerate: bool) -> dict:
@@ -134,10 +171,7 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
         for shadowed in (not settings.visibility, settings.visibility):
             for _ in range(2):  # the first frame compiles shaders and warms llvmpipe
                 frame = renderer.render(description, settings.overridden(visibility=shadowed), width, height)
-            check = Errors(truth, frame.coverage)
-            both = check(frame.indirect_diffuse, frame.indirect_specular)
-            ours = (frame.indirect_diffuse + frame.indirect_specular).astype(np.float64)
-            both.update(robust_errors(truth, check.mask, ours))
+            both, ours = frame_errors(truth, frame)
             images["on" if shadowed else "off"] = ours
             visibility["on" if shadowed else "off"] = {
                 "mean_ratio": both["mean_ratio"], "rel": both["rel"], "rel_robust": both["rel_robust"],
@@ -154,10 +188,7 @@ def measure_scene(name: str, path: Path, about: str, width: int, height: int, re
         region[mask] = luminance >= np.quantile(luminance, 1.0 - CAUSTIC_FRACTION)
         truth_region = float(truth["indirect"][region].astype(np.float64).mean())
         for on, shown in frames.items():
-            check = Errors(truth, shown.coverage)
-            both = check(shown.indirect_diffuse, shown.indirect_specular)
-            ours = (shown.indirect_diffuse + shown.indirect_specular).astype(np.float64)
-            both.update(robust_errors(truth, check.mask, ours))
+            both, ours = frame_errors(truth, shown)
             images["caustics_on" if on else "caustics_off"] = ours
             caustics["on" if on else "off"] = {
                 "mean_ratio": both["mean_ratio"], "rel": both["rel"], "rel_robust": both["rel_robust"],

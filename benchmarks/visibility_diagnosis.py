@@ -44,10 +44,11 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from validation_suite import scene_with_truth, suite  # noqa: E402
+from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
+from energy_budget import segments_blocked  # noqa: E402
 from build_validation_scenes import RESOLUTION  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
-from tradeoff.demo import COVERED, log  # noqa: E402
+from tradeoff.demo import log  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 #: Clusters whose planarity is under this are "bent" in the side's split (the second line).
@@ -57,26 +58,11 @@ BENT_PLANARITY = 0.8
 def segment_visible(receivers, origin, triangles, exclude_radius, receiver_offset=1e-3):
     """(P,) 1 where no triangle crosses the segment from each receiver to ``origin`` (Möller–Trumbore),
     hits within ``exclude_radius`` of the origin and within ``receiver_offset`` of the receiver left out."""
-    o = receivers
-    d = origin[None, :] - o
-    length = np.linalg.norm(d, axis=-1)
-    visible = np.ones(len(o), bool)
-    v0, e1, e2 = triangles[:, 0], triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
-    t_min = receiver_offset / np.maximum(length, 1e-30)
-    t_max = 1.0 - exclude_radius / np.maximum(length, 1e-30)
-    for start in range(0, len(v0), 256):
-        a0, a1, a2 = v0[start:start + 256], e1[start:start + 256], e2[start:start + 256]
-        p = np.cross(d[:, None, :], a2[None])  # (P, T, 3)
-        det = np.einsum("ptk,tk->pt", p, a1)
-        inv = 1.0 / np.where(np.abs(det) > 1e-14, det, np.inf)
-        s = o[:, None, :] - a0[None]
-        u = np.einsum("ptk,ptk->pt", s, p) * inv
-        q = np.cross(s, a1[None])
-        v = np.einsum("pk,ptk->pt", d, q) * inv
-        t = np.einsum("ptk,tk->pt", q, a2) * inv
-        hit = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > t_min[:, None]) & (t < t_max[:, None])
-        visible &= ~hit.any(axis=1)
-    return visible.astype(np.float64)
+    ends = np.broadcast_to(origin, receivers.shape)
+    length = np.maximum(np.linalg.norm(ends - receivers, axis=-1), 1e-30)
+    blocked = segments_blocked(receivers, ends, triangles, t_min=receiver_offset / length,
+                               t_max=1.0 - exclude_radius / length)
+    return (~blocked).astype(np.float64)
 
 
 def exact_visibility(table, maps_per_vsgl, position, triangles, exclude_sigmas, pushed=True):
@@ -118,7 +104,6 @@ def reference_maps(atlas, table, maps, first_map, points, point_area, gaps=True)
 
 
 def diagnose(name, path, stride, settings_overrides, material=None, map_stages=False):
-    from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.pipeline import POINT_SETS, VSGL_OWN_REFLECTOR_SIGMAS, build_visibility
     from vsgl_addon.reference.vsgl_shading import (FLAT_DIFFUSE_AXIS_LENGTH, diffuse_mode_for_kernel, shade,
                                                    vsgl_reflector_side, vsgl_visibility)
@@ -131,21 +116,8 @@ def diagnose(name, path, stride, settings_overrides, material=None, map_stages=F
     triangles = np.asarray(description.geometry.positions, np.float64)
     bench = Bench(description, width, height)
     try:
-        arrays = bench.gbuffer.to_numpy()
-        rd = read_texture(bench.inputs.diffuse_reflectance, width, height)[..., :3]
-        f0 = read_texture(bench.inputs.specular_f0, width, height)[..., :3]
-        pick = np.zeros((height, width), bool)
-        pick[stride // 2::stride, stride // 2::stride] = True
-        pick &= (arrays["position"][..., 3] > COVERED) & (truth["alpha"] > COVERED)
-        if material is not None:
-            pick &= bench.material_index == bench.materials.index(material)
-        position = arrays["position"][..., :3][pick].astype(np.float64)
-        normal = arrays["normal"][..., :3][pick].astype(np.float64)
-        normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
-        roughness = arrays["normal"][..., 3][pick].astype(np.float64) ** 2
-        camera = np.asarray(bench.gbuffer.camera_vector, np.float64).reshape(-1)
-        view = camera[:3] - position if camera.shape[0] == 3 or camera[3] > 0 else np.broadcast_to(camera[:3], position.shape)
-        view = view / np.linalg.norm(view, axis=-1, keepdims=True)
+        pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride,
+                                                                      None if material is None else [material])
         vsgls, _ = bench.vsgls(settings)
         try:
             build_visibility(bench.scene_gpu, vsgls, settings)
@@ -159,7 +131,7 @@ def diagnose(name, path, stride, settings_overrides, material=None, map_stages=F
             for table, atlas in zip(vsgls.table_arrays(), vsgls.isms):
                 table = {k: np.asarray(v, np.float64) for k, v in table.items()}
                 maps = atlas.count // len(table["variance"])
-                _, _, terms = shade(table, position, normal, view, rd[pick], f0[pick], roughness,
+                _, _, terms = shade(table, position, normal, view, rd, f0, alpha,
                                     diffuse_mode=diffuse_mode_for_kernel(settings.kernel), per_term=True)
                 weight = (terms.sum(axis=3) @ LUMINANCE)  # (P, N, 2)
                 depths = atlas.read()

@@ -122,7 +122,7 @@ def test_per_texel_vsgls_are_the_point_light_limit(scene, alpha):
     specular the receiver's ASG lobe evaluated at the light's direction."""
     vpls, rsm, texel_vsgls = scene
     rec = receivers(alpha)
-    diffuse, specular = vs.shade(texel_vsgls, *rec)
+    diffuse, specular = vs.shade(texel_vsgls, *rec, diffuse_mode="cosine")
     sg_diffuse, _ = vs.brute_force_shading(vpls, *rec, vpl_lobes="sg")
     np.testing.assert_allclose(diffuse, sg_diffuse, rtol=1e-4)
     expected = _asg_point_light_specular(texel_vsgls, rec[0], rec[1], rec[2], rec[4], rec[5])
@@ -142,17 +142,17 @@ def approximation_table(quadrature=True):
         sg_vpls = vs.brute_force_shading(vpls, *rec, vpl_lobes="sg")
         rows.append(("VPL lobes as SGs (000 Eqs. 6-7) vs exact VPLs", alpha,
                      relative_error(sg_vpls[0], exact[0]), relative_error(sg_vpls[1], exact[1])))
-        per_texel = vs.shade(texel_vsgls, *rec)
+        per_texel = vs.shade(texel_vsgls, *rec, diffuse_mode="cosine")
         rows.append(("receiver lobes (cosine out, ASG + C) vs SG VPLs, N = M", alpha,
                      relative_error(per_texel[0], sg_vpls[0]), relative_error(per_texel[1], sg_vpls[1])))
-        literal = vs.shade(texel_vsgls, *rec, specular_cosine="lobe-axis")
+        literal = vs.shade(texel_vsgls, *rec, diffuse_mode="cosine", specular_cosine="lobe-axis")
         rows.append(("  same, ASG cosine <w,xi_z> kept (C literal)", alpha, float("nan"),
                      relative_error(literal[1], sg_vpls[1])))
         rows.append(("VSGL shading N = M vs exact VPLs (total)", alpha,
                      relative_error(per_texel[0], exact[0]), relative_error(per_texel[1], exact[1])))
         for count in (16, 64):
             vsgls = generate_vsgls(rsm, count)
-            clustered = vs.shade(vsgls, *rec)
+            clustered = vs.shade(vsgls, *rec, diffuse_mode="cosine")
             rows.append((f"clustering N = {count} vs N = M", alpha,
                          relative_error(clustered[0], per_texel[0]), relative_error(clustered[1], per_texel[1])))
             rows.append((f"VSGL shading N = {count} vs exact VPLs (total)", alpha,
@@ -163,7 +163,7 @@ def approximation_table(quadrature=True):
                      relative_error(two_shaded[0], exact[0]), relative_error(two_shaded[1], exact[1])))
         if quadrature:
             vsgls = generate_vsgls(rsm, 16)
-            approx = vs.shade(vsgls, *rec)
+            approx = vs.shade(vsgls, *rec, diffuse_mode="cosine")
             rows.append(("diffuse cosine pulled out vs quadrature of Eq. 12's SG, N = 16", alpha,
                          relative_error(approx[0], diffuse_quadrature(vsgls, *rec)), float("nan")))
     return rows
@@ -236,8 +236,8 @@ def test_generated_vsgls_at_n_equal_m_match_per_texel_vsgls(scene):
     vpls, rsm, texel_vsgls = scene
     vsgls = generate_vsgls(rsm, rsm.texel_count, pdf=np.ones((rsm.size, rsm.size)), seed=None)
     rec = receivers(0.3)
-    a = vs.shade(vsgls, *rec)
-    b = vs.shade(texel_vsgls, *rec)
+    a = vs.shade(vsgls, *rec, diffuse_mode="cosine")
+    b = vs.shade(texel_vsgls, *rec, diffuse_mode="cosine")
     assert relative_error(a[0], b[0]) < 0.02 and relative_error(a[1], b[1]) < 0.05
 
 
@@ -252,6 +252,20 @@ def test_two_vsgl_mode_convolves_with_the_diffuse_sg():
     assert vs.diffuse_mode_for_kernel("two-vsgl") == "sg-convolution"
     assert vs.diffuse_mode_for_kernel("modified") == "separable"
     assert vs.diffuse_mode_for_kernel("original") == "separable"
+
+
+def test_a_call_without_a_mode_shades_as_the_renderer(scene):
+    """A direct call that names no diffuse mode gets the renderer's for the settings' default kernel
+    (the separable form), not Eq. 12's."""
+    from vsgl_addon.settings import VSGLSettings
+
+    assert vs.DEFAULT_DIFFUSE_MODE == vs.diffuse_mode_for_kernel(VSGLSettings().kernel) == "separable"
+    _, rsm, _ = scene
+    vsgls = generate_vsgls(rsm, 16)
+    rec = receivers(0.3)
+    default, _ = vs.shade(vsgls, *rec)
+    np.testing.assert_array_equal(default, vs.shade(vsgls, *rec, diffuse_mode="separable")[0])
+    assert relative_error(default, vs.shade(vsgls, *rec, diffuse_mode="cosine")[0]) > 1e-3
 
 
 def test_extremes_are_finite():
@@ -283,7 +297,8 @@ def test_extremes_are_finite():
             assert np.all(d >= 0) and np.all(s >= 0)
     # Back-facing view: no specular; back-facing VSGL (light from below): no diffuse.
     below = {k: v[3:4] for k, v in vsgls.items()}
-    d, s = vs.shade(below, np.zeros((1, 3)), [[0, 0, 1.0]], [[0, 0, 1.0]], [[1, 1, 1.0]], [[1, 1, 1.0]], [0.5])
+    d, s = vs.shade(below, np.zeros((1, 3)), [[0, 0, 1.0]], [[0, 0, 1.0]], [[1, 1, 1.0]], [[1, 1, 1.0]], [0.5],
+                    diffuse_mode="cosine")
     assert np.all(d == 0.0)
 
 
@@ -293,7 +308,7 @@ def test_pulling_the_cosine_out_costs_a_few_percent(scene):
     vpls, rsm, _ = scene
     vsgls = generate_vsgls(rsm, 16)
     rec = receivers(0.3)
-    approx, _ = vs.shade(vsgls, *rec)
+    approx, _ = vs.shade(vsgls, *rec, diffuse_mode="cosine")
     exact = diffuse_quadrature(vsgls, *rec, samples=40_000)
     error = relative_error(approx, exact)
     print(f"\ncosine pulled out vs quadrature, N = 16: {error:.4f}")
@@ -462,7 +477,7 @@ def test_separable_shading_converges_to_brute_force(scene):
     sg_vpls, _ = vs.brute_force_shading(vpls, *rec, vpl_lobes="sg")
     texel_d, texel_s = vs.shade(texel_vsgls, *rec, diffuse_mode="separable")
     np.testing.assert_allclose(texel_d, sg_vpls, rtol=1e-4)
-    np.testing.assert_array_equal(texel_s, vs.shade(texel_vsgls, *rec)[1])
+    np.testing.assert_array_equal(texel_s, vs.shade(texel_vsgls, *rec, diffuse_mode="cosine")[1])
     for count in (16, 64):
         vsgls = generate_vsgls(rsm, count)
         separable = vs.shade(vsgls, *rec, diffuse_mode="separable")[0]
@@ -553,13 +568,13 @@ def test_per_lobe_positions_keep_a_diffuse_floor_where_it_is(alpha):
     vpls = two_material_vpls()
     rsm = vpls.rsm()
     rec = block_side_receivers(alpha)
-    texel = vs.shade(vs.per_texel_vsgls(rsm), *rec)
+    texel = vs.shade(vs.per_texel_vsgls(rsm), *rec, diffuse_mode="cosine")
     exact = texel[0] + texel[1]
     errors, means = {}, {}
     for positions in ("per-lobe", "shared"):
         error = mean = 0.0
         for seed in range(8):
-            d, s = vs.shade(generate_vsgls(rsm, 16, seed=seed, positional_distribution=positions), *rec)
+            d, s = vs.shade(generate_vsgls(rsm, 16, seed=seed, positional_distribution=positions), *rec, diffuse_mode="cosine")
             error += relative_error(d + s, exact) / 8
             mean += float((d + s).sum() / exact.sum()) / 8
         errors[positions], means[positions] = error, mean

@@ -304,7 +304,7 @@ def _f32(array):
     return np.asarray(array, dtype=np.float32).astype(np.float64)
 
 
-def reference_image(gbuffer, vsgl_tables, camera=CAMERA, diffuse_mode="cosine"):
+def reference_image(gbuffer, vsgl_tables, camera=CAMERA, diffuse_mode=vs.DEFAULT_DIFFUSE_MODE):
     g = {name: _f32(value) for name, value in gbuffer.items()}
     height, width = g["coverage"].shape
     normal = g["normal"] / np.linalg.norm(g["normal"], axis=-1, keepdims=True)
@@ -473,6 +473,23 @@ def test_pass_reads_the_generation_table_on_the_gpu(gpu_context, floor_rsm):
     finally:
         generation.free()
         shading.free()
+
+
+def test_entries_without_a_mode_shade_as_the_renderer(gpu_context, floor_rsm):
+    """The pass's entries default to the renderer's diffuse mode for the default kernel (the
+    reference's default), not Eq. 12's "cosine"."""
+    import inspect
+
+    for entry in (shading_pass.run, shading_pass.shade_gpu, shading_pass.shader, shading_pass.VSGLShading.run):
+        assert inspect.signature(entry).parameters["diffuse_mode"].default == vs.DEFAULT_DIFFUSE_MODE
+    vsgls = generate_vsgls(floor_rsm, 16)
+    gbuffer = upload(extreme_gbuffer(8, 8))
+    default_d, _ = shading_pass.shade_gpu(gbuffer, CAMERA, vsgls)
+    named_d, _ = shading_pass.shade_gpu(gbuffer, CAMERA, vsgls, vs.DEFAULT_DIFFUSE_MODE)
+    cosine_d, _ = shading_pass.shade_gpu(gbuffer, CAMERA, vsgls, "cosine")
+    np.testing.assert_array_equal(default_d, named_d)
+    rgb = np.s_[..., :3]  # alpha is coverage in every mode
+    assert np.abs(default_d[rgb] - cosine_d[rgb]).max() > 1e-2 * cosine_d[rgb].max()
 
 
 def test_orthographic_camera(gpu_context, floor_rsm):

@@ -42,9 +42,11 @@ of the VSGL amplitudes (Blender's W/(m² sr) when the RSM carries Blender's ligh
 lobe, cosine pulled out: 000 Eqs. 10-11 and app. C; the modified and original kernels'), "cosine"
 (Eq. 12's SG, cosine pulled out, 000 app. C), "sg-convolution" (003's 2-VSGL mode) or
 "clamped-cosine" (Eq. 12's SG times the clamped cosine, Tokuyoshi et al. 2024;
-``reference.vsgl_shading.diffuse_mode_for_kernel``; the specular is Eq. 12's in every mode). One shader per mode, compiled once per
-process. :class:`VSGLShading` keeps its output textures between frames (reallocated when the size
-changes); :meth:`VSGLShading.free` drops them.
+``reference.vsgl_shading.diffuse_mode_for_kernel``; the specular is Eq. 12's in every mode). An
+entry called without a mode shades as the renderer does for the default kernel
+(``reference.vsgl_shading.DEFAULT_DIFFUSE_MODE``). One shader per mode, compiled once per process.
+:class:`VSGLShading` keeps its output textures between frames (reallocated when the size changes);
+:meth:`VSGLShading.free` drops them.
 
 Cost: linear in pixels × VSGLs (two lobes each). Needs a GPU context, main thread.
 """
@@ -56,7 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..layouts import GBUFFER, SHADING_INPUTS, VSGL_TABLE
-from ..reference.vsgl_shading import DIFFUSE_MODES
+from ..reference.vsgl_shading import DEFAULT_DIFFUSE_MODE, DIFFUSE_MODES
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import fullscreen_triangle_batch, read_texture, set_uniform, texture_from_array
@@ -101,7 +103,7 @@ def _shader_spec(diffuse_mode: str, visibility: bool = False, maps_per_vsgl: int
                                                 + VSGL_TABLE.glsl("sampler_load")})
 
 
-def run(gbuffer: "ShadingGBuffer", camera, tables, diffuse_mode: str = "cosine",
+def run(gbuffer: "ShadingGBuffer", camera, tables, diffuse_mode: str = DEFAULT_DIFFUSE_MODE,
         shading: "VSGLShading | None" = None) -> "VSGLShading":
     """The pass's entry: a :class:`VSGLShading` (new, or `shading` reused) holding the indirect
     images of `gbuffer` (see :meth:`VSGLShading.run`); free it with ``free()``."""
@@ -137,7 +139,7 @@ PASS = GPUPass(
 )
 
 
-def shader(diffuse_mode: str = "cosine", visibility: bool = False, maps_per_vsgl: int = 1,
+def shader(diffuse_mode: str = DEFAULT_DIFFUSE_MODE, visibility: bool = False, maps_per_vsgl: int = 1,
            shared_positions: bool = False):
     """The shading shader for `diffuse_mode` (with VSGL visibility from imperfect shadow maps when
     `visibility`, ``maps_per_vsgl`` of them per VSGL; for tables whose lobes share their positions when
@@ -278,7 +280,7 @@ class VSGLShading:
             self._framebuffer = gpu.types.GPUFrameBuffer(color_slots=[self.diffuse, self.specular])
             self._size = (width, height)
 
-    def run(self, gbuffer: ShadingGBuffer, camera, tables, diffuse_mode: str = "cosine"):
+    def run(self, gbuffer: ShadingGBuffer, camera, tables, diffuse_mode: str = DEFAULT_DIFFUSE_MODE):
         """Shade every pixel of `gbuffer` with every VSGL of `tables` (a VSGLTable or a list);
         returns the (indirect_diffuse, indirect_specular) textures."""
         import gpu
@@ -344,7 +346,7 @@ class VSGLShading:
         return read_texture(self.diffuse, width, height), read_texture(self.specular, width, height)
 
 
-def shade_gpu(gbuffer: ShadingGBuffer, camera, tables, diffuse_mode: str = "cosine",
+def shade_gpu(gbuffer: ShadingGBuffer, camera, tables, diffuse_mode: str = DEFAULT_DIFFUSE_MODE,
               shading: VSGLShading | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Run the pass and read it back: (indirect_diffuse, indirect_specular), (h, w, 4) float32.
     `tables`: VSGLTable(s) or numpy VSGL dict(s) (uploaded for this call)."""

@@ -138,6 +138,11 @@ def diffuse_mode_for_kernel(kernel: str) -> str:
     return "sg-convolution" if kernel == "two-vsgl" else "separable"
 
 
+#: The diffuse mode of a call that names none: the renderer's for the settings' default kernel
+#: ("modified"), so a direct caller shades as the frame does.
+DEFAULT_DIFFUSE_MODE = diffuse_mode_for_kernel("modified")
+
+
 def vsgl_incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
     """Incoming radiance SG of one VSGL lobe at shading points (000 Eq. 12), without cv.
 
@@ -226,7 +231,7 @@ def _chunks(count, per_chunk):
 
 
 def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, roughness,
-          diffuse_mode="cosine", specular_cosine="normal", per_term=False, visibility=None,
+          diffuse_mode=DEFAULT_DIFFUSE_MODE, specular_cosine="normal", per_term=False, visibility=None,
           specular_mode="product"):
     """Indirect radiance (diffuse, specular), each (P, 3), at P shading points from N VSGLs.
 
@@ -236,7 +241,9 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
     The sum over VSGLs of both lobes (diffuse SG and specular SG of each VSGL).
     ``per_term=True`` also returns the (P, N, 2, 3) contributions (lobe 0 = VSGL diffuse SG).
     ``visibility`` (P, N, 2): each lobe's visibility from each point (:func:`vsgl_visibility`),
-    weighting its light; None: every lobe is seen. ``specular_mode`` (``SPECULAR_MODES``): the
+    weighting its light; None: every lobe is seen. ``diffuse_mode`` (``DIFFUSE_MODES``): by default
+    the renderer's for the default kernel (``DEFAULT_DIFFUSE_MODE``; 003's 2-VSGL tables want
+    "sg-convolution", ``diffuse_mode_for_kernel``). ``specular_mode`` (``SPECULAR_MODES``): the
     receivers' specular term from Eq. 12's SG ("product") or from the separable incoming radiance
     ("separable"; the module documentation).
     """
