@@ -4,7 +4,8 @@ VPLs from the GPU's RSM, their SG lobes, the VSGL clusters, and the VSGLs' visib
 and relative RMSE against Cycles on one pixel subset.
 
     .venv/bin/python benchmarks/visibility_decomposition.py [--only NAME ...] [--stride S] [--samples K]
-        [--results-dir DIR]
+        [--skip-vpls [NAME ...]] [--k K] [--vsgl-count N] [--ism-points P] [--origin-sigmas S]
+        [--max-slope T] [--filter-radius R] [--append] [--results-dir DIR]
 
 On every S-th pixel (both ways) of the suite's 240x180 camera G-buffer, per pixel, the luminance of:
 
@@ -234,7 +235,7 @@ def main(argv=None):
     argv_text = (f"--only {' '.join(args.only)} --stride {args.stride} --samples {args.samples}"
                  + "".join(f" --{key.replace('_', '-')} {value}" for key, value in overrides.items())
                  + "".join(f" --{key.replace('_', '-')} {value}" for key, value in knobs.items())
-                 + ("" if args.skip_vpls is None else " --skip-vpls " + " ".join(args.skip_vpls)))
+                 + ("" if args.skip_vpls is None else (" --skip-vpls " + " ".join(args.skip_vpls)).rstrip()))
     target = args.results_dir / "visibility_decomposition.md"
     append = args.append and target.is_file()
     text = markdown(results, argv_text, first=not append)
