@@ -5,12 +5,14 @@
 
 The scene's glossy VPLs (benchmarks/vpl_caustics.py collect_vpls) and camera G-buffer (240x180, or
 --size; --vpl-stride K keeps every K-th VPL, an unbiased subsample of the counts for large sizes),
-16x16 tiles with their depth ranges; per tile the VPLs listed by the ellipsoid-frustum test
-(reference.vpl_culling, float64) with three volumes: the GGX spheroid (Eqs. 13-15), the sphere
-centred on the VPL that bounds the same range (radius |c - q| + r_u), and the spheroid's enclosing
-sphere (centre c, radius r_u). A false positive is a VPL listed for a pixel's tile that the pixel
-does not accept (p <= xi). Prints false positives per pixel for each and the spheroid's reduction,
-per δ (one ξ per VPL, shared by every δ, as the pass draws it).
+16x16 tiles with their depth ranges; per tile the VPLs listed (reference.vpl_culling, float64) by
+two ellipsoid-frustum tests, the exact one the pass uses (ellipsoid_frustum_overlap_exact) and 004
+Eq. 16's plane-by-plane one (ellipsoid_frustum_overlap), with three volumes: the GGX spheroid (Eqs.
+13-15), the sphere centred on the VPL that bounds the same range (radius |c - q| + r_u), and the
+spheroid's enclosing sphere (centre c, radius r_u). A false positive is a VPL listed for a pixel's
+tile that the pixel does not accept (p <= xi). Prints false positives per pixel for each and the
+exact-test spheroid's reduction against the VPL-centred sphere under either test, per δ (one ξ per
+VPL, shared by every δ, as the pass draws it).
 
 The reduction depends on how far the light ranges reach compared with the tiles' extent in the
 scene: δ is in Blender's radiometric units (p = I/(δ l²), Eq. 2), so the same δ gives longer ranges
@@ -34,6 +36,7 @@ from vpl_caustics import HEIGHT, WIDTH, collect_vpls  # noqa: E402
 
 TILE = 16
 VOLUMES = ("spheroid", "vpl_sphere", "enclosing_sphere")
+TESTS = ("exact", "plane")
 
 
 def culling_inputs(args):
@@ -93,7 +96,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     width, height = args.size
     position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc = culling_inputs(args)
-    false_pos = {delta: dict.fromkeys(VOLUMES, 0) for delta in args.delta}
+    false_pos = {delta: {(name, test): 0 for name in VOLUMES for test in TESTS} for delta in args.delta}
     accepted_total = dict.fromkeys(args.delta, 0)
     pixels = 0
     depth = -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
@@ -107,6 +110,7 @@ def main(argv=None) -> int:
             hi = np.array([min(tx + TILE, width) / width, min(ty + TILE, height) / height]) * 2 - 1
             d = depth[sl].reshape(-1)[cov]
             planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, d.min(), d.max())
+            corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, d.min(), d.max())
             pts = position[sl][..., :3].reshape(-1, 3)[cov]
             nrm = normal[sl].reshape(-1, 3)[cov]
             _, intensity, l2 = vc.glossy_vpl_radiance(
@@ -117,23 +121,34 @@ def main(argv=None) -> int:
                 accepted = vc.acceptance_probability(intensity, l2, delta) > xi[None]
                 accepted_total[delta] += int(accepted.sum())
                 for name, volume in volumes[delta].items():
-                    listed = vc.ellipsoid_frustum_overlap(planes[None], *volume)
-                    if np.any(accepted & ~listed[None]):
-                        raise AssertionError(f"{name} culled an accepted VPL at delta {delta:g}")
-                    false_pos[delta][name] += int(np.sum(listed[None] & ~accepted))
+                    for test in TESTS:
+                        listed = (vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], *volume)
+                                  if test == "exact" else vc.ellipsoid_frustum_overlap(planes[None], *volume))
+                        if np.any(accepted & ~listed[None]):
+                            raise AssertionError(f"{name} ({test} test) culled an accepted VPL at delta {delta:g}")
+                        false_pos[delta][name, test] += int(np.sum(listed[None] & ~accepted))
     scale = max(args.vpl_stride, 1)
     print(f"caustic_panel {width}x{height}, {generated} VPLs ({count} counted, every {scale}th; counts "
           f"below are scaled to all), tiles {TILE}x{TILE}")
+    print("False positives per pixel, exact test / plane test (004 Eq. 16); the spheroid's reduction is its "
+          "exact-test figure against the VPL-centred sphere's under the same test and under the plane test")
     print("| delta | accepted / px | spheroid FP / px | VPL sphere FP / px | enclosing sphere FP / px "
-          "| fewer than VPL sphere | fewer than enclosing |")
-    print("|---|---|---|---|---|---|---|")
+          "| spheroid fewer than VPL sphere, both exact | spheroid (exact) fewer than VPL sphere (plane) "
+          "| plane test alone: spheroid fewer than VPL sphere |")
+    print("|---|---|---|---|---|---|---|---|")
+
+    def verdict(reduction):
+        return f"{100 * reduction:.1f} % ({'met' if reduction >= 0.9 else 'missed'}: target >= 90 %)"
+
     for delta in args.delta:
-        fp = {name: scale * value / pixels for name, value in false_pos[delta].items()}
-        reduction = 1.0 - fp["spheroid"] / max(fp["vpl_sphere"], 1e-30)
-        enclosing = 1.0 - fp["spheroid"] / max(fp["enclosing_sphere"], 1e-30)
-        print(f"| {delta:g} | {scale * accepted_total[delta] / pixels:.2f} | {fp['spheroid']:.1f} | "
-              f"{fp['vpl_sphere']:.1f} | {fp['enclosing_sphere']:.1f} | {100 * reduction:.1f} % "
-              f"({'met' if reduction >= 0.9 else 'missed'}: target >= 90 %) | {100 * enclosing:.1f} % |")
+        fp = {key: scale * value / pixels for key, value in false_pos[delta].items()}
+        like = 1.0 - fp["spheroid", "exact"] / max(fp["vpl_sphere", "exact"], 1e-30)
+        against_plane = 1.0 - fp["spheroid", "exact"] / max(fp["vpl_sphere", "plane"], 1e-30)
+        plane_only = 1.0 - fp["spheroid", "plane"] / max(fp["vpl_sphere", "plane"], 1e-30)
+        pair = {name: f"{fp[name, 'exact']:.1f} / {fp[name, 'plane']:.1f}" for name in VOLUMES}
+        print(f"| {delta:g} | {scale * accepted_total[delta] / pixels:.2f} | {pair['spheroid']} | "
+              f"{pair['vpl_sphere']} | {pair['enclosing_sphere']} | {verdict(like)} | {verdict(against_plane)} | "
+              f"{100 * plane_only:.1f} % |")
     return 0
 
 

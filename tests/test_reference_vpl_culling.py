@@ -185,7 +185,7 @@ def perspective(fov, aspect, near, far):
 
 @pytest.mark.parametrize("delta", [1e-3, 1e-2])
 def test_tiled_culling_exact_and_spheroids_beat_spheres(delta):
-    """Tile lists from the ellipsoid-frustum test (Eqs. 16-17) shade exactly what shading every
+    """Tile lists from the exact ellipsoid-frustum test (Eqs. 16-17's stretch) shade exactly what shading every
     accepted VPL without culling gives; spheroids leave fewer false positives than spheres."""
     rng = np.random.default_rng(RNG_SEED + 5)
     vpls = small_scene(rng, count=60, roughness=0.08, flux_scale=1e-3)
@@ -214,14 +214,16 @@ def test_tiled_culling_exact_and_spheroids_beat_spheres(delta):
     vpl_sphere = (vpls["position"], long_axis + offset)
     enclosing = (centre, long_axis)
     tiled = np.zeros(points.shape)
-    false_pos = {"spheroid": 0, "vpl_sphere": 0, "enclosing": 0}
+    false_pos = {"spheroid": 0, "spheroid_plane": 0, "vpl_sphere": 0, "enclosing": 0}
     for ty in range(size // tile):
         for tx in range(size // tile):
             sl = (slice(ty * tile, (ty + 1) * tile), slice(tx * tile, (tx + 1) * tile))
             lo = np.array([ndc[tx * tile], ndc[ty * tile]]) - 1.0 / size
             hi = np.array([ndc[(tx + 1) * tile - 1], ndc[(ty + 1) * tile - 1]]) + 1.0 / size
             planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, depth[sl].min(), depth[sl].max())
-            listed = vc.ellipsoid_frustum_overlap(planes[None], centre, axes, rotation)
+            corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, depth[sl].min(), depth[sl].max())
+            # The pass's exact test; the plane test (Eq. 16) lists a superset.
+            listed = vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], centre, axes, rotation)
             p_tile = points[sl].reshape(-1, 3)
             shaded = vc.shade_glossy_vpls(p_tile, normals[sl].reshape(-1, 3), albedo[sl].reshape(-1, 3),
                                           vpls, delta, xi, accepted=listed[None, :].astype(float))
@@ -233,6 +235,7 @@ def test_tiled_culling_exact_and_spheroids_beat_spheres(delta):
             accepted = vc.acceptance_probability(intensity, l2, delta) > xi[None]
             eye_mat = np.broadcast_to(np.eye(3), (60, 3, 3))
             for name, lst in (("spheroid", listed),
+                              ("spheroid_plane", vc.ellipsoid_frustum_overlap(planes[None], centre, axes, rotation)),
                               ("vpl_sphere", vc.ellipsoid_frustum_overlap(
                                   planes[None], vpl_sphere[0], np.repeat(vpl_sphere[1][:, None], 3, 1), eye_mat)),
                               ("enclosing", vc.ellipsoid_frustum_overlap(
@@ -245,6 +248,7 @@ def test_tiled_culling_exact_and_spheroids_beat_spheres(delta):
     assert full.max() > 0.0
     assert false_pos["spheroid"] <= false_pos["enclosing"] <= false_pos["vpl_sphere"]
     assert false_pos["spheroid"] < false_pos["vpl_sphere"]
+    assert false_pos["spheroid"] <= false_pos["spheroid_plane"]
 
 
 def test_extremes_finite():
@@ -363,3 +367,97 @@ def test_tile_frustum_holds_exactly_the_tile(projection):
     beyond = world_points(rng.uniform(lo, hi, (n, 2)), rng.uniform(dmax * 1.01, dmax * 2, n))
     for outside in (beside, beyond):
         assert np.all(np.any(outside @ planes[:, :3].T + planes[:, 3] < 0.0, axis=1))
+
+
+def _random_frustum(rng, flat=False):
+    """A tile frustum (planes, corners, sampler) of a random camera: perspective or orthographic, a
+    tile of a few pixels' NDC width, a depth range (flat: depth_min = depth_max)."""
+    eye = rng.normal(size=3) * 2.0
+    v2w = look_at(eye, eye + random_unit(rng, ()) + np.array([0.0, 0.0, 0.1]))
+    proj = perspective(np.radians(rng.uniform(20.0, 90.0)), rng.uniform(0.7, 1.8), 0.1, 50.0) \
+        if rng.uniform() < 0.7 else orthographic(rng.uniform(1.0, 5.0), 0.1, 50.0)
+    inv_proj = np.linalg.inv(proj)
+    lo = rng.uniform(-1.0, 0.8, 2)
+    hi = lo + rng.uniform(0.02, 0.2, 2)
+    dmin = rng.uniform(0.5, 8.0)
+    dmax = dmin if flat else dmin + rng.uniform(0.01, 3.0)
+    planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, dmin, dmax)
+    corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, dmin, dmax)
+
+    def sample(n):
+        # Points of the frustum on an n^3 grid of (NDC x, NDC y, depth): each on its view ray.
+        u, v, d = np.meshgrid(np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n),
+                              np.linspace(dmin, dmax, n), indexing="ij")
+        ones = np.ones(u.size)
+        near = np.einsum("ij,nj->ni", inv_proj, np.column_stack([u.ravel(), v.ravel(), -ones, ones]))
+        far = np.einsum("ij,nj->ni", inv_proj, np.column_stack([u.ravel(), v.ravel(), ones, ones]))
+        near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
+        t = (d.ravel() + near[:, 2]) / (near[:, 2] - far[:, 2])
+        return (near + t[:, None] * (far - near)) @ v2w[:3, :3].T + v2w[:3, 3]
+
+    return planes, corners, sample
+
+
+def _random_ellipsoid(rng, corners):
+    """An ellipsoid near the frustum: semi-axes of a GGX spheroid ((1 + a^2)/(2a) r, r, r) for
+    alpha 1e-3 ... 1, or a sphere; random orientation; centre within a few of its sizes of the box
+    of the corners."""
+    alpha = 10.0 ** rng.uniform(-3.0, 0.0)
+    extent = np.linalg.norm(corners.max(0) - corners.min(0))
+    r = extent * 10.0 ** rng.uniform(-1.5, 0.5)
+    axes = np.array([(1.0 + alpha**2) / (2.0 * alpha) * r, r, r]) if rng.uniform() < 0.8 else np.full(3, r)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    reach = rng.uniform(0.0, 1.3) * axes.max() + extent
+    centre = corners.mean(0) + random_unit(rng, ()) * reach * rng.uniform(0.3, 1.0)
+    return centre, axes, q.T
+
+
+def test_exact_frustum_test_against_dense_sampling():
+    """ellipsoid_frustum_distance equals the smallest stretched norm over dense samples of the frustum
+    within the samples' spacing and is never above it (so the exact test is conservative); it
+    rejects ellipsoids beyond an edge or corner that the plane test (004 Eq. 16) keeps."""
+    rng = np.random.default_rng(RNG_SEED + 9)
+    n = 24
+    near_misses = overlaps = 0
+    for case in range(400):
+        planes, corners, sample = _random_frustum(rng, flat=case % 10 == 0)
+        centre, axes, rotation = _random_ellipsoid(rng, corners)
+        points = sample(n)
+        local = (points - centre) @ rotation.T / axes
+        sampled = np.min(np.linalg.norm(local, axis=-1))
+        exact = vc.ellipsoid_frustum_distance(planes, corners, centre, axes, rotation)
+        stretched = (corners - centre) @ rotation.T / axes
+        edges = np.linalg.norm(stretched[vc.FRUSTUM_EDGES[:, 1]] - stretched[vc.FRUSTUM_EDGES[:, 0]], axis=-1)
+        spacing = (2.0 * edges[:8].max() + edges[8:].max()) / (n - 1)
+        assert exact <= sampled + 1e-9 * (1.0 + sampled), f"case {case}: exact {exact} above sampled {sampled}"
+        assert exact >= sampled - spacing - 1e-9, f"case {case}: exact {exact} far below sampled {sampled}"
+        inside_samples = sampled <= 1.0
+        exact_overlap = vc.ellipsoid_frustum_overlap_exact(planes, corners, centre, axes, rotation)
+        plane_overlap = vc.ellipsoid_frustum_overlap(planes, centre, axes, rotation)
+        if inside_samples:
+            assert exact_overlap and plane_overlap
+            overlaps += 1
+        if plane_overlap and not exact_overlap:
+            assert sampled > 1.0
+            near_misses += 1
+        assert exact_overlap <= plane_overlap  # exact never lists what the plane test culls
+    assert overlaps >= 40 and near_misses >= 40, (overlaps, near_misses)
+
+
+def test_exact_frustum_test_extremes_finite():
+    """Finite distances and the right answer for alpha 1e-3 ... 1 at grazing incidence, delta xi -> 0
+    (radii up to 1e15), tiny radii and a flat tile (depth_min = depth_max)."""
+    rng = np.random.default_rng(RNG_SEED + 10)
+    planes, corners, sample = _random_frustum(rng, flat=True)
+    inside = sample(3)[13]
+    count = 64
+    alpha = np.logspace(-3, 0, count)
+    normal = np.broadcast_to([0.0, 0.0, 1.0], (count, 3))
+    incoming = np.broadcast_to([1.0, 0.0, 1e-7], (count, 3)) / np.sqrt(1.0 + 1e-14)
+    for delta_xi, flux in ((1e-30, 1.0), (1e-3, 1e-30), (1e-3, 1.0)):
+        centre, axes, rotation = vc.ggx_spheroid(np.broadcast_to(inside, (count, 3)), normal, incoming,
+                                                 alpha, flux, delta_xi, 1.0)
+        distance = vc.ellipsoid_frustum_distance(planes[None], corners[None], centre, axes, rotation)
+        assert np.all(np.isfinite(distance))
+        # Each spheroid holds its VPL q (on the frustum's flat face), so it overlaps.
+        assert np.all(vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], centre, axes, rotation))

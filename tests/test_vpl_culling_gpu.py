@@ -119,3 +119,85 @@ def test_plane_distance_and_geometry():
     for name, gpu, ref in (("geometry", out["geometry"], geometry), ("intensity", out["intensity"], intensity)):
         acc = Accuracy(gpu, ref, groups, relative=1e-3)
         assert acc.ok, f"{name}: worst relative {acc.worst_relative:.3g}"
+
+
+def _frustum_inputs(cases):
+    """The GLSL probe's inputs of (planes, corners, centre, axes, rotation) cases, float32-rounded,
+    and the same values for the reference."""
+    planes = as_gpu_floats(np.array([c[0] for c in cases]))
+    corners = as_gpu_floats(np.array([c[1] for c in cases]))
+    centre = as_gpu_floats(np.array([c[2] for c in cases]))
+    axes = as_gpu_floats(np.array([c[3] for c in cases]))
+    rotation = as_gpu_floats(np.array([c[4] for c in cases]))
+    inputs = {f"plane{k}": planes[:, k] for k in range(6)}
+    inputs.update({f"corner{k}": corners[:, k] for k in range(8)})
+    inputs.update(centre=centre, axes=axes, axis_u=rotation[:, 0], axis_v=rotation[:, 1], axis_w=rotation[:, 2])
+    return inputs, (planes, corners, centre, axes, rotation)
+
+
+EXACT_BODY = """
+vec4 planes[6] = vec4[6](plane0, plane1, plane2, plane3, plane4, plane5);
+vec3 corners[8] = vec3[8](corner0, corner1, corner2, corner3, corner4, corner5, corner6, corner7);
+result = ellipsoid_frustum_overlap_exact(planes, corners, centre, axes, axis_u, axis_v, axis_w, 1e-4) ? 1.0 : 0.0;
+"""
+
+
+def test_exact_frustum_test_matches_reference():
+    """The GLSL exact ellipsoid-frustum test against reference ellipsoid_frustum_distance: it lists
+    every ellipsoid the reference finds overlapping (conservative), and decides as the reference
+    wherever the distance is not within float32 rounding of 1, edge and corner near misses (the plane
+    test lists them) included."""
+    from test_reference_vpl_culling import _random_ellipsoid, _random_frustum
+
+    rng = np.random.default_rng(11)
+    cases = []
+    for case in range(3000):
+        planes, corners, _ = _random_frustum(rng, flat=case % 10 == 0)
+        cases.append((planes, corners) + _random_ellipsoid(rng, corners))
+    inputs, (planes, corners, centre, axes, rotation) = _frustum_inputs(cases)
+    gpu = evaluate_glsl(EXACT_BODY, inputs, libraries=LIB) > 0.5
+    distance = vc.ellipsoid_frustum_distance(planes, corners, centre, axes, rotation)
+    plane = vc.ellipsoid_frustum_overlap(planes, centre, axes, rotation)
+    assert np.all(gpu[distance <= 1.0]), "the GLSL test culled an overlapping ellipsoid"
+    clear = np.abs(distance - 1.0) > 1e-3 * (1.0 + distance)
+    np.testing.assert_array_equal(gpu[clear], (distance <= 1.0)[clear])
+    near_miss = plane & (distance > 1.0 + 1e-3) & clear
+    assert near_miss.sum() >= 200 and not np.any(gpu[near_miss])
+    assert (distance <= 1.0).sum() >= 200
+
+
+def test_exact_frustum_test_extremes():
+    """alpha 1e-3 ... 1 spheroids at grazing incidence through a flat tile (depth_min = depth_max), with
+    delta xi -> 0 (radii ~1e15, the tile deep inside) and tiny flux (radii ~1e-14): each holds its
+    VPL on the tile, so every one is listed; the same moved off the tile by 1 m is culled unless
+    huge."""
+    from test_reference_vpl_culling import _random_frustum
+
+    rng = np.random.default_rng(12)
+    planes, corners, sample = _random_frustum(rng, flat=True)
+    on_tile = sample(3)[13]
+    count = 64
+    alpha = as_gpu_floats(np.logspace(-3, 0, count))
+    normal = np.broadcast_to(np.cross(corners[1] - corners[0], corners[3] - corners[0]), (count, 3))
+    normal = normal / np.linalg.norm(normal, axis=-1, keepdims=True)
+    tangent = (corners[1] - corners[0]) / np.linalg.norm(corners[1] - corners[0])
+    incoming = tangent + 1e-6 * normal
+    incoming = np.broadcast_to(incoming / np.linalg.norm(incoming), (count, 3))
+    off = on_tile + 1.0 * normal[0] + 0.0
+    for position, expect in ((on_tile, True), (off, None)):
+        for delta_xi, flux in ((1e-30, 1.0), (1e-3, 1e-24), (1e-3, 1.0)):
+            centre, axes, rotation = vc.ggx_spheroid(np.broadcast_to(position, (count, 3)), normal, incoming,
+                                                     alpha, flux, delta_xi, 1.0)
+            cases = [(planes, corners, centre[i], axes[i], rotation[i]) for i in range(count)]
+            inputs, args = _frustum_inputs(cases)
+            gpu = evaluate_glsl(EXACT_BODY, inputs, libraries=LIB) > 0.5
+            distance = vc.ellipsoid_frustum_distance(*args)
+            assert np.all(np.isfinite(distance))
+            if expect:
+                assert np.all(gpu)
+            else:
+                assert np.all(gpu[distance <= 1.0])
+                clear = np.abs(distance - 1.0) > 1e-3 * (1.0 + distance)
+                np.testing.assert_array_equal(gpu[clear], (distance <= 1.0)[clear])
+                if flux < 1e-20:
+                    assert not np.any(gpu)

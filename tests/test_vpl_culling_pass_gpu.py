@@ -106,14 +106,19 @@ def test_tile_counts_match_reference_lists():
     # View depth of the wall's pixels.
     depth = -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
     ref = np.zeros((4, 4), int)
+    plane_only = np.zeros((4, 4), int)
     for ty in range(4):
         for tx in range(4):
             sl = (slice(16 * ty, 16 * ty + 16), slice(16 * tx, 16 * tx + 16))
             lo = np.array([tx, ty]) * 16 / 64 * 2 - 1
             hi = np.array([tx + 1, ty + 1]) * 16 / 64 * 2 - 1
             planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, depth[sl].min(), depth[sl].max())
-            ref[ty, tx] = vc.ellipsoid_frustum_overlap(planes[None], centre, axes, rotation).sum()
+            corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, depth[sl].min(), depth[sl].max())
+            ref[ty, tx] = vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], centre, axes, rotation).sum()
+            plane_only[ty, tx] = vc.ellipsoid_frustum_overlap(planes[None], centre, axes, rotation).sum()
     assert ref.sum() > 0
+    # The exact test lists fewer than the plane test here, so the counts tell the two apart.
+    assert ref.sum() < plane_only.sum()
     # Equal up to spheroids that touch a tile within float32 rounding (the GPU's slack keeps them).
     assert np.all(counts >= ref) and np.all(counts - ref <= np.maximum(2, 0.02 * ref))
 

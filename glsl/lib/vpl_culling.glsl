@@ -100,6 +100,80 @@ float ellipsoid_plane_distance(vec3 plane_normal, float plane_offset, vec3 centr
   return (dot(plane_normal, centre) + plane_offset) / max(support, 1e-30);
 }
 
+// Exact ellipsoid-frustum test (twin of reference ellipsoid_frustum_overlap_exact): stretched by
+// x' = diag(1/a) R (x - c) (004 Eq. 16) the ellipsoid is the unit sphere and the frustum, an affine
+// image, is still a convex polyhedron; they meet iff its distance from the origin is <= 1. Outside
+// every plane's reach (h_k < -1, Eq. 16's plane test) there is no overlap; inside all planes the
+// centre is in the frustum; otherwise the closest point is the foot -h_k m_k of a face k (m_k its
+// stretched unit normal) that every other plane j holds (h_j - h_k m_j.m_k >= 0), or lies on one of
+// the 12 edges. planes[6] and corners[8] as reference tile_frustum_planes / tile_frustum_corners.
+// `slack` widens the plane test; the face and edge tests widen by float32 rounding of the stretch,
+// which grows with the stretched extent and |c| / a_min; where that extent is not representable
+// (a_min ~ 0) the plane test's answer stands, so the test stays conservative.
+bool ellipsoid_frustum_overlap_exact(vec4 planes[6], vec3 corners[8], vec3 centre, vec3 semi_axes, vec3 w_u,
+                                     vec3 w_v, vec3 w_w, float slack)
+{
+  float h[6];
+  vec3 m[6];
+  bool inside = true;
+  for (int k = 0; k < 6; k++) {
+    vec3 n = planes[k].xyz;
+    vec3 stretched = semi_axes * vec3(dot(w_u, n), dot(w_v, n), dot(w_w, n));
+    float support = max(length(stretched), 1e-30);
+    h[k] = (dot(n, centre) + planes[k].w) / support;
+    m[k] = stretched / support;
+    if (!(h[k] >= -1.0 - slack)) {
+      return false;
+    }
+    inside = inside && h[k] >= 0.0;
+  }
+  if (inside) {
+    return true;
+  }
+  float a_min = min(semi_axes.x, min(semi_axes.y, semi_axes.z));
+  if (!(a_min > 0.0)) {
+    return true;
+  }
+  vec3 local[8];
+  float extent = 0.0;
+  bool bounded = true;
+  for (int i = 0; i < 8; i++) {
+    vec3 d = corners[i] - centre;
+    local[i] = vec3(dot(w_u, d), dot(w_v, d), dot(w_w, d)) / semi_axes;
+    float l = length(local[i]);
+    bounded = bounded && l < 1e12;
+    extent = bounded ? max(extent, l) : extent;
+  }
+  if (!bounded) {
+    return true;
+  }
+  float tolerance = slack + 4e-6 * (extent + length(centre) / a_min);
+  for (int k = 0; k < 6; k++) {
+    if (h[k] < 0.0) {
+      bool foot = true;
+      for (int j = 0; j < 6; j++) {
+        foot = foot && (j == k || h[j] - h[k] * dot(m[j], m[k]) >= -tolerance);
+      }
+      if (foot) {
+        return true;
+      }
+    }
+  }
+  const ivec2 edges[12] = ivec2[12](ivec2(0, 1), ivec2(1, 2), ivec2(2, 3), ivec2(3, 0), ivec2(4, 5), ivec2(5, 6),
+                                    ivec2(6, 7), ivec2(7, 4), ivec2(0, 4), ivec2(1, 5), ivec2(2, 6), ivec2(3, 7));
+  float limit = (1.0 + tolerance) * (1.0 + tolerance);
+  for (int e = 0; e < 12; e++) {
+    vec3 a = local[edges[e].x];
+    vec3 s = local[edges[e].y] - a;
+    float t = clamp(-dot(a, s) / max(dot(s, s), 1e-30), 0.0, 1.0);
+    vec3 p = a + t * s;
+    if (!(dot(p, p) > limit)) {
+      return true;
+    }
+  }
+  return false;
+}
+
 // Unshadowed f1 <w_o, n_q> <-w_o, n_x> / l^2 of a glossy VPL at a diffuse receiver (F = 1; the RGB
 // weight is albedo/pi * Phi Rs) and, in `intensity`, the acceptance intensity scalar_flux f1 <w_o, n_q>.
 float glossy_vpl_geometry(vec3 receiver, vec3 receiver_normal, vec3 position, vec3 normal, vec3 incoming,

@@ -11,7 +11,9 @@
 //    distance is invariant to the planes' scale), so the spheroid is tested where it was built
 //    (Eq. 16; Eq. 17's rotation keeping the depth planes perpendicular is implicit in view space);
 // 3. the VPLs in chunks of 256: each invocation tests one VPL's spheroid (Eqs. 13-15) against the
-//    frustum and appends it to the chunk's shared list (and to the tile's list in the R32UI image,
+//    frustum, exactly (lib/vpl_culling.glsl ellipsoid_frustum_overlap_exact: Eq. 16's plane test
+//    alone keeps spheroids beyond the frustum's edges and corners, 3x the false positives on
+//    caustic_panel, benchmarks/results/vpl_bounds.md), and appends it to the chunk's shared list (and to the tile's list in the R32UI image,
 //    up to its capacity), then every pixel shades the chunk's list with the exact GGX BRDF at the
 //    VPL and its own diffuse lobe, weighted 1/p where p > xi (Eqs. 2-3). Chunking keeps the shared
 //    list from overflowing, so the result is exact whatever the list capacity.
@@ -29,7 +31,7 @@
 // (lib/ism.glsl, bilinear PCF; vsgl_addon/passes/vpl_culling.py VPL clusters): ism_params = (map side,
 // tiles per atlas row), vpl_map_origins texel m = map m's origin.
 
-// Slack of the plane test: a spheroid touching the tile within float32 rounding stays listed.
+// Slack of the frustum test: a spheroid touching the tile within float32 rounding stays listed.
 const float VPL_PLANE_SLACK = 1e-4;
 
 vec4 vpl_record(uint i, int k)
@@ -123,6 +125,16 @@ void main()
     planes[k] = p.x * world_to_view[0] + p.y * world_to_view[1] + p.z * world_to_view[2]
                 + vec4(0.0, 0.0, 0.0, p.w);
   }
+  // The frustum's corners in world space (reference tile_frustum_corners' order): each corner ray at
+  // depth_min (0-3) and depth_max (4-7). mat4(rows) is W2V^T, so v * inverse(mat4(rows)) = V2W v.
+  mat4 view_to_world_t = inverse(mat4(world_to_view[0], world_to_view[1], world_to_view[2], world_to_view[3]));
+  vec3 corners[8];
+  for (int k = 0; k < 4; k++) {
+    float t0 = (depth_min + near_[k].z) / (near_[k].z - far_[k].z);
+    float t1 = (depth_max + near_[k].z) / (near_[k].z - far_[k].z);
+    corners[k] = (vec4(mix(near_[k], far_[k], t0), 1.0) * view_to_world_t).xyz;
+    corners[k + 4] = (vec4(mix(near_[k], far_[k], t1), 1.0) * view_to_world_t).xyz;
+  }
 
   uint stride = uint(max(vpl_interleave.w, 1));
   uint strided = (count + stride - 1u) / stride;
@@ -147,11 +159,8 @@ void main()
       float xi = vpl_xi(i, seed, frame);
       vec3 c, axes, u, v, w;
       ggx_spheroid(r0.xyz, r1.xyz, r2.xyz, r0.w, r1.w, delta, xi, 1.0, c, axes, u, v, w);
-      bool listed = r1.w > 0.0;
-      for (int k = 0; k < 6; k++) {
-        listed = listed && ellipsoid_plane_distance(planes[k].xyz, planes[k].w, c, axes, u, v, w)
-                           >= -1.0 - VPL_PLANE_SLACK;
-      }
+      bool listed = r1.w > 0.0
+                    && ellipsoid_frustum_overlap_exact(planes, corners, c, axes, u, v, w, VPL_PLANE_SLACK);
       if (listed) {
         chunk_list[atomicAdd(chunk_count, 1u)] = i;
         uint slot = atomicAdd(tile_total, 1u);

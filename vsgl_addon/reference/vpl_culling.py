@@ -167,6 +167,56 @@ def ellipsoid_frustum_overlap(planes, centre, semi_axes, rotation):
     return np.all(distance >= -1.0, axis=-1)
 
 
+#: Edges of the tile frustum as corner pairs (:func:`tile_frustum_corners`' order): the depth_min
+#: ring, the depth_max ring, and the four corner rays.
+FRUSTUM_EDGES = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4],
+                          [0, 4], [1, 5], [2, 6], [3, 7]])
+
+
+def ellipsoid_frustum_distance(planes, corners, centre, semi_axes, rotation):
+    """Distance from the ellipsoid's centre to the frustum, measured where the ellipsoid is the unit
+    sphere (x' = diag(1/a) R (x - c), the stretch of 004 Eq. 16); 0 when the centre is inside.
+
+    The stretch is affine, so the frustum stays a convex polyhedron with the same faces, edges and
+    corners. Outside it the closest point lies inside a face (the foot of that face's stretched
+    plane, which then satisfies every other plane) or on an edge (corners included), so the
+    distance is the smallest of those. ``planes`` (..., 6, 4) of :func:`tile_frustum_planes`,
+    ``corners`` (..., 8, 3) of :func:`tile_frustum_corners`."""
+    planes = f64(planes)
+    corners = f64(corners)
+    centre = f64(centre)
+    semi_axes = f64(semi_axes)
+    rotation = f64(rotation)
+    h = ellipsoid_plane_distance(planes[..., :3], planes[..., 3], centre[..., None, :],
+                                 semi_axes[..., None, :], rotation[..., None, :, :])
+    stretched = semi_axes[..., None, :] * np.einsum("...ij,...kj->...ki", rotation, planes[..., :3])
+    m = stretched / np.maximum(norm(stretched), 1e-300)[..., None]
+    # Foot of face k, -h_k m_k, against plane j: h_j - h_k (m_j . m_k); the tolerance keeps the
+    # interior of a flat face (depth_min = depth_max: planes 4 and 5 opposite) against rounding.
+    foot = h[..., None, :] - h[..., :, None] * np.einsum("...ki,...ji->...kj", m, m)
+    tolerance = 1e-9 * (1.0 + np.max(np.abs(h), axis=-1))[..., None, None]
+    face = (h < 0.0) & np.all(foot >= -tolerance, axis=-1)
+    face_distance = np.min(np.where(face, -h, np.inf), axis=-1)
+    local = np.einsum("...ij,...kj->...ki", rotation, corners - centre[..., None, :]) / semi_axes[..., None, :]
+    a = local[..., FRUSTUM_EDGES[:, 0], :]
+    edge = local[..., FRUSTUM_EDGES[:, 1], :] - a
+    length2 = dot(edge, edge)
+    t = np.clip(-dot(a, edge) / np.where(length2 > 0.0, length2, 1.0), 0.0, 1.0)
+    edge_distance = np.min(norm(a + t[..., None] * edge), axis=-1)
+    return np.where(np.all(h >= 0.0, axis=-1), 0.0, np.minimum(face_distance, edge_distance))
+
+
+#: Relative slack of the exact test in float64: rounding never drops an ellipsoid that touches.
+EXACT_SLACK = 1e-9
+
+
+def ellipsoid_frustum_overlap_exact(planes, corners, centre, semi_axes, rotation):
+    """Exact ellipsoid-frustum test: True iff the ellipsoid meets the frustum (stretched distance
+    <= 1, :func:`ellipsoid_frustum_distance`). Unlike :func:`ellipsoid_frustum_overlap` it rejects
+    ellipsoids beyond an edge or corner that no single plane separates."""
+    return ellipsoid_frustum_distance(planes, corners, centre, semi_axes, rotation) <= 1.0 + EXACT_SLACK
+
+
 def glossy_vpl_radiance(receiver, receiver_normal, receiver_albedo, position, normal, incoming,
                         roughness, flux_rgb, rs_rgb):
     """Unshadowed radiance a glossy VPL puts on a diffuse receiver at x:
@@ -356,3 +406,25 @@ def tile_frustum_planes(inverse_projection, view_to_world, tile_ndc_min, tile_nd
     planes.append(np.array([0.0, 0.0, -1.0, -depth_min]))  # -z >= depth_min
     planes.append(np.array([0.0, 0.0, 1.0, depth_max]))   # -z <= depth_max
     return np.array(planes) @ w2v
+
+
+def tile_frustum_corners(inverse_projection, view_to_world, tile_ndc_min, tile_ndc_max, depth_min, depth_max):
+    """World-space corners (8, 3) of :func:`tile_frustum_planes`' frustum: k = 0..3 the tile's NDC
+    corners (x0, y0), (x1, y0), (x1, y1), (x0, y1) on their view rays at depth_min, 4 + k the same
+    at depth_max; side plane k holds corners k, k + 1 (mod 4) and their depth_max twins."""
+    inv = f64(inverse_projection)
+    v2w = f64(view_to_world)
+
+    def unproject(x, y, z):
+        p = inv @ np.array([x, y, z, 1.0])
+        return p[:3] / p[3]
+
+    (x0, y0), (x1, y1) = tile_ndc_min, tile_ndc_max
+    corners = []
+    for depth in (depth_min, depth_max):
+        for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):
+            near, far = unproject(x, y, -1.0), unproject(x, y, 1.0)
+            t = (depth + near[2]) / (near[2] - far[2])
+            corners.append(near + t * (far - near))
+    view = np.array(corners)
+    return view @ v2w[:3, :3].T + v2w[:3, 3]
