@@ -225,7 +225,8 @@ def budget(name, path, stride, samples, counts, seed=0):
         figures["vpl_seconds"] = time.perf_counter() - start
 
         mode = diffuse_mode_for_kernel(settings.kernel)
-        for count in counts:
+        # The scene's own N always, since the GPU and frame columns are taken at it.
+        for count in dict.fromkeys([*counts, settings.vsgl_count]):
             vsgls, _ = bench.vsgls(settings.overridden(vsgl_count=count, visibility=False))
             try:
                 for ref_mode, key in (("separable", "vsgl_ref_separable"), ("cosine", "vsgl_ref"),

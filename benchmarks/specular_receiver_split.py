@@ -81,7 +81,8 @@ def split(name, path, stride, materials, counts, frame_sets=True):
         _, _, terms = shade(table, position, normal, view, rd, f0, alpha, diffuse_mode="separable", per_term=True)
         light["sg_lobes_asg"] = terms[:, :, 0, 1].sum(axis=1)
         log(f"{name}: {len(v['flux'])} VPLs, brute force {time.perf_counter() - start:.0f} s")
-        for count in counts:
+        # The scene's own N always, since the GPU and frame columns are taken at it.
+        for count in dict.fromkeys([*counts, settings.vsgl_count]):
             vsgls, _ = bench.vsgls(settings.overridden(vsgl_count=count, visibility=False))
             try:
                 for mode in ("product", "separable"):
