@@ -96,6 +96,8 @@ class LightPlan:
     bounce_estimate: float  # lum W, CPU (no occlusion), before any GPU work
     reason: str
     size_reason: str = ""  # why rsm_size (rsm_size_for_share), once the plan sets it
+    # The RSMViewSpecs of its rsm_views views (light_reach found them; the RSM pass renders them)
+    view_specs: list = field(default_factory=list, repr=False)
     rsm_power: dict = field(default_factory=dict)  # set -> lum Σ Φ(Rd + Rs) over its views, W
     vsgls: dict = field(default_factory=dict)  # set -> VSGLs (sum over views)
     view_vsgls: dict = field(default_factory=dict)  # set -> VSGLs per view
@@ -291,10 +293,10 @@ def _receives(scene, light) -> np.ndarray:
     return np.asarray(light.receivers, bool)[objects] if len(objects) else np.zeros(0, bool)
 
 
-def light_reach(scene, light, bounds=None) -> tuple[int, np.ndarray]:
+def light_reach(scene, light, bounds=None, seen=None) -> tuple[int, np.ndarray]:
     """(RSM views that see a triangle, (T,) bool triangles inside some such view that can bounce the
     light to a receiver). Conservative: a triangle not entirely outside one of a view's clip planes
-    counts, occlusion is not tested."""
+    counts, occlusion is not tested. ``seen``: a list that receives those views' RSMViewSpecs."""
     positions = np.asarray(scene.geometry.positions, np.float64)
     bounds = scene_bounds(scene) if bounds is None else bounds
     reached = np.zeros(len(positions), bool)
@@ -306,6 +308,8 @@ def light_reach(scene, light, bounds=None) -> tuple[int, np.ndarray]:
         if not view_sees_triangles(spec, positions, bounds):
             continue
         views += 1
+        if seen is not None:
+            seen.append(spec)
         clip = np.c_[positions.reshape(-1, 3), np.ones(positions.shape[0] * 3)] @ spec.view_projection.T
         clip = clip.reshape(-1, 3, 4)
         w = clip[..., 3]
@@ -433,7 +437,8 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
     bounds = scene_bounds(scene)
     lights = []
     for index, light in enumerate(scene.lights):
-        views, mask = light_reach(scene, light, bounds)
+        specs = []
+        views, mask = light_reach(scene, light, bounds, specs)
         estimate = bounce_estimate(scene, light, mask)
         if views == 0:
             reason = "its views see no triangle"
@@ -443,7 +448,8 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
             reason = "RSM for the direct light's shadows; no reflectance in reach, no bounce expected"
         else:
             reason = f"bounce ≈ {estimate:.3g} W (CPU estimate, no occlusion)"
-        lights.append(LightPlan(index, light.name, views, settings.rsm_size, estimate, reason))
+        lights.append(LightPlan(index, light.name, views, settings.rsm_size, estimate, reason,
+                                view_specs=specs if views else []))
     if settings.kernel != "two-vsgl":
         total = sum(light.bounce_estimate for light in lights if light.gets_rsm)
         for light in lights:
