@@ -107,6 +107,9 @@ def test_lights_that_reach_nothing_get_no_rsm_and_the_others_are_planned():
     assert not by_name["Away"].gets_rsm and "see no triangle" in by_name["Away"].reason
     assert not by_name["Unlinked"].gets_rsm and "light linking" in by_name["Unlinked"].reason
     assert plan.rsm_lights() == [by_name["Down"].index]
+    # The RSM pass renders the views the plan found: as many as it counts (the cube face looking up
+    # above the floor and the wall sees no triangle), none for the others.
+    assert [len(light.view_specs) for light in plan.lights] == [light.rsm_views for light in plan.lights] == [5, 0, 0]
 
 
 @pytest.mark.parametrize("rsm_size, share, side", [
