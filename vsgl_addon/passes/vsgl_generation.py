@@ -11,8 +11,8 @@ Four shader stages (``glsl/vsgl_generation/``), compiled once per process and ca
    reference's channel order: lobes, then each lobe's position moments) and the PDF weight
    (plane 5; by default lum(Φ (Rd + Rs)), or a custom PDF image).
 2. ``mip_reduce_level1.frag.glsl``: level 1 of every plane, one draw over their stacked regions
-   of the **mip atlas** (one draw per plane cost a frame of 32 point lights' 190 views 950 draws), each texel the mean of its 2x2 children (the reference's
-   ``build_mip_chain``, same order of additions).
+   of the **mip atlas** (one per RSM view, not one per plane), each texel the mean of its 2x2
+   children (the reference's ``build_mip_chain``, same order of additions).
    Stages 1-2 are fragment passes because render targets are the fast write path everywhere; on
    llvmpipe compute image stores were ~6x slower (512² atlas: 19 ms instead of 125 ms).
 2b. ``mip_reduce.comp.glsl``: levels 2..top, one compute dispatch per level, all five planes at
