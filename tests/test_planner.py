@@ -107,6 +107,41 @@ def test_lights_that_reach_nothing_get_no_rsm_and_the_others_are_planned():
     assert not by_name["Away"].gets_rsm and "see no triangle" in by_name["Away"].reason
     assert not by_name["Unlinked"].gets_rsm and "light linking" in by_name["Unlinked"].reason
     assert plan.rsm_lights() == [by_name["Down"].index]
+    # The RSM pass renders the views the plan found: as many as it counts (the cube face looking up
+    # above the floor and the wall sees no triangle), none for the others.
+    assert [len(light.view_specs) for light in plan.lights] == [light.rsm_views for light in plan.lights] == [5, 0, 0]
+
+
+@pytest.mark.parametrize("rsm_size, share, side", [
+    (128, 1.0, 128),  # a lone light: the settings' side
+    (128, 0.3, 128),  # √0.3 × 128 = 70, rounded up to a power of two
+    (128, 0.2, 64),  # 57
+    (128, 0.03, 32),  # 22: a point light's part of 32 lights
+    (128, 0.001, P.MIN_RSM_SIZE),  # 4: the floor
+    (16, 0.001, 16),  # never above the settings' side
+    (128, 0.0, P.MIN_RSM_SIZE),
+])
+def test_rsm_side_follows_the_square_root_of_the_expected_share(rsm_size, share, side):
+    assert P.rsm_size_for_share(rsm_size, share) == side
+
+
+def test_lights_sharing_n_get_smaller_rsms_and_their_lines_say_why():
+    many = [point_light((x, y, 2.0), power=100.0) for x in (-2.0, -1.0, 0.0, 1.0, 2.0) for y in (-1.0, 0.0, 1.0)]
+    many += [point_light((x, 0.5, 1.0), power=100.0) for x in (-1.5, -0.5, 0.5, 1.5)]
+    settings = VSGLSettings(vsgl_count=256, rsm_size=128)
+    plan = P.plan_frame(_room(many), settings, ProxyCache())
+    total = sum(light.bounce_estimate for light in plan.lights)
+    for light in plan.lights:
+        assert light.rsm_size == P.rsm_size_for_share(128, light.bounce_estimate / total) < 128
+        assert light.rsm_size >= P.MIN_RSM_SIZE
+        line = plan.light_line(light)
+        assert f"{light.rsm_size}²" in line and f"× 128 → {light.rsm_size}" in line
+    assert min(light.rsm_size for light in plan.lights) == P.MIN_RSM_SIZE  # 19 lights: ≈ 5 % each
+    alone = P.plan_frame(_room(many[:1]), settings, ProxyCache())
+    assert alone.lights[0].rsm_size == 128 and "√(100 % expected share of N) × 128 → 128" in alone.light_line(
+        alone.lights[0])
+    report = json.loads(json.dumps(plan.to_dict()))
+    assert report["lights"][0]["size_reason"] == plan.lights[0].size_reason
 
 
 def _spot_matrix(position, up=False):

@@ -68,33 +68,51 @@ class TextureLayout:
     def index(self, slot: str) -> int:
         return self.slot_names.index(slot)
 
-    def _placements(self):
-        """(slot index, channel, field, first component of the field, count) of every entry."""
+    def _derived(self) -> tuple:
+        """(placements, field widths, per-table fields) of the current ``slots``, computed once per
+        slots tuple: every RSM view's constants and every VSGL table read back go through pack /
+        unpack, a few hundred calls a frame with many lights. Keyed by the tuple itself, so a
+        layout whose ``slots`` is replaced (tests reorder declarations) derives them again."""
+        cached = self.__dict__.get("_derived_cache")
+        if cached is not None and cached[0] is self.slots:
+            return cached[1]
         used: dict[str, int] = {}
+        entries = []
+        widths: dict[str, int] = {}
         for index, slot in enumerate(self.slots):
             channel = 0
             for name, count in slot.fields:
-                yield index, channel, name, used.get(name, 0), count
+                entries.append((index, channel, name, used.get(name, 0), count))
                 used[name] = used.get(name, 0) + count
+                widths[name] = widths.get(name, 0) + count
                 channel += count
+        per_table = tuple(name for slot in self.slots if slot.per_table for name, _ in slot.fields)
+        derived = (tuple(entries), widths, per_table)
+        object.__setattr__(self, "_derived_cache", (self.slots, derived))
+        return derived
+
+    def _placements(self):
+        """(slot index, channel, field, first component of the field, count) of every entry."""
+        return iter(self._derived()[0])
+
+    @property
+    def _field_widths(self) -> dict[str, int]:
+        return self._derived()[1]
 
     @property
     def fields(self) -> dict[str, int]:
         """Field name -> component count, in order of first appearance."""
-        widths: dict[str, int] = {}
-        for _, _, name, _, count in self._placements():
-            widths[name] = widths.get(name, 0) + count
-        return widths
+        return dict(self._field_widths)
 
     def per_table_fields(self) -> tuple[str, ...]:
-        return tuple(name for slot in self.slots if slot.per_table for name, _ in slot.fields)
+        return self._derived()[2]
 
     def record_fields(self) -> tuple[str, ...]:
         per_table = set(self.per_table_fields())
-        return tuple(name for name in self.fields if name not in per_table)
+        return tuple(name for name in self._field_widths if name not in per_table)
 
     def field_shape(self, name: str) -> tuple[int, ...]:
-        width = self.fields[name]
+        width = self._field_widths[name]
         return () if width == 1 else (width,)
 
     def defines(self) -> dict[str, int]:
@@ -127,7 +145,7 @@ class TextureLayout:
         per_table = set(self.per_table_fields())
         records = self._read([table[index, :count] for index in range(len(self.slots))])
         firsts = self._read([table[index, 0] for index in range(len(self.slots))])
-        return {name: firsts[name] if name in per_table else records[name] for name in self.fields}
+        return {name: firsts[name] if name in per_table else records[name] for name in self._field_widths}
 
     def pack(self, values, count: int, width: int | None = None) -> np.ndarray:
         """(slots, max(width, count, 1), 4) float32 table of the fields `values` has (others 0)."""
@@ -137,7 +155,7 @@ class TextureLayout:
             if name not in values:
                 continue
             value = np.asarray(values[name], dtype=np.float64)
-            value = value.reshape(value.shape + (1,)) if self.fields[name] == 1 else value
+            value = value.reshape(value.shape + (1,)) if self._field_widths[name] == 1 else value
             if name in per_table:
                 table[index, 0, channel:channel + number] = value[first:first + number]
             elif count:
@@ -152,7 +170,7 @@ class TextureLayout:
             if name not in values:
                 continue
             value = np.asarray(values[name])
-            value = value[..., None] if self.fields[name] == 1 else value[..., first:first + number]
+            value = value[..., None] if self._field_widths[name] == 1 else value[..., first:first + number]
             out[self.slots[index].name][..., channel:channel + number] = value
         return out
 
@@ -165,7 +183,7 @@ class TextureLayout:
     # --- GLSL ----------------------------------------------------------------------------------
 
     def _member(self, name: str, first: int, count: int) -> str:
-        if self.fields[name] == count:
+        if self._field_widths[name] == count:
             return f"r.{name}"
         return f"r.{name}.{_COMPONENTS[first:first + count]}"
 

@@ -213,8 +213,11 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
     try:
         view_powers = {}
         for light_index in plan.rsm_lights():
-            views = render_rsm_views(scene_gpu, light_index, plan.lights[light_index].rsm_size, receiver_lobe,
-                                     proxies, sharp_alpha)
+            light_plan = plan.lights[light_index]
+            # The views the planner culled already (light_reach): not tested a second time per frame.
+            specs = light_plan.view_specs if len(light_plan.view_specs) == light_plan.rsm_views else None
+            views = render_rsm_views(scene_gpu, light_index, light_plan.rsm_size, receiver_lobe,
+                                     proxies, sharp_alpha, specs)
             result.views_by_light[light_index] = views
             totals = []
             for view_index, view in enumerate(views):

@@ -43,9 +43,14 @@ from .views import light_view_specs, scene_bounds, view_sees_triangles
 #: VSGLs: its light is still drawn directly, its bounce is dropped (a bias of at most this much).
 NEGLIGIBLE_BOUNCE = 1e-3
 
-#: Smallest RSM side the plan gives a light: its views are also the direct light's shadow maps
-#: (003 finds 64² to 128² enough for VSGLs of a local light).
-MIN_RSM_SIZE = 64
+#: Smallest RSM side the plan gives a light that shares N with others. √share × the settings' side
+#: keeps a light's texels per VSGL what one light alone has (128² for N = 256: 64); a point light
+#: with 3 % of N (8 VSGLs over 6 cube views) needs 11² per view for that, so 32² still gives each of
+#: its VSGLs 12 times the lone light's texels. The views are also the direct light's shadow maps,
+#: whose texel grows with it (a 90° cube face of 32²: 2.8°). Measured on 32 point lights at N = 256
+#: (benchmarks/frame_planner.py's 32-light variant, llvmpipe): the light passes 553 -> 340 ms from a
+#: 64² floor to 32², 278 ms at 16².
+MIN_RSM_SIZE = 32
 
 #: GGX α of the receivers MRP-ASG shades (both ends included); rougher ones take the proxies' light
 #: from the VSGLs. Measured: the receiver's SG (001 Eqs. 6, 8) fits a rough GGX NDF poorly (α ≥ 0.5
@@ -90,6 +95,9 @@ class LightPlan:
     rsm_size: int
     bounce_estimate: float  # lum W, CPU (no occlusion), before any GPU work
     reason: str
+    size_reason: str = ""  # why rsm_size (rsm_size_for_share), once the plan sets it
+    # The RSMViewSpecs of its rsm_views views (light_reach found them; the RSM pass renders them)
+    view_specs: list = field(default_factory=list, repr=False)
     rsm_power: dict = field(default_factory=dict)  # set -> lum Σ Φ(Rd + Rs) over its views, W
     vsgls: dict = field(default_factory=dict)  # set -> VSGLs (sum over views)
     view_vsgls: dict = field(default_factory=dict)  # set -> VSGLs per view
@@ -168,7 +176,8 @@ class FramePlan:
             if total > 0.0:
                 share = f", {100.0 * light.rsm_power[sets[0]] / total:.1f} % of the bounce"
         views = f"{light.rsm_views} RSM view{'s' if light.rsm_views != 1 else ''} {light.rsm_size}²"
-        return f"Light {light.name}: {views}, {counts or 'VSGLs not allocated yet'}{share} — {light.reason}"
+        size = f"; {light.size_reason}" if light.size_reason else ""
+        return f"Light {light.name}: {views}, {counts or 'VSGLs not allocated yet'}{share} — {light.reason}{size}"
 
     def to_dict(self) -> dict:
         """The JSON report's ``plan``."""
@@ -180,7 +189,8 @@ class FramePlan:
             "dropped_bounce_fraction": dict(self.dropped_bounce),
             "decisions": {name: {"run": d.run, "reason": d.reason} for name, d in self.decisions.items()},
             "lights": [{"index": light.index, "name": light.name, "rsm_views": light.rsm_views,
-                        "rsm_size": light.rsm_size, "bounce_estimate": light.bounce_estimate,
+                        "rsm_size": light.rsm_size, "size_reason": light.size_reason,
+                        "bounce_estimate": light.bounce_estimate,
                         "rsm_power": dict(light.rsm_power), "vsgls": dict(light.vsgls),
                         "view_vsgls": dict(light.view_vsgls), "reason": light.reason}
                        for light in self.lights],
@@ -283,10 +293,10 @@ def _receives(scene, light) -> np.ndarray:
     return np.asarray(light.receivers, bool)[objects] if len(objects) else np.zeros(0, bool)
 
 
-def light_reach(scene, light, bounds=None) -> tuple[int, np.ndarray]:
+def light_reach(scene, light, bounds=None, seen=None) -> tuple[int, np.ndarray]:
     """(RSM views that see a triangle, (T,) bool triangles inside some such view that can bounce the
     light to a receiver). Conservative: a triangle not entirely outside one of a view's clip planes
-    counts, occlusion is not tested."""
+    counts, occlusion is not tested. ``seen``: a list that receives those views' RSMViewSpecs."""
     positions = np.asarray(scene.geometry.positions, np.float64)
     bounds = scene_bounds(scene) if bounds is None else bounds
     reached = np.zeros(len(positions), bool)
@@ -298,6 +308,8 @@ def light_reach(scene, light, bounds=None) -> tuple[int, np.ndarray]:
         if not view_sees_triangles(spec, positions, bounds):
             continue
         views += 1
+        if seen is not None:
+            seen.append(spec)
         clip = np.c_[positions.reshape(-1, 3), np.ones(positions.shape[0] * 3)] @ spec.view_projection.T
         clip = clip.reshape(-1, 3, 4)
         w = clip[..., 3]
@@ -425,7 +437,8 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
     bounds = scene_bounds(scene)
     lights = []
     for index, light in enumerate(scene.lights):
-        views, mask = light_reach(scene, light, bounds)
+        specs = []
+        views, mask = light_reach(scene, light, bounds, specs)
         estimate = bounce_estimate(scene, light, mask)
         if views == 0:
             reason = "its views see no triangle"
@@ -435,12 +448,17 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
             reason = "RSM for the direct light's shadows; no reflectance in reach, no bounce expected"
         else:
             reason = f"bounce ≈ {estimate:.3g} W (CPU estimate, no occlusion)"
-        lights.append(LightPlan(index, light.name, views, settings.rsm_size, estimate, reason))
+        lights.append(LightPlan(index, light.name, views, settings.rsm_size, estimate, reason,
+                                view_specs=specs if views else []))
     if settings.kernel != "two-vsgl":
         total = sum(light.bounce_estimate for light in lights if light.gets_rsm)
         for light in lights:
             if light.gets_rsm and total > 0.0:
-                light.rsm_size = rsm_size_for_share(settings.rsm_size, light.bounce_estimate / total)
+                share = light.bounce_estimate / total
+                light.rsm_size = rsm_size_for_share(settings.rsm_size, share)
+                light.size_reason = (f"RSM side √({100.0 * share:.3g} % expected share of N) × {settings.rsm_size}"
+                                     f" → {light.rsm_size} (a power of two, at least "
+                                     f"{min(MIN_RSM_SIZE, settings.rsm_size)})")
     rsm_lights = sum(light.gets_rsm for light in lights)
     decisions = {}
     if settings.kernel == "two-vsgl":

@@ -10,9 +10,9 @@ Four shader stages (``glsl/vsgl_generation/``), compiled once per process and ca
    (six render targets): the 20 per-texel VPL moment channels of 000 app. B.3 (planes 0-4, the
    reference's channel order: lobes, then each lobe's position moments) and the PDF weight
    (plane 5; by default lum(Φ (Rd + Rs)), or a custom PDF image).
-2. ``mip_reduce_level1.frag.glsl``: level 1 of each plane, one draw per plane into its region of
-   the **mip atlas**, each texel the mean of its 2x2 children (the reference's
-   ``build_mip_chain``, same order of additions).
+2. ``mip_reduce_level1.frag.glsl``: level 1 of every plane, one draw over their stacked regions
+   of the **mip atlas** (one per RSM view, not one per plane), each texel the mean of its 2x2
+   children (the reference's ``build_mip_chain``, same order of additions).
    Stages 1-2 are fragment passes because render targets are the fast write path everywhere; on
    llvmpipe compute image stores were ~6x slower (512² atlas: 19 ms instead of 125 ms).
 2b. ``mip_reduce.comp.glsl``: levels 2..top, one compute dispatch per level, all five planes at
@@ -99,8 +99,8 @@ def _texel_moments_interface() -> ShaderInterface:
 
 def _mip_reduce_level1_interface() -> ShaderInterface:
     return ShaderInterface(
-        push_constants=[("IVEC2", "target_origin")],
-        samplers=[("FLOAT_2D", "level0_source")],
+        push_constants=[("INT", "plane_side")],
+        samplers=_LEVEL0_SAMPLERS,
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
         fragment_outputs=[("VEC4", "level1_out")],
@@ -366,17 +366,16 @@ class VSGLGeneration:
                             pdf_texture if pdf_texture is not None else rsm_textures.flux_diffuse)
                 batch.draw(moments)
             if layout.top_level >= 1:
-                # Level 1 of each plane: a draw into its region of the atlas.
+                # Level 1 of every plane: one draw over the atlas's level-1 column (planes stacked).
                 first = shader("mip_reduce_level1")
                 side = size >> 1
                 with self._atlas_framebuffer.bind():
                     first.bind()
+                    gpu.state.viewport_set(0, 0, side, side * ATLAS_PLANES)
+                    set_uniform(first.uniform_int, "plane_side", side)
                     for plane, texture in enumerate(self.level0):
-                        x, y = layout.origin(1, plane)
-                        gpu.state.viewport_set(x, y, side, side)
-                        set_uniform(first.uniform_int, "target_origin", (x, y))
-                        first.uniform_sampler("level0_source", texture)
-                        batch.draw(first)
+                        first.uniform_sampler(f"level0_plane{plane}", texture)
+                    batch.draw(first)
         finally:
             gpu.state.blend_set(saved[0])
             gpu.state.depth_test_set(saved[1])
