@@ -29,13 +29,15 @@ ivec2 ism_texel(vec3 d, int size)
   return clamp(ivec2(cell), ivec2(0), ivec2(size - 1));
 }
 
-// A lobe's shadow origin: its mean moved this many sigma_v along its unit axis (reference
-// shadow_origin: the mean of a curved cluster lies behind its own surface).
-const float ISM_SHADOW_ORIGIN_SIGMAS = 0.5;
+// A lobe's shadow origin: its mean moved ISM_SHADOW_ORIGIN_SIGMAS sigma_v along its unit axis
+// (reference shadow_origin: the mean of a curved cluster lies behind its own surface). A
+// compile-time define of every shader that requires this file, the reference's
+// SHADOW_ORIGIN_SIGMAS (vsgl_addon/shaders.py LIBRARY_DEFINES), so the maps' origins
+// (ism_origins.comp.glsl) and the lookups centred on them agree.
 
 vec3 ism_shadow_origin(vec3 mean, float variance, vec3 axis)
 {
-  return mean + ISM_SHADOW_ORIGIN_SIGMAS * sqrt(max(variance, 0.0)) * axis;
+  return mean + float(ISM_SHADOW_ORIGIN_SIGMAS) * sqrt(max(variance, 0.0)) * axis;
 }
 
 // Largest tan of the receiver's incidence the slope-scaled bias follows (reference ISM_MAX_SLOPE).
