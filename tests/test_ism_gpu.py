@@ -244,7 +244,7 @@ def test_glsl_vsgl_map_origins_match_the_reference(count, maps_per_vsgl, first_m
 
 @pytest.mark.parametrize("origin_sigmas", [0.0, 1.0, 1.5])
 def test_maps_built_at_another_shadow_origin_offset_follow_the_reference(origin_sigmas):
-    """The offset is compiled into the shaders (glsl/lib/ism.glsl ISM_SHADOW_ORIGIN_SIGMAS): set
+    """The offset is compiled into the shaders (glsl/lib/ism.glsl ISM_ORIGIN_SIGMAS): set
     after a first build, the next build compiles again and centres the maps where the float64 twin
     does, origin_sigmas σ_v off the mean."""
     from vsgl_addon.passes.gpu_util import read_texture

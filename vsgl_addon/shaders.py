@@ -120,7 +120,7 @@ def _dependency_order(stage: str, roots: tuple[Path, ...]) -> list[tuple[str, Pa
 def _ism_defines() -> dict[str, object]:
     from .reference import ism
 
-    return {"ISM_SHADOW_ORIGIN_SIGMAS": repr(float(ism.SHADOW_ORIGIN_SIGMAS))}
+    return {"ISM_ORIGIN_SIGMAS": repr(float(ism.SHADOW_ORIGIN_SIGMAS))}
 
 
 #: Defines a library takes from its float64 twin, added to every shader that requires it (read at

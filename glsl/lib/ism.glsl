@@ -30,14 +30,15 @@ ivec2 ism_texel(vec3 d, int size)
 }
 
 // A lobe's shadow origin: its mean moved ISM_SHADOW_ORIGIN_SIGMAS sigma_v along its unit axis
-// (reference shadow_origin: the mean of a curved cluster lies behind its own surface). A
-// compile-time define of every shader that requires this file, the reference's
+// (reference shadow_origin: the mean of a curved cluster lies behind its own surface). It is the
+// define ISM_ORIGIN_SIGMAS of every shader that requires this file, the reference's
 // SHADOW_ORIGIN_SIGMAS (vsgl_addon/shaders.py LIBRARY_DEFINES), so the maps' origins
 // (ism_origins.comp.glsl) and the lookups centred on them agree.
+const float ISM_SHADOW_ORIGIN_SIGMAS = float(ISM_ORIGIN_SIGMAS);
 
 vec3 ism_shadow_origin(vec3 mean, float variance, vec3 axis)
 {
-  return mean + float(ISM_SHADOW_ORIGIN_SIGMAS) * sqrt(max(variance, 0.0)) * axis;
+  return mean + ISM_SHADOW_ORIGIN_SIGMAS * sqrt(max(variance, 0.0)) * axis;
 }
 
 // Largest tan of the receiver's incidence the slope-scaled bias follows (reference ISM_MAX_SLOPE).

@@ -176,9 +176,9 @@ class MapOrigins:
 def set_shadow_origin_sigmas(sigmas: float) -> None:
     """Centre the maps (and every lookup in them) ``sigmas`` σ_v off each lobe's mean along its axis
     (reference.ism.shadow_origin): sets reference.ism.SHADOW_ORIGIN_SIGMAS, the float64 twin, which
-    every shader requiring glsl/lib/ism.glsl is compiled with (its define ISM_SHADOW_ORIGIN_SIGMAS:
+    every shader requiring glsl/lib/ism.glsl is compiled with (its define ISM_ORIGIN_SIGMAS:
     the map origins here, the VSGL shading's and the VPL clusters' lookups; passes/contract.py
-    keeps one compiled variant per value)."""
+    compiles them again when it changed)."""
     from ..reference import ism as reference_ism
 
     sigmas = float(sigmas)

@@ -221,8 +221,8 @@ def pull_push(depth) -> np.ndarray:
 
 
 #: A lobe's shadow origin lies this many σ_v from its mean along its axis (shadow_origin). The
-#: GPU's twin is the define ISM_SHADOW_ORIGIN_SIGMAS of glsl/lib/ism.glsl, compiled from this value
-#: (vsgl_addon/shaders.py LIBRARY_DEFINES; passes/ism.py set_shadow_origin_sigmas changes both).
+#: GPU's twin is ISM_SHADOW_ORIGIN_SIGMAS of glsl/lib/ism.glsl, compiled from this value (its define
+#: ISM_ORIGIN_SIGMAS, vsgl_addon/shaders.py LIBRARY_DEFINES; passes/ism.py set_shadow_origin_sigmas).
 SHADOW_ORIGIN_SIGMAS = 0.5
 
 
