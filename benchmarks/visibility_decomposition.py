@@ -5,7 +5,7 @@ and relative RMSE against Cycles on one pixel subset.
 
     .venv/bin/python benchmarks/visibility_decomposition.py [--only NAME ...] [--stride S] [--samples K]
         [--skip-vpls [NAME ...]] [--k K] [--vsgl-count N] [--ism-points P] [--origin-sigmas S]
-        [--max-slope T] [--filter-radius R] [--append] [--results-dir DIR]
+        [--map-origin-sigmas S] [--max-slope T] [--filter-radius R] [--append] [--results-dir DIR]
 
 On every S-th pixel (both ways) of the suite's 240x180 camera G-buffer, per pixel, the luminance of:
 
@@ -28,7 +28,9 @@ noise-corrected relative RMSE sqrt(mean((x − a)(x − b))) / mean(truth) of th
 truth's two seeds) over the subset, for all its pixels and per material. Knobs of the float64
 lookups (the GPU's maps themselves stay as built): ``--origin-sigmas`` moves the exact rows' shadow
 origin, ``--max-slope`` caps the maps' slope-scaled bias, ``--filter-radius`` the maps' filter;
-``--k``, ``--vsgl-count`` and ``--ism-points`` change the scene's settings. The sampled visibility's
+``--map-origin-sigmas`` builds the maps themselves (and centres every row's lookups) that many σv
+off the mean (passes/ism.py set_shadow_origin_sigmas); ``--k``, ``--vsgl-count`` and
+``--ism-points`` change the scene's settings. The sampled visibility's
 own noise (K rays per pixel) is charged to the VPL rows: their rel RMSE carries it (printed: the
 standard error of the visible share, relative to the mean). Writes
 ``benchmarks/results/visibility_decomposition.md``.
@@ -208,6 +210,9 @@ def main(argv=None):
     parser.add_argument("--origin-sigmas", type=float, default=None,
                         help="the exact rows' shadow origin this many σv off the mean (reference/ism.py "
                              "SHADOW_ORIGIN_SIGMAS; the GPU's maps keep theirs)")
+    parser.add_argument("--map-origin-sigmas", type=float, default=None,
+                        help="the GPU's maps built (and every row looked up) this many σv off the mean "
+                             "(passes/ism.py set_shadow_origin_sigmas)")
     parser.add_argument("--max-slope", type=float, default=None,
                         help="the maps' lookup with this cap of the slope-scaled bias (reference/ism.py ISM_MAX_SLOPE)")
     parser.add_argument("--filter-radius", type=int, default=None,
@@ -225,6 +230,10 @@ def main(argv=None):
                                                                   ("ism_points", args.ism_points)) if value is not None}
     knobs = {key: value for key, value in (("origin_sigmas", args.origin_sigmas), ("max_slope", args.max_slope),
                                            ("filter_radius", args.filter_radius)) if value is not None}
+    if args.map_origin_sigmas is not None:
+        from vsgl_addon.passes.ism import set_shadow_origin_sigmas
+
+        set_shadow_origin_sigmas(args.map_origin_sigmas)
     results = {}
     for name, path, _ in suite():
         if name in args.only:
@@ -235,6 +244,7 @@ def main(argv=None):
     argv_text = (f"--only {' '.join(args.only)} --stride {args.stride} --samples {args.samples}"
                  + "".join(f" --{key.replace('_', '-')} {value}" for key, value in overrides.items())
                  + "".join(f" --{key.replace('_', '-')} {value}" for key, value in knobs.items())
+                 + ("" if args.map_origin_sigmas is None else f" --map-origin-sigmas {args.map_origin_sigmas}")
                  + ("" if args.skip_vpls is None else (" --skip-vpls " + " ".join(args.skip_vpls)).rstrip()))
     target = args.results_dir / "visibility_decomposition.md"
     append = args.append and target.is_file()

@@ -242,6 +242,35 @@ def test_glsl_vsgl_map_origins_match_the_reference(count, maps_per_vsgl, first_m
     np.testing.assert_array_equal(got[2], 0.0)
 
 
+@pytest.mark.parametrize("origin_sigmas", [0.0, 1.0, 1.5])
+def test_maps_built_at_another_shadow_origin_offset_follow_the_reference(origin_sigmas):
+    """The offset is compiled into the shaders (glsl/lib/ism.glsl ISM_ORIGIN_SIGMAS): set
+    after a first build, the next build compiles again and centres the maps where the float64 twin
+    does, origin_sigmas σ_v off the mean."""
+    from vsgl_addon.passes.gpu_util import read_texture
+    from vsgl_addon.passes.vsgl_shading import upload_vsgl_table
+
+    vsgls = _vsgl_table(37)
+    stored = {name: np.asarray(value, np.float32) for name, value in vsgls.items()}
+    table = upload_vsgl_table(vsgls)
+    saved = ism.SHADOW_ORIGIN_SIGMAS
+    at_default = read_texture(ism_pass.vsgl_map_origins(table.texture, 37, 2, 0, 8, 0.3).texture, 74, 3)
+    try:
+        ism_pass.set_shadow_origin_sigmas(origin_sigmas)
+        got = read_texture(ism_pass.vsgl_map_origins(table.texture, 37, 2, 0, 8, 0.3).texture, 74, 3)
+        want, _, _ = ism.vsgl_map_origins(stored, 2, 0, 8, 0.3)
+    finally:
+        ism_pass.set_shadow_origin_sigmas(saved)
+    np.testing.assert_allclose(got[0, :, :3], want, rtol=1e-6, atol=1e-6)
+    variance = np.stack([stored["diffuse_variance"], stored["specular_variance"]], 1).reshape(-1)
+    axis = np.stack([stored["diffuse_axis"], stored["specular_axis"]], 1).reshape(-1, 3)
+    np.testing.assert_allclose(got[0, :, :3] - at_default[0, :, :3],
+                               (origin_sigmas - saved) * np.sqrt(np.maximum(variance, 0.0))[:, None] * axis,
+                               rtol=1e-4, atol=1e-5)
+    with pytest.raises(ValueError):
+        ism_pass.set_shadow_origin_sigmas(-1.0)
+
+
 def test_vsgl_map_origins_refuse_other_map_counts():
     with pytest.raises(ValueError):
         ism.vsgl_map_origins(_vsgl_table(2), 3, 0, 8, 1.0)

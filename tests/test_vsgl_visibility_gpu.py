@@ -56,8 +56,24 @@ def _maps(vsgls, size=16):
                              min_distance=2.0 * sigma)
 
 
-@pytest.mark.parametrize("diffuse_mode", [vs.diffuse_mode_for_kernel("modified"), "cosine"])
-def test_shading_with_visibility_matches_the_reference_and_the_wall_shadows(diffuse_mode):
+@pytest.fixture
+def origin_sigmas(request):
+    """The shadow origin offset of the test (passes/ism.py set_shadow_origin_sigmas), restored after."""
+    from vsgl_addon.reference import ism
+
+    saved = ism.SHADOW_ORIGIN_SIGMAS
+    ism_pass.set_shadow_origin_sigmas(saved if request.param is None else request.param)
+    yield ism.SHADOW_ORIGIN_SIGMAS
+    ism_pass.set_shadow_origin_sigmas(saved)
+
+
+# The default offset with both diffuse modes; another offset: the lookups centre each map where
+# the reference does.
+@pytest.mark.parametrize("diffuse_mode,origin_sigmas", [(vs.diffuse_mode_for_kernel("modified"), None),
+                                                        ("cosine", None),
+                                                        (vs.diffuse_mode_for_kernel("modified"), 1.0)],
+                         indirect=["origin_sigmas"])
+def test_shading_with_visibility_matches_the_reference_and_the_wall_shadows(diffuse_mode, origin_sigmas):
     vsgls = _vsgls()
     g, wall = _gbuffer()
     atlas = _maps(vsgls)

@@ -117,6 +117,17 @@ def _dependency_order(stage: str, roots: tuple[Path, ...]) -> list[tuple[str, Pa
     return order
 
 
+def _ism_defines() -> dict[str, object]:
+    from .reference import ism
+
+    return {"ISM_ORIGIN_SIGMAS": repr(float(ism.SHADOW_ORIGIN_SIGMAS))}
+
+
+#: Defines a library takes from its float64 twin, added to every shader that requires it (read at
+#: compile time, so each of its users compiles with the twin's current value; a shader's own
+#: defines win).
+LIBRARY_DEFINES = {"lib/ism.glsl": _ism_defines}
+
 #: How messages name the generated code of ``compose(..., code=...)``.
 GENERATED_CODE = "<generated layout code>"
 
@@ -125,14 +136,18 @@ def compose(stage: str, root: Roots = GLSL_ROOT, defines: dict[str, object] | No
             first_tag: int = 1, code: str = "") -> ComposedSource:
     """The stage source `stage` (relative to a root) preceded by its libraries, each `#line`-tagged.
 
-    `defines` become `#define NAME VALUE` lines at the top; `code` (GLSL generated from a layout
+    `defines` (after those of the libraries it requires, LIBRARY_DEFINES) become `#define NAME
+    VALUE` lines at the top; `code` (GLSL generated from a layout
     declaration, :mod:`vsgl_addon.layouts`) follows them, tagged like a file, before the libraries.
     Files are tagged first_tag, first_tag + 1, ...: the stages of one shader take disjoint ranges,
     or a message could not tell a vertex file from a fragment file.
     """
+    order = _dependency_order(stage, _roots(root))
     files = [(GENERATED_CODE, code)] if code.strip() else []
-    files += [(_display_name(path), path) for _, path in _dependency_order(stage, _roots(root))]
-    parts = [f"#define {name} {value}" for name, value in (defines or {}).items()]
+    files += [(_display_name(path), path) for _, path in order]
+    defines = {**{name: value for relative, _ in order if relative in LIBRARY_DEFINES
+                  for name, value in LIBRARY_DEFINES[relative]().items()}, **(defines or {})}
+    parts = [f"#define {name} {value}" for name, value in defines.items()]
     for index, (_, source) in enumerate(files, start=first_tag):
         # `#line N` numbers the next line N (GLSL 3.30+), so a file's first line is tagged index*STRIDE + 1.
         parts.append(f"#line {index * LINE_STRIDE + 1}")

@@ -29,9 +29,12 @@ ivec2 ism_texel(vec3 d, int size)
   return clamp(ivec2(cell), ivec2(0), ivec2(size - 1));
 }
 
-// A lobe's shadow origin: its mean moved this many sigma_v along its unit axis (reference
-// shadow_origin: the mean of a curved cluster lies behind its own surface).
-const float ISM_SHADOW_ORIGIN_SIGMAS = 0.5;
+// A lobe's shadow origin: its mean moved ISM_SHADOW_ORIGIN_SIGMAS sigma_v along its unit axis
+// (reference shadow_origin: the mean of a curved cluster lies behind its own surface). It is the
+// define ISM_ORIGIN_SIGMAS of every shader that requires this file, the reference's
+// SHADOW_ORIGIN_SIGMAS (vsgl_addon/shaders.py LIBRARY_DEFINES), so the maps' origins
+// (ism_origins.comp.glsl) and the lookups centred on them agree.
+const float ISM_SHADOW_ORIGIN_SIGMAS = float(ISM_ORIGIN_SIGMAS);
 
 vec3 ism_shadow_origin(vec3 mean, float variance, vec3 axis)
 {

@@ -20,7 +20,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
 
-from ..shaders import ShaderInterface, create_shader
+from ..shaders import LIBRARY_DEFINES, ShaderInterface, create_shader
 
 
 @dataclass(frozen=True)
@@ -58,6 +58,12 @@ class ShaderSpec:
                              **self.stages)
 
 
+def _library_state() -> tuple:
+    """The current defines of every library in shaders.LIBRARY_DEFINES (what a compiled shader
+    requiring them was built with)."""
+    return tuple((library, tuple(defines().items())) for library, defines in sorted(LIBRARY_DEFINES.items()))
+
+
 def _free_result(result) -> None:
     if result is None:
         return
@@ -85,9 +91,13 @@ class GPUPass:
         """The compiled shader `key` (the pass's only one when None), cached for the process."""
         if key is None:
             (key,) = self.shaders
-        if key not in self._cache:
+        # Compiled again when a library's defines changed since (a shader compiled before their
+        # twin's value changed would disagree with the shaders compiled after it).
+        state = _library_state()
+        if key not in self._cache or self._cache.get(("library_state", key)) != state:
             shader_name = self.name if key == self.name else re.sub(r"\W", "_", f"{self.name}_{key}")
             self._cache[key] = self.shaders[key].compile(shader_name)
+            self._cache[("library_state", key)] = state
         return self._cache[key]
 
     def resource(self, key: str, make: Callable[[], Any]):

@@ -173,6 +173,20 @@ class MapOrigins:
     count: int
 
 
+def set_shadow_origin_sigmas(sigmas: float) -> None:
+    """Centre the maps (and every lookup in them) ``sigmas`` σ_v off each lobe's mean along its axis
+    (reference.ism.shadow_origin): sets reference.ism.SHADOW_ORIGIN_SIGMAS, the float64 twin, which
+    every shader requiring glsl/lib/ism.glsl is compiled with (its define ISM_ORIGIN_SIGMAS:
+    the map origins here, the VSGL shading's and the VPL clusters' lookups; passes/contract.py
+    compiles them again when it changed)."""
+    from ..reference import ism as reference_ism
+
+    sigmas = float(sigmas)
+    if not math.isfinite(sigmas) or sigmas < 0.0:
+        raise ValueError(f"shadow origin offset must be finite and >= 0 sigma_v, got {sigmas}")
+    reference_ism.SHADOW_ORIGIN_SIGMAS = sigmas
+
+
 def vsgl_map_origins(table_texture, vsgl_count: int, maps_per_vsgl: int, first_map: int, point_sets: int,
                      own_reflector_sigmas: float) -> MapOrigins:
     """The splat's table of the maps of a VSGL table texture (layouts.VSGL_TABLE, ``vsgl_count``

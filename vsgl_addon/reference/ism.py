@@ -220,20 +220,24 @@ def pull_push(depth) -> np.ndarray:
     return np.where(known, filled, EMPTY)
 
 
-#: A lobe's shadow origin lies this many σ_v from its mean along its axis (shadow_origin).
+#: A lobe's shadow origin lies this many σ_v from its mean along its axis (shadow_origin). The
+#: GPU's twin is ISM_SHADOW_ORIGIN_SIGMAS of glsl/lib/ism.glsl, compiled from this value (its define
+#: ISM_ORIGIN_SIGMAS, vsgl_addon/shaders.py LIBRARY_DEFINES; passes/ism.py set_shadow_origin_sigmas).
 SHADOW_ORIGIN_SIGMAS = 0.5
 
 
-def shadow_origin(mean, variance, axis):
-    """Where a VSGL lobe's map is centred: its mean position μ_v moved SHADOW_ORIGIN_SIGMAS·σ_v along
+def shadow_origin(mean, variance, axis, sigmas=None):
+    """Where a VSGL lobe's map is centred: its mean position μ_v moved ``sigmas``·σ_v (None:
+    SHADOW_ORIGIN_SIGMAS, read at the call) along
     its unit lobe axis ξ_v (the direction its light leaves in). μ_v is the mean of its cluster's
     surface points, so on a curved or folded cluster it lies behind the surface (inside a ball,
     behind a block's edge) and a segment from μ_v to a receiver first crosses the cluster's own
     surface; moved off the surface by a fraction of the cluster's spread it sees what the cluster
     sees. Exact visibility (ray-cast, benchmarks/visibility_diagnosis.py) of the occluder scene
     rises from 0.894 to 0.921 of Cycles' light with 0.5 σ_v, the Cornell box's from 0.747 to 0.763."""
+    sigmas = SHADOW_ORIGIN_SIGMAS if sigmas is None else sigmas
     sigma = np.sqrt(np.maximum(f64(variance), 0.0))
-    return f64(mean) + SHADOW_ORIGIN_SIGMAS * sigma[..., None] * f64(axis)
+    return f64(mean) + f64(sigmas) * sigma[..., None] * f64(axis)
 
 
 
