@@ -44,8 +44,12 @@ def _resolve_interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("FLOAT", "projection_11"), ("FLOAT", "sigma_position"),
                         ("FLOAT", "normal_power"), ("FLOAT", "weight")],
-        samplers=[("FLOAT_2D", f"low_{name}") for name in LOW_IMAGES]
-        + [("FLOAT_2D", "guide_position"), ("FLOAT_2D", "guide_normal")],
+        # The render's textures, read texel by texel four to sixteen times per pixel, as images: on
+        # llvmpipe an imageLoad costs a fraction of a texelFetch (benchmarks/results/
+        # view_passes_profile.md). Blender binds at most 8 images per shader, so the guides, read
+        # once per pixel, stay samplers.
+        images=[("RGBA32F", "FLOAT_2D", f"low_{name}") for name in LOW_IMAGES],
+        samplers=[("FLOAT_2D", "guide_position"), ("FLOAT_2D", "guide_normal")],
         vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")], fragment_outputs=_OUTPUTS)
 
 
@@ -169,7 +173,7 @@ def resolve(view, guide_position, guide_normal, camera, projection_11: float, ta
         program.uniform_float("weight", float(weight))
         for name in LOW_IMAGES:
             texture = view.textures.get(name)
-            program.uniform_sampler(f"low_{name}", texture if texture is not None else _black())
+            program.image(f"low_{name}", texture if texture is not None else _black())
         program.uniform_sampler("guide_position", guide_position)
         program.uniform_sampler("guide_normal", guide_normal)
 
