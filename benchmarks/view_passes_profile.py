@@ -19,7 +19,8 @@ read the ratios):
 * the windowless first step after a light moved (light_build_profile.viewport_steps: the light
   passes of the new state, then the coarse image; the coarse size adapts to the steps before).
 
-Medians in ms. The frame at 160 × 90 (FrameRenderer.render_view) and the resolved coarse image are
+Medians in ms, and per stage the median over rounds of the ratio of a round's two processes (run
+back to back). The frame at 160 × 90 (FrameRenderer.render_view) and the resolved coarse image are
 compared between the checkouts: each image's largest absolute difference over its largest value.
 Writes benchmarks/results/view_passes_profile.{md,json} unless --no-write.
 """
@@ -137,6 +138,19 @@ def _medians(children: list[dict]) -> dict:
     return {"viewport_steps": steps, **median}
 
 
+def _pair_ratios(before: list[dict], after: list[dict]) -> dict:
+    """Per stage, the median over rounds of after / before of the two processes of one round (run
+    back to back, so they share the machine's load more than the pooled medians do)."""
+    ratios = {}
+    for old, new in zip(before, after):
+        old, new = _medians([old]), _medians([new])
+        for label in (*SIZES, "first step"):
+            for key, value in new[label].items():
+                if old[label].get(key, 0.0) > 0:
+                    ratios.setdefault(label, {}).setdefault(key, []).append(value / old[label][key])
+    return {label: {key: statistics.median(values) for key, values in part.items()} for label, part in ratios.items()}
+
+
 def _child(repo: Path, name: str, repeats: int, image: Path, python: str) -> dict:
     command = ["nice", "-n", "5", python, str(Path(__file__).resolve()), "--child", name, "--repo", str(repo),
                "--repeats", str(repeats), "--image", str(image)]
@@ -154,7 +168,8 @@ def _table(rows: list[dict], baseline: str | None) -> str:
                          f"{IMAGE_SIZE[0]}×{IMAGE_SIZE[1]}; `resolved_*` the coarse image resolved at "
                          f"{VIEWPORT_REGION[0]}×{VIEWPORT_REGION[1]}): "
                          + ", ".join(f"{key} {value:.2e}" for key, value in row["image_difference"].items()) + ".\n")
-            lines.append("| size | stage | before (ms) | after (ms) | after / before |\n|---|---|---|---|---|")
+            lines.append("| size | stage | before (ms) | after (ms) | after / before | per round (median) |\n"
+                         "|---|---|---|---|---|---|")
         else:
             lines.append("| size | stage | ms |\n|---|---|---|")
         for label in (*SIZES, "first step"):
@@ -164,7 +179,9 @@ def _table(rows: list[dict], baseline: str | None) -> str:
                 if before is not None:
                     old = before[label].get(key, 0.0)
                     ratio = f"{now / old:.2f}" if old > 0 else "—"
-                    lines.append(f"| {size} | {key} | {1000 * old:.1f} | {1000 * now:.1f} | {ratio} |")
+                    paired = row["pair_ratios"].get(label, {}).get(key)
+                    lines.append(f"| {size} | {key} | {1000 * old:.1f} | {1000 * now:.1f} | {ratio} | "
+                                 f"{f'{paired:.2f}' if paired is not None else '—'} |")
                 else:
                     lines.append(f"| {size} | {key} | {1000 * now:.1f} |")
     return "\n".join(lines) + "\n"
@@ -208,6 +225,7 @@ def main(argv=None) -> int:
             for label, _ in variants:
                 row[label] = _medians(children[label])
             if base is not None:
+                row["pair_ratios"] = _pair_ratios(children["baseline"], children["current"])
                 old, new = (np.load(temporary / f"{label}_{name}.npz") for label in ("baseline", "current"))
                 row["image_difference"] = {key: float(np.max(np.abs(old[key] - new[key]))
                                                       / max(float(np.max(np.abs(old[key]))), 1e-30))
@@ -228,7 +246,8 @@ def main(argv=None) -> int:
               f"{VIEWPORT_REGION[0]}×{VIEWPORT_REGION[1]}, and the windowless first step after a light moved "
               "(light_build_profile.viewport_steps); each scene's saved settings, llvmpipe on a shared 2-core "
               f"machine; median of {arguments.rounds} processes × {arguments.repeats} measurements, each process's "
-              "warm-up apart, ms.")
+              "warm-up apart, ms; \"per round\" is the median over rounds of after / before of each round's two "
+              "processes, run back to back.")
     if arguments.baseline is not None:
         header += (f" Before: commit {arguments.baseline}; after: this checkout; measured in the same run, "
                    "process by process in alternation.")
