@@ -14,8 +14,9 @@ read the ratios):
   GPU time included) through the camera at COARSE_SIZE (the viewport's coarse image after a change
   on the demo at VIEWPORT_REGION, scale 0.25: view_gpu.GPUViewBackend.render_view's preview VPL
   stride) and at 240 × 180 (every VPL), ``--repeats`` times after a warm-up that compiles the shaders;
-* the viewport's stages after them: the guide G-buffer at VIEWPORT_REGION and the joint bilateral
-  resolve of the coarse render into it (view_gpu.resolve), each finished;
+* the viewport's stages after them: the guide G-buffer at VIEWPORT_REGION, the joint bilateral
+  resolve of the coarse render into it (view_gpu.resolve) and the addition of that image into a
+  running sum (view_gpu.accumulate, a refinement sample's), each finished;
 * the windowless first step after a light moved (light_build_profile.viewport_steps: the light
   passes of the new state, then the coarse image; the coarse size adapts to the steps before).
 
@@ -83,7 +84,7 @@ def measure(repo: Path, name: str, repeats: int, image_path: Path) -> dict:
     stride = preview_stride(settings.rsm_size * settings.rsm_size)
     passes: dict[str, dict[str, list]] = {label: {} for label in SIZES}
     images = {}
-    target = view_gpu.ViewTarget(*VIEWPORT_REGION)
+    target, other = view_gpu.ViewTarget(*VIEWPORT_REGION), view_gpu.ViewTarget(*VIEWPORT_REGION)
     try:
         for index in range(repeats + 1):
             for label, size in SIZES.items():
@@ -102,9 +103,15 @@ def measure(repo: Path, name: str, repeats: int, image_path: Path) -> dict:
                         backend.resolve(textures, guide, target, None)
                         target.finish()
                         timings["viewport resolve"] = time.perf_counter() - started
+                        started = time.perf_counter()
+                        view_gpu.accumulate(target, other, 0.5, add=True)
+                        other.finish()
+                        timings["viewport accumulate"] = time.perf_counter() - started
                         if index == repeats:
                             for key, texture in target.textures.items():
                                 images[f"resolved_{key}"] = read_texture(texture, *VIEWPORT_REGION)
+                            view_gpu.accumulate(target, other, 0.5, add=False)
+                            images["accumulated_direct"] = read_texture(other.textures["direct"], *VIEWPORT_REGION)
                         guide.free()
                 finally:
                     textures.free()
@@ -120,6 +127,7 @@ def measure(repo: Path, name: str, repeats: int, image_path: Path) -> dict:
         renderer.free()
         backend.free()
         target.free()
+        other.free()
     steps = viewport_steps(bpy, light, settings, repeats)
     return {"scene": name, "passes": passes, "viewport_steps": steps}
 
@@ -242,7 +250,7 @@ def main(argv=None) -> int:
     header = ("# The view passes, pass by pass\n\n"
               "The Rendered viewport's view passes (renderer.FrameRenderer.render_view_textures, each pass "
               f"finished) through the camera at the coarse size {COARSE_SIZE[0]}×{COARSE_SIZE[1]} (preview VPL "
-              "stride) and at 240×180, then the viewport's guide G-buffer and joint bilateral resolve at "
+              "stride) and at 240×180, then the viewport's guide G-buffer, joint bilateral resolve and accumulation at "
               f"{VIEWPORT_REGION[0]}×{VIEWPORT_REGION[1]}, and the windowless first step after a light moved "
               "(light_build_profile.viewport_steps); each scene's saved settings, llvmpipe on a shared 2-core "
               f"machine; median of {arguments.rounds} processes × {arguments.repeats} measurements, each process's "

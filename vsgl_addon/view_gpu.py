@@ -54,8 +54,10 @@ def _resolve_interface() -> ShaderInterface:
 
 
 def _accumulate_interface() -> ShaderInterface:
+    # One texel of each image per pixel, read as images (an imageLoad costs less than a texelFetch
+    # on llvmpipe; see _resolve_interface).
     return ShaderInterface(push_constants=[("FLOAT", "weight")],
-                           samplers=[("FLOAT_2D", f"source_{name}") for name in IMAGES],
+                           images=[("RGBA32F", "FLOAT_2D", f"source_{name}") for name in IMAGES],
                            vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")],
                            fragment_outputs=_OUTPUTS)
 
@@ -185,7 +187,7 @@ def accumulate(source: ViewTarget, target: ViewTarget, weight: float = 1.0, add:
     def set_inputs(program):
         program.uniform_float("weight", float(weight))
         for name in IMAGES:
-            program.uniform_sampler(f"source_{name}", source.textures[name])
+            program.image(f"source_{name}", source.textures[name])
 
     _draw_into(target, None, "ADDITIVE" if add else "NONE", "accumulate", set_inputs)
 
