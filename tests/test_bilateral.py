@@ -118,3 +118,34 @@ def test_glsl_twin_matches_reference():
         ref = cross_bilateral(image, position, normal, radius, EYE, 0.05, power).reshape(-1, 3)
         acc = Accuracy(gpu, ref, relative=2e-5)
         assert acc.ok, f"worst relative {acc.worst_relative:.3g}"
+
+
+@pytest.mark.gpu
+def test_denoise_pass_reads_images_and_gives_the_sampler_twins_floats():
+    """The VPL pass's denoiser (passes/vpl_culling.py denoise: cross_bilateral's image overload, the
+    inputs bound as images) gives the sampler overload's floats bit for bit, and the reference's
+    within float32 rounding, at the pass's own parameters and a covered and uncovered border."""
+    from glsl_harness import Accuracy, evaluate_glsl
+    from vsgl_addon.passes import vpl_culling
+    from vsgl_addon.passes.gpu_util import read_texture, texture_from_array
+
+    rng = np.random.default_rng(5)
+    position, normal, _ = two_planes()
+    position[..., :3] += 0.002 * rng.normal(size=position[..., :3].shape)
+    image = np.concatenate([rng.uniform(0, 2, position.shape[:2] + (3,)), np.zeros(position.shape[:2] + (1,))], -1)
+    position, normal, image = (a.astype(np.float32).astype(np.float64) for a in (position, normal, image))
+    h, w = position.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w]
+    pixel = np.column_stack([xx.ravel(), yy.ravel()]).astype(float)
+    sigma, power = vpl_culling.DENOISE_SIGMA_PLANE, vpl_culling.DENOISE_NORMAL_POWER
+    textures = [texture_from_array(a.astype(np.float32)) for a in (image, position, normal)]
+    for radius in (1, 4):
+        out = read_texture(vpl_culling.denoise(*textures, radius, EYE), w, h)[..., :3].reshape(-1, 3)
+        twin = evaluate_glsl(f"cross_bilateral(image, guide_position, guide_normal, ivec2(pixel), {radius}, "
+                             f"vec3(0.0, 0.0, 5.0), {sigma!r}, {float(power):.1f})", {"pixel": pixel}, 3,
+                             libraries=["lib/bilateral.glsl"],
+                             images={"image": image, "guide_position": position, "guide_normal": normal})
+        assert np.array_equal(out, twin), radius
+        ref = cross_bilateral(image, position, normal, radius, EYE, sigma, power).reshape(-1, 3)
+        acc = Accuracy(out, ref, relative=2e-5)
+        assert acc.ok, f"worst relative {acc.worst_relative:.3g}"

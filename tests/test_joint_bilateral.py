@@ -260,3 +260,58 @@ def test_shared_weights_give_the_per_image_filter_bit_for_bit():
         np.testing.assert_array_equal(jbu_apply(jw, images[f"low_{k}"]),
                                       joint_bilateral_upsample(images[f"low_{k}"], low_position, low_normal, uv,
                                                                position, normal, footprint))
+
+
+@pytest.mark.gpu
+def test_viewport_resolve_reads_images_and_matches_the_reference():
+    """The viewport's resolve (view_gpu.resolve: jbu_weights / jbu_apply's image overloads, the
+    render's eight textures bound as images, the guides as samplers) against the twin at every
+    pixel of a guide 4x the render's size, a pass's 1x1 black texel included: the four-texel,
+    fallback and background branches."""
+    from types import SimpleNamespace
+
+    from vsgl_addon import view_gpu
+    from vsgl_addon.passes.gpu_util import read_texture, texture_from_array
+
+    rng = np.random.default_rng(8)
+    low_h, low_w, scale = 9, 11, 4
+    low, low_position, low_normal = _scene(rng, h=low_h, w=low_w, background=0.3)
+    low_position[:3, :3, 3] = 0.0  # background all around some pixels
+    low, low_position, low_normal = (as_gpu_floats(a.reshape(-1, 4)).reshape(a.shape)
+                                     for a in (low, low_position, low_normal))
+    h, w = low_h * scale, low_w * scale
+    ys, xs = np.mgrid[0:h, 0:w]
+    uv = np.stack([(xs + 0.5) / w, (ys + 0.5) / h], -1).reshape(-1, 2)
+    texel = np.minimum((uv * [low_w, low_h]).astype(int), [low_w - 1, low_h - 1])
+    guide_position = np.zeros((h * w, 4))
+    guide_position[:, :3] = low_position[texel[:, 1], texel[:, 0], :3] + rng.normal(size=(h * w, 3)) * 0.02
+    guide_position[:, 3] = 1.0
+    guide_position[rng.random(h * w) < 0.05, 3] = 0.0
+    guide_normal = np.zeros((h * w, 4))
+    guide_normal[:, :3] = low_normal[texel[:, 1], texel[:, 0], :3]
+    guide_position, guide_normal = (as_gpu_floats(a) for a in (guide_position, guide_normal))
+    images = {"direct_diffuse": low, "indirect_diffuse": 0.5 * low, "indirect_specular": low[..., ::-1].copy(),
+              "position": low_position, "normal": low_normal}
+    view = SimpleNamespace(textures={name: texture_from_array(a.astype(np.float32)) for name, a in images.items()})
+    camera, projection_11 = np.array([0.3, 0.4, 5.0, 1.0]), 1.5
+    target = view_gpu.ViewTarget(w, h)
+    try:
+        view_gpu.resolve(view, *(texture_from_array(a.reshape(h, w, 4).astype(np.float32))
+                                 for a in (guide_position, guide_normal)),
+                         camera, projection_11, target)
+        out = {name: read_texture(target.textures[name], w, h).reshape(-1, 4) for name in view_gpu.IMAGES}
+    finally:
+        target.free()
+    covered = guide_position[:, 3] > 0
+    footprint = jbu_footprint(camera, guide_position[:, :3], projection_11, low_h)
+    jw = jbu_weights(low_position, low_normal, uv, guide_position[:, :3], guide_normal[:, :3], footprint)
+    assert {0, 1, 2} <= set(jw.kind[covered].tolist())
+    for name, source in (("direct", "direct_diffuse"), ("indirect_diffuse", "indirect_diffuse"),
+                         ("indirect_specular", "indirect_specular")):
+        expected = np.where(covered[:, None], jbu_apply(jw, images[source])[:, :3], 0.0)
+        close = np.all(np.abs(out[name][:, :3] - expected) <= 1e-4 * np.abs(expected) + 1e-5, axis=-1)
+        # Pixels within float32 rounding of the fallback threshold, or of a tie, may branch otherwise.
+        assert close.mean() > 0.999, (name, close.mean())
+        np.testing.assert_array_equal(out[name][:, 3], covered.astype(float))
+    for name in ("indirect_caustics", "indirect_glossy_reflectors"):
+        assert (out[name][:, :3] == 0).all()

@@ -29,6 +29,11 @@ _GLSL_TYPES = {1: "float", 2: "vec2", 3: "vec3", 4: "vec4"}
 _COMPONENTS = "xyzw"
 
 
+def _fetch(access: str, texture: str, texel: str) -> str:
+    """GLSL reading one texel of `texture` (a sampler, or an image for the ``image*`` accesses)."""
+    return f"imageLoad({texture}, {texel})" if access.startswith("image") else f"texelFetch({texture}, {texel}, 0)"
+
+
 @dataclass(frozen=True)
 class Slot:
     """One RGBA texel of a layout: (field, component count) entries filling channels 0, 1, ..."""
@@ -198,7 +203,10 @@ class TextureLayout:
         * ``"outputs_store"``: ``void <prefix>_store(<struct> r)`` writes the fragment outputs
           ``<prefix>_<slot>``;
         * ``"samplers_load"``: ``<struct> <prefix>_load(ivec2 texel)`` fetches the samplers
-          ``<prefix>_<slot>``.
+          ``<prefix>_<slot>``;
+        * ``"image_load"`` / ``"images_load"``: the same loads from RGBA32F images of those names
+          (``imageLoad``: the same texels; on llvmpipe it costs a fraction of a ``texelFetch``,
+          benchmarks/results/light_build_profile.md).
         """
         prefix = self.glsl_prefix
         lines = [f"#define {name} {value}" for name, value in self.defines().items()]
@@ -223,18 +231,18 @@ class TextureLayout:
             lines += [f"  imageStore({prefix}, ivec2(column, {self.index(slot.name)}), {prefix}_pack_{slot.name}(r));"
                       for slot in records]
             lines.append("}")
-        elif access == "sampler_load":
+        elif access in ("sampler_load", "image_load"):
             lines.append(f"{self.struct} {prefix}_load(int column)\n{{\n  {self.struct} r;")
-            lines += [f"  {prefix}_unpack_{slot.name}(texelFetch({prefix}, ivec2(column, {self.index(slot.name)}), 0), r);"
+            lines += [f"  {prefix}_unpack_{slot.name}({_fetch(access, prefix, f'ivec2(column, {self.index(slot.name)})')}, r);"
                       for slot in records]
             lines.append("  return r;\n}")
         elif access == "outputs_store":
             lines.append(f"void {prefix}_store({self.struct} r)\n{{")
             lines += [f"  {prefix}_{slot.name} = {prefix}_pack_{slot.name}(r);" for slot in records]
             lines.append("}")
-        elif access == "samplers_load":
+        elif access in ("samplers_load", "images_load"):
             lines.append(f"{self.struct} {prefix}_load(ivec2 texel)\n{{\n  {self.struct} r;")
-            lines += [f"  {prefix}_unpack_{slot.name}(texelFetch({prefix}_{slot.name}, texel, 0), r);"
+            lines += [f"  {prefix}_unpack_{slot.name}({_fetch(access, f'{prefix}_{slot.name}', 'texel')}, r);"
                       for slot in records]
             lines.append("  return r;\n}")
         elif access is not None:

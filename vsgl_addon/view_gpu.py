@@ -44,14 +44,20 @@ def _resolve_interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "camera"), ("FLOAT", "projection_11"), ("FLOAT", "sigma_position"),
                         ("FLOAT", "normal_power"), ("FLOAT", "weight")],
-        samplers=[("FLOAT_2D", f"low_{name}") for name in LOW_IMAGES]
-        + [("FLOAT_2D", "guide_position"), ("FLOAT_2D", "guide_normal")],
+        # The render's textures, read texel by texel four to sixteen times per pixel, as images: on
+        # llvmpipe an imageLoad costs a fraction of a texelFetch (benchmarks/results/
+        # view_passes_profile.md). Blender binds at most 8 images per shader, so the guides, read
+        # once per pixel, stay samplers.
+        images=[("RGBA32F", "FLOAT_2D", f"low_{name}") for name in LOW_IMAGES],
+        samplers=[("FLOAT_2D", "guide_position"), ("FLOAT_2D", "guide_normal")],
         vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")], fragment_outputs=_OUTPUTS)
 
 
 def _accumulate_interface() -> ShaderInterface:
+    # One texel of each image per pixel, read as images (an imageLoad costs less than a texelFetch
+    # on llvmpipe; see _resolve_interface).
     return ShaderInterface(push_constants=[("FLOAT", "weight")],
-                           samplers=[("FLOAT_2D", f"source_{name}") for name in IMAGES],
+                           images=[("RGBA32F", "FLOAT_2D", f"source_{name}") for name in IMAGES],
                            vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")],
                            fragment_outputs=_OUTPUTS)
 
@@ -169,7 +175,7 @@ def resolve(view, guide_position, guide_normal, camera, projection_11: float, ta
         program.uniform_float("weight", float(weight))
         for name in LOW_IMAGES:
             texture = view.textures.get(name)
-            program.uniform_sampler(f"low_{name}", texture if texture is not None else _black())
+            program.image(f"low_{name}", texture if texture is not None else _black())
         program.uniform_sampler("guide_position", guide_position)
         program.uniform_sampler("guide_normal", guide_normal)
 
@@ -181,7 +187,7 @@ def accumulate(source: ViewTarget, target: ViewTarget, weight: float = 1.0, add:
     def set_inputs(program):
         program.uniform_float("weight", float(weight))
         for name in IMAGES:
-            program.uniform_sampler(f"source_{name}", source.textures[name])
+            program.image(f"source_{name}", source.textures[name])
 
     _draw_into(target, None, "ADDITIVE" if add else "NONE", "accumulate", set_inputs)
 

@@ -122,6 +122,71 @@ vec4 jbu_apply(JBUWeights jw, sampler2D low)
   return jw.kind == 1 ? texelFetch(low, min(jw.pick, hi), 0) : vec4(0.0);
 }
 
+// jbu_weights and jbu_apply reading RGBA32F images instead of samplers (the viewport's resolve,
+// glsl/view/resolve.frag.glsl): the same texels and arithmetic, so the same floats; on llvmpipe an
+// imageLoad costs a fraction of a texelFetch (benchmarks/results/view_passes_profile.md).
+JBUWeights jbu_weights(restrict image2D low_position, restrict image2D low_normal, vec2 uv, vec3 position,
+                       vec3 normal, float footprint, float sigma_position, float normal_power)
+{
+  JBUWeights jw;
+  ivec2 size = imageSize(low_position);
+  vec2 q = uv * vec2(size) - 0.5;
+  vec2 base_f = floor(q);
+  vec2 f = q - base_f;
+  jw.base = ivec2(base_f);
+  jw.pick = ivec2(0);
+  ivec2 hi = size - 1;
+  float weight_sum = 0.0;
+  for (int k = 0; k < 4; k++) {
+    ivec2 o = ivec2(k & 1, k >> 1);
+    ivec2 t = clamp(jw.base + o, ivec2(0), hi);
+    float ws = (o.x == 0 ? 1.0 - f.x : f.x) * (o.y == 0 ? 1.0 - f.y : f.y);
+    float w = ws * jbu_range_weight(position, normal, imageLoad(low_position, t), imageLoad(low_normal, t),
+                                    footprint, sigma_position, normal_power);
+    jw.weights[k] = w;
+    weight_sum += w;
+  }
+  jw.weight_sum = weight_sum;
+  if (weight_sum > JBU_MIN_WEIGHT) {
+    jw.kind = 0;
+    return jw;
+  }
+  jw.kind = 2;
+  float best = 0.0;
+  for (int j = -1; j <= 2; j++) {
+    for (int i = -1; i <= 2; i++) {
+      ivec2 t = clamp(jw.base + ivec2(i, j), ivec2(0), hi);
+      vec4 p = imageLoad(low_position, t);
+      if (p.a <= 0.0) {
+        continue;
+      }
+      vec2 dt = vec2(t) - q;
+      float w = jbu_range_weight(position, normal, p, imageLoad(low_normal, t), footprint,
+                                 4.0 * sigma_position, normal_power) + 1e-6 / (1.0 + dot(dt, dt));
+      if (w > best) {
+        best = w;
+        jw.pick = t;
+        jw.kind = 1;
+      }
+    }
+  }
+  return jw;
+}
+
+vec4 jbu_apply(JBUWeights jw, restrict image2D low)
+{
+  ivec2 hi = imageSize(low) - 1;
+  if (jw.kind == 0) {
+    vec4 sum = vec4(0.0);
+    for (int k = 0; k < 4; k++) {
+      ivec2 t = clamp(jw.base + ivec2(k & 1, k >> 1), ivec2(0), hi);
+      sum += jw.weights[k] * imageLoad(low, t);
+    }
+    return sum / jw.weight_sum;
+  }
+  return jw.kind == 1 ? imageLoad(low, min(jw.pick, hi)) : vec4(0.0);
+}
+
 // The upsampled value of `low` (of the low guide's size) at texture coordinates `uv` of a pixel
 // whose guide is (position, normal): falls back to the best-matching geometry texel of the 4x4
 // neighbourhood when the four nearest all show other surfaces, and to zero when none of the sixteen
@@ -172,6 +237,39 @@ vec3 cross_bilateral(sampler2D image, sampler2D guide_position, sampler2D guide_
                 * bilateral_range_weight(centre.xyz, n, texelFetch(guide_position, q, 0),
                                          texelFetch(guide_normal, q, 0).xyz, scale, 0.0, normal_power);
       sum += w * texelFetch(image, q, 0).rgb;
+      weight_sum += w;
+    }
+  }
+  return sum / weight_sum;
+}
+
+
+// cross_bilateral reading RGBA32F images instead of samplers (the VPL pass's denoiser,
+// glsl/vpl_culling/vpl_denoise.comp.glsl, (2 radius + 1)^2 texels of three images per pixel): the
+// same texels and arithmetic, so the same floats, at a fraction of a texelFetch's cost on llvmpipe.
+vec3 cross_bilateral(restrict image2D image, restrict image2D guide_position, restrict image2D guide_normal,
+                     ivec2 pixel, int radius, vec3 eye, float sigma_plane, float normal_power)
+{
+  ivec2 size = imageSize(image);
+  vec4 centre = imageLoad(guide_position, pixel);
+  if (centre.w <= 0.0) {
+    return vec3(0.0);
+  }
+  vec3 n = imageLoad(guide_normal, pixel).xyz;
+  float scale = sigma_plane * max(length(centre.xyz - eye), 1e-30) * 0.7071067811865476;
+  float inv_space = 1.0 / (0.5 * float(max(radius, 1)) * 0.5 * float(max(radius, 1)) * 2.0);
+  vec3 sum = vec3(0.0);
+  float weight_sum = 0.0;
+  for (int dy = -radius; dy <= radius; dy++) {
+    for (int dx = -radius; dx <= radius; dx++) {
+      ivec2 q = pixel + ivec2(dx, dy);
+      if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) {
+        continue;
+      }
+      float w = exp(-float(dx * dx + dy * dy) * inv_space)
+                * bilateral_range_weight(centre.xyz, n, imageLoad(guide_position, q),
+                                         imageLoad(guide_normal, q).xyz, scale, 0.0, normal_power);
+      sum += w * imageLoad(image, q).rgb;
       weight_sum += w;
     }
   }

@@ -2,7 +2,9 @@
 // One view sample (vsgl_addon/view_gpu.py) into the viewport's accumulation images: each image of a
 // view render, upsampled to the guide's pixels by the joint bilateral filter (the identity when the
 // render has the guide's resolution), times `weight`; the filter's weights are computed once per
-// pixel for all six images. Outputs rgb = radiance (Blender's units),
+// pixel for all six images. The render's eight textures are read as images (jbu_weights' image
+// overloads; Blender binds at most 8 images per shader), the full-resolution guides as samplers
+// (one texel each per pixel). Outputs rgb = radiance (Blender's units),
 // a = the guide's coverage, all times `weight` (added by blending when accumulating).
 void main()
 {
@@ -19,7 +21,7 @@ void main()
     out_indirect_glossy_reflectors = vec4(0.0);
     return;
   }
-  float footprint = jbu_footprint(camera, position.xyz, projection_11, float(textureSize(low_position, 0).y));
+  float footprint = jbu_footprint(camera, position.xyz, projection_11, float(imageSize(low_position).y));
   // One set of weights for the six images: they share the render's low-resolution guide.
   JBUWeights jw = jbu_weights(low_position, low_normal, uv, position.xyz, normal, footprint, sigma_position,
                               normal_power);

@@ -4,10 +4,10 @@
 void main()
 {
   ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-  if (any(greaterThanEqual(pixel, textureSize(add_a, 0)))) {
+  if (any(greaterThanEqual(pixel, imageSize(add_a)))) {
     return;
   }
-  vec4 a = texelFetch(add_a, pixel, 0);
-  vec3 b = texelFetch(add_b, pixel, 0).rgb;
+  vec4 a = imageLoad(add_a, pixel);
+  vec3 b = imageLoad(add_b, pixel).rgb;
   imageStore(add_out, pixel, vec4(add_weights.x * a.rgb + add_weights.y * b, a.a));
 }

@@ -37,7 +37,7 @@ const float VPL_PLANE_SLACK = 1e-4;
 vec4 vpl_record(uint i, int k)
 {
   int width = vpl_sizes.x;
-  return texelFetch(vpl_table, ivec2(int(i) % width, 4 * (int(i) / width) + k), 0);
+  return imageLoad(vpl_table, ivec2(int(i) % width, 4 * (int(i) / width) + k));
 }
 
 vec4 camera_row(int k)
@@ -55,7 +55,7 @@ vec3 unproject(vec4 inverse_projection[4], vec2 ndc, float z)
 
 void main()
 {
-  ivec2 size = textureSize(gbuffer_position, 0);
+  ivec2 size = imageSize(gbuffer_position);
   ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
   ivec2 tile = ivec2(gl_WorkGroupID.xy);
   uint local = gl_LocalInvocationIndex;
@@ -77,11 +77,11 @@ void main()
   }
   barrier();
   bool inside = all(lessThan(pixel, size));
-  vec4 position = inside ? texelFetch(gbuffer_position, pixel, 0) : vec4(0.0);
+  vec4 position = inside ? imageLoad(gbuffer_position, pixel) : vec4(0.0);
   bool covered = inside && position.w > 0.0;
   vec3 receiver = position.xyz;
-  vec3 receiver_normal = covered ? texelFetch(gbuffer_normal, pixel, 0).xyz : vec3(0.0, 0.0, 1.0);
-  vec3 albedo = covered ? texelFetch(receiver_albedo, pixel, 0).rgb : vec3(0.0);
+  vec3 receiver_normal = covered ? imageLoad(gbuffer_normal, pixel).xyz : vec3(0.0, 0.0, 1.0);
+  vec3 albedo = covered ? imageLoad(receiver_albedo, pixel).rgb : vec3(0.0);
   if (covered) {
     vec4 p = vec4(receiver, 1.0);
     float depth = max(-dot(world_to_view[2], p), 0.0);
@@ -187,7 +187,7 @@ void main()
           vec4 r3 = vpl_record(j, 3);
 #if VPL_VISIBILITY
           int map = int(r3.w + 0.5);
-          vec3 origin = texelFetch(vpl_map_origins, ivec2(map, 0), 0).xyz;
+          vec3 origin = imageLoad(vpl_map_origins, ivec2(map, 0)).xyz;
           ivec2 map_tile = ivec2(map % ism_params.y, map / ism_params.y) * ism_params.x;
           geometry *= ism_pcf_bilinear(ism_atlas, map_tile, ism_params.x, origin, receiver, receiver_normal);
 #endif

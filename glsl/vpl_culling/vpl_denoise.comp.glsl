@@ -5,7 +5,7 @@
 void main()
 {
   ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-  if (any(greaterThanEqual(pixel, textureSize(vpl_noisy, 0)))) {
+  if (any(greaterThanEqual(pixel, imageSize(vpl_noisy)))) {
     return;
   }
   vec3 value = cross_bilateral(vpl_noisy, gbuffer_position, gbuffer_normal, pixel, denoise_params.x,

@@ -5,7 +5,7 @@
 // Indirect light from VSGLs (000 app. C), one fragment per pixel of the camera G-buffer's position
 // and normal attachments and the shading inputs (unpacked by the generated code of
 // vsgl_addon/layouts.py GBUFFER and SHADING_INPUTS; vsgl_addon/passes/vsgl_shading.py documents them). For each VSGL of the table (RGBA32F,
-// one VSGLRecord per column, fetched by the generated vsgl_table_load: vsgl_addon/layouts.py
+// one VSGLRecord per column, loaded as an image by the generated vsgl_table_load: vsgl_addon/layouts.py
 // VSGL_TABLE) both lobes are added, each at its own position (glsl/lib/vsgl_shading.glsl), computed once per VSGL when the table's lobes
 // share it (VSGL_SHARED_POSITIONS, a compile-time define: the paper's positional distribution, one
 // per table, vsgl_addon/passes/vsgl_shading.py VSGLTable.shared_positions). Outputs: indirect
@@ -51,14 +51,14 @@ void main()
 {
   ivec2 pixel = ivec2(gl_FragCoord.xy);
   GBufferTexel g;
-  gbuffer_unpack_position(texelFetch(gbuffer_position, pixel, 0), g);
+  gbuffer_unpack_position(imageLoad(gbuffer_position, pixel), g);
   float coverage = accumulate != 0 ? 0.0 : g.coverage;
   if (!(g.coverage > 0.0)) {
     indirect_diffuse = vec4(0.0, 0.0, 0.0, coverage);
     indirect_specular = vec4(0.0, 0.0, 0.0, coverage);
     return;
   }
-  gbuffer_unpack_normal(texelFetch(gbuffer_normal, pixel, 0), g);
+  gbuffer_unpack_normal(imageLoad(gbuffer_normal, pixel), g);
   vec3 normal = safe_normalize(g.normal, vec3(0.0, 0.0, 1.0));
   float roughness = roughness_is_perceptual != 0 ? g.roughness * g.roughness : g.roughness;
   // camera = (position, 1) for a perspective camera, (direction towards it, 0) for an orthographic one.

@@ -41,12 +41,18 @@ def _interface(visibility: bool = False) -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "vpl_params"), ("IVEC4", "vpl_sizes"), ("IVEC4", "vpl_interleave")]
         + ([("IVEC4", "ism_params")] if visibility else []),
-        samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal"),
-                  ("FLOAT_2D", "receiver_albedo"), ("FLOAT_2D", "vpl_table"), ("FLOAT_2D", "vpl_camera"),
-                  ("UINT_2D", "vpl_count")]
-        + ([("FLOAT_2D", "ism_atlas"), ("FLOAT_2D", "vpl_map_origins")] if visibility else []),
+        # What is read texel by texel per VPL or per pixel is bound as images: on llvmpipe an
+        # imageLoad costs a fraction of a texelFetch (benchmarks/results/view_passes_profile.md),
+        # the same texels either way. Blender binds at most 8 images per shader: the camera rows and
+        # the count, read once per invocation, stay samplers, and so does the ISM atlas, whose
+        # lookup is one textureGather.
+        samplers=[("FLOAT_2D", "vpl_camera"), ("UINT_2D", "vpl_count")]
+        + ([("FLOAT_2D", "ism_atlas")] if visibility else []),
         images=[("RGBA32F", "FLOAT_2D", "vpl_radiance"), ("R32UI", "UINT_2D", "vpl_tile_lists"),
-                ("R32UI", "UINT_2D", "vpl_tile_counts")],
+                ("R32UI", "UINT_2D", "vpl_tile_counts"), ("RGBA32F", "FLOAT_2D", "gbuffer_position"),
+                ("RGBA32F", "FLOAT_2D", "gbuffer_normal"), ("RGBA32F", "FLOAT_2D", "receiver_albedo"),
+                ("RGBA32F", "FLOAT_2D", "vpl_table")]
+        + ([("RGBA32F", "FLOAT_2D", "vpl_map_origins")] if visibility else []),
         local_group_size=(TILE, TILE, 1),
         shared="shared uint tile_depth_min; shared uint tile_depth_max; shared uint tile_covered; "
                "shared uint tile_total; shared uint chunk_count; shared uint chunk_list[256];",
@@ -56,8 +62,9 @@ def _interface(visibility: bool = False) -> ShaderInterface:
 def _denoise_interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("IVEC4", "denoise_params"), ("VEC4", "denoise_eye")],
-        samplers=[("FLOAT_2D", "vpl_noisy"), ("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal")],
-        images=[("RGBA32F", "FLOAT_2D", "vpl_denoised")],
+        # (2 radius + 1)^2 texels of each input per pixel, read as images (see _interface).
+        images=[("RGBA32F", "FLOAT_2D", "vpl_denoised"), ("RGBA32F", "FLOAT_2D", "vpl_noisy"),
+                ("RGBA32F", "FLOAT_2D", "gbuffer_position"), ("RGBA32F", "FLOAT_2D", "gbuffer_normal")],
         local_group_size=(8, 8, 1),
     )
 
@@ -79,9 +86,9 @@ def denoise(radiance, position, normal, radius: int, eye):
     shader.bind()
     shader.uniform_int("denoise_params", (int(radius), DENOISE_NORMAL_POWER, 0, 0))
     shader.uniform_float("denoise_eye", (*(float(v) for v in eye), DENOISE_SIGMA_PLANE))
-    shader.uniform_sampler("vpl_noisy", radiance)
-    shader.uniform_sampler("gbuffer_position", position)
-    shader.uniform_sampler("gbuffer_normal", normal)
+    shader.image("vpl_noisy", radiance)
+    shader.image("gbuffer_position", position)
+    shader.image("gbuffer_normal", normal)
     shader.image("vpl_denoised", out)
     gpu.compute.dispatch(shader, math.ceil(radiance.width / 8), math.ceil(radiance.height / 8), 1)
     return out
@@ -90,8 +97,7 @@ def denoise(radiance, position, normal, radius: int, eye):
 def _add_interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("VEC4", "add_weights")],
-        samplers=[("FLOAT_2D", "add_a"), ("FLOAT_2D", "add_b")],
-        images=[("RGBA32F", "FLOAT_2D", "add_out")],
+        images=[("RGBA32F", "FLOAT_2D", "add_out"), ("RGBA32F", "FLOAT_2D", "add_a"), ("RGBA32F", "FLOAT_2D", "add_b")],
         local_group_size=(8, 8, 1),
     )
 
@@ -106,8 +112,8 @@ def add_textures(a, b, weight_a: float, weight_b: float, out=None):
     shader = PASS.shader("add")
     shader.bind()
     shader.uniform_float("add_weights", (float(weight_a), float(weight_b), 0.0, 0.0))
-    shader.uniform_sampler("add_a", a)
-    shader.uniform_sampler("add_b", b)
+    shader.image("add_a", a)
+    shader.image("add_b", b)
     shader.image("add_out", out)
     gpu.compute.dispatch(shader, math.ceil(a.width / 8), math.ceil(a.height / 8), 1)
     return out
@@ -545,16 +551,16 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
     if visible:
         shader.uniform_int("ism_params", (vpl_set.isms.size, vpl_set.isms.columns, 0, 0))
         shader.uniform_sampler("ism_atlas", vpl_set.isms.texture)
-        shader.uniform_sampler("vpl_map_origins", vpl_set.map_origins)
+        shader.image("vpl_map_origins", vpl_set.map_origins)
     shader.uniform_float("vpl_params", (float(delta), 0.0, float(seed), float(frame)))
     shader.uniform_int("vpl_sizes", (TABLE_WIDTH, LIST_CAPACITY, tiles[0], tiles[1]))
     shader.uniform_int("vpl_interleave", (int(interleave), int(interleave_offset), vpl_set.capacity,
                                           max(int(stride), 1)))
     shader.uniform_sampler("vpl_count", vpl_set.count_texture)
-    shader.uniform_sampler("gbuffer_position", position)
-    shader.uniform_sampler("gbuffer_normal", normal)
-    shader.uniform_sampler("receiver_albedo", albedo)
-    shader.uniform_sampler("vpl_table", table)
+    shader.image("gbuffer_position", position)
+    shader.image("gbuffer_normal", normal)
+    shader.image("receiver_albedo", albedo)
+    shader.image("vpl_table", table)
     shader.uniform_sampler("vpl_camera", camera_texture)
     shader.image("vpl_radiance", radiance)
     shader.image("vpl_tile_lists", lists)

@@ -76,9 +76,13 @@ def _interface(visibility: bool = False) -> ShaderInterface:
         push_constants=[("VEC4", "camera"), ("INT", "vsgl_count"), ("INT", "accumulate"),
                         ("INT", "roughness_is_perceptual")]
         + ([("IVEC4", "ism_params")] if visibility else []),
-        samplers=[("FLOAT_2D", "gbuffer_position"), ("FLOAT_2D", "gbuffer_normal")]
-        + [("FLOAT_2D", f"shading_inputs_{name}") for name in SHADING_INPUTS.slot_names]
-        + [("FLOAT_2D", "vsgl_table")] + ([("FLOAT_2D", "ism_atlas")] if visibility else []),
+        # What is read texel by texel is bound as images: on llvmpipe an imageLoad costs a fraction
+        # of a texelFetch (benchmarks/results/view_passes_profile.md), the same texels either way.
+        # The ISM atlas stays a sampler: its lookup is one textureGather of four texels.
+        images=[("RGBA32F", "FLOAT_2D", "gbuffer_position"), ("RGBA32F", "FLOAT_2D", "gbuffer_normal")]
+        + [("RGBA32F", "FLOAT_2D", f"shading_inputs_{name}") for name in SHADING_INPUTS.slot_names]
+        + [("RGBA32F", "FLOAT_2D", "vsgl_table")],
+        samplers=[("FLOAT_2D", "ism_atlas")] if visibility else [],
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
         fragment_outputs=[("VEC4", "indirect_diffuse"), ("VEC4", "indirect_specular")],
@@ -99,8 +103,8 @@ def _shader_spec(diffuse_mode: str, visibility: bool = False, maps_per_vsgl: int
                                        "VSGL_VISIBILITY": int(visibility), "VSGL_ISM_MAX_RADIUS": ISM_MAX_RADIUS,
                                        "VSGL_ISM_MAPS": maps_per_vsgl,
                                        "VSGL_SHARED_POSITIONS": int(shared_positions)},
-                      code=lambda: {"fragment": GBUFFER.glsl() + SHADING_INPUTS.glsl("samplers_load")
-                                                + VSGL_TABLE.glsl("sampler_load")})
+                      code=lambda: {"fragment": GBUFFER.glsl() + SHADING_INPUTS.glsl("images_load")
+                                                + VSGL_TABLE.glsl("image_load")})
 
 
 def run(gbuffer: "ShadingGBuffer", camera, tables, diffuse_mode: str = DEFAULT_DIFFUSE_MODE,
@@ -320,15 +324,15 @@ class VSGLShading:
                         set_uniform(program.uniform_float, "camera", camera_uniform(camera))
                         set_uniform(program.uniform_int, "roughness_is_perceptual",
                                     1 if gbuffer.roughness_is_perceptual else 0)
-                        program.uniform_sampler("gbuffer_position", gbuffer.position)
-                        program.uniform_sampler("gbuffer_normal", gbuffer.normal)
-                        program.uniform_sampler("shading_inputs_diffuse_reflectance", gbuffer.diffuse_reflectance)
-                        program.uniform_sampler("shading_inputs_specular_f0", gbuffer.specular_f0)
+                        program.image("gbuffer_position", gbuffer.position)
+                        program.image("gbuffer_normal", gbuffer.normal)
+                        program.image("shading_inputs_diffuse_reflectance", gbuffer.diffuse_reflectance)
+                        program.image("shading_inputs_specular_f0", gbuffer.specular_f0)
                     # The first table writes, the others add (ONE, ONE), alpha 0.
                     gpu.state.blend_set("NONE" if index == 0 else "ADDITIVE_PREMULT")
                     set_uniform(program.uniform_int, "accumulate", 0 if index == 0 else 1)
                     set_uniform(program.uniform_int, "vsgl_count", int(table.count))
-                    program.uniform_sampler("vsgl_table", table.texture)
+                    program.image("vsgl_table", table.texture)
                     if visibility:
                         program.uniform_int("ism_params", (table.ism.size, table.ism.columns, 0, 0))
                         program.uniform_sampler("ism_atlas", table.ism.texture)
