@@ -253,6 +253,38 @@ def test_a_fixed_cost_per_band_does_not_shrink_the_bands_to_a_row(pipeline, monk
     assert max(seconds for _, seconds in done[3:]) <= STEP_BUDGET * 1.3, done
 
 
+@pytest.mark.parametrize("cheap", ["top", "bottom"])
+def test_rows_of_unequal_cost_keep_every_band_within_the_budget(pipeline, monkeypatch, cheap):
+    """Rows that cost almost nothing (sky above the scene, or empty floor below it) and rows that
+    cost 2e-5 s per pixel, with 30 ms fixed per band: the bands measured over cheap rows, fitted as
+    fixed + per pixel, must not promise that the costly rows are free (the Rendered viewport's
+    camera view once took a 786-row band in 2 s this way)."""
+    monkeypatch.setattr(__import__(__name__), "FIXED_SECONDS", 0.0)
+    monkeypatch.setattr(__import__(__name__), "SECONDS_PER_PIXEL", 0.0)
+    width, height = 200, 600
+    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (width, height))
+    render = pipeline.backend.render_view
+
+    def costly_rows(renderer, lights, settings, w, h, view, projection, preview=False):
+        # A band of the full-resolution sample starts at the rows done; a coarse image spans all.
+        rows = np.arange(pipeline._rows_done, pipeline._rows_done + h) if w == width else np.arange(h) * height // h
+        costly = rows >= height // 3 if cheap == "top" else rows < height // 3
+        pipeline.clock.now += 0.03 + w * (1e-8 * np.sum(~costly) + 2e-5 * np.sum(costly))
+        return render(renderer, lights, settings, w, h, view, projection, preview)
+
+    monkeypatch.setattr(pipeline.backend, "render_view", costly_rows)
+    done = run(pipeline, samples=3, limit=2000)
+    steps = [(work, seconds, entry.get("rows")) for (work, seconds), entry in zip(done, list(pipeline.history)[-len(done):])]
+    first_sample = next(i for i, (_, _, rows) in enumerate(steps) if rows and rows[1] == rows[2])
+    assert pipeline.samples == 3
+    # The first sample learns the rows' costs band by band: a band that enters the costly rows
+    # from cheap ones may overshoot once; the later samples size their bands from the rows' costs.
+    assert max(seconds for _, seconds, _ in steps[1:first_sample + 1]) <= STEP_BUDGET * 5, steps[:first_sample + 1]
+    later = [seconds for work, seconds, _ in steps[first_sample + 1:] if work == SAMPLE]
+    assert later and max(later) <= STEP_BUDGET * 2, sorted(later)[-5:]
+    assert np.median(later) <= STEP_BUDGET * 1.05
+
+
 # --- the overlay's viewports (ViewportSet): one pipeline each, light passes shared ---------------
 
 @pytest.fixture

@@ -131,6 +131,12 @@ class ViewPipeline:
         # alone, a slow machine's fixed cost shrinks the bands to a row each.
         self._band_times: deque = deque(maxlen=8)
         self._band_fixed_seconds: float | None = None
+        # Rows of the last band: the next may at most double it. Rows differ in cost (sky above the
+        # scene costs nothing), so a rate measured on cheap rows must not size one band for the rest.
+        self._last_band_rows = 0
+        # Seconds of each row beyond the band's fixed part, measured band by band over the last
+        # sample of this view: the next sample's rows cost the same, so its bands are sized from it.
+        self._row_seconds: np.ndarray | None = None
         # The coarse image's resolution as a fraction of the asked scale: lowered when a coarse image
         # took longer than the step budget, raised again when it took well under (never above 1).
         self.coarse_factor = 1.0
@@ -275,6 +281,7 @@ class ViewPipeline:
         self._seeds_used = set()
         self._rows_done = 0
         self._band_seed = None
+        self._row_seconds = None  # a new view, scene or setting: its rows cost what they cost
         # At scale 1 the coarse image is a full-resolution sample already.
         self.samples = 1 if (width, height) == tuple(full) else 0
         if self.samples:
@@ -367,6 +374,11 @@ class ViewPipeline:
         # budget: a floor of height / 64 rows made steps of 150-800 ms there.
         rows = max(rows, 1)
         first = self._rows_done
+        profile = self._row_seconds
+        if profile is not None and len(profile) == height and np.all(np.isfinite(profile[first:])):
+            rows = max(int(np.searchsorted(np.cumsum(profile[first:]), remaining - fixed, side="right")), 1)
+        elif self._last_band_rows:
+            rows = min(rows, 2 * self._last_band_rows)
         end = min(height, first + max(1, rows))
         clock = self.clock()
         view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, end - first,
@@ -377,7 +389,12 @@ class ViewPipeline:
         finally:
             view.free()
         self.backend.finish(sample)
-        self._fit_band_cost(width * (end - first), self.clock() - clock)
+        seconds = self.clock() - clock
+        self._fit_band_cost(width * (end - first), seconds)
+        self._last_band_rows = end - first
+        if self._row_seconds is None or len(self._row_seconds) != height:
+            self._row_seconds = np.full(height, np.nan)
+        self._row_seconds[first:end] = max(seconds - self._band_fixed_seconds, 0.0) / (end - first)
         self._rows_done = end
         entry["rows"] = (first, end, height)
         if end >= height:
@@ -398,8 +415,12 @@ class ViewPipeline:
         if len(x) >= 2 and x.std() > 0.2 * x.mean():
             slope = float(((x - x.mean()) * (y - y.mean())).sum() / ((x - x.mean()) ** 2).sum())
             fixed = float(np.clip(y.mean() - slope * x.mean(), 0.0, 0.8 * self.step_budget))
+        # No band costs less than its fixed part; and the last band's rate, from the rows next to the
+        # coming ones, is a floor: bands of cheap rows (larger, later ones when the bottom rows are
+        # empty) give the fit a negative slope, whose fixed part would make every pixel free.
+        fixed = min(fixed, 0.9 * float(y.min()))
         self._band_fixed_seconds = fixed
-        self._seconds_per_pixel = max(float(np.mean((y - fixed) / x)), 1e-12)
+        self._seconds_per_pixel = max(float(np.mean((y - fixed) / x)), float((y[-1] - fixed) / x[-1]), 1e-12)
 
     # --- drawing (view_draw) ------------------------------------------------------------------
     def draw(self, view_pass: str, look: OverlayLook | None = None) -> bool:
@@ -457,6 +478,8 @@ class ViewPipeline:
         self._seconds_per_pixel = None
         self._band_fixed_seconds = None
         self._band_times.clear()
+        self._last_band_rows = 0
+        self._row_seconds = None
 
     def gpu_resource_count(self) -> int:
         """GPU objects held (0 after free()): light passes, renderer, accumulation targets, guide."""
