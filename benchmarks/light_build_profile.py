@@ -30,11 +30,12 @@ import argparse
 import collections
 import json
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from checkout_ab import alternate, extract_commit, image_difference, run_child
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results"
@@ -205,10 +206,8 @@ def _medians(children: list[dict]) -> dict:
 
 
 def _child(repo: Path, name: str, repeats: int, image: Path, python: str) -> dict:
-    command = [python, str(Path(__file__).resolve()), "--child", name, "--repo", str(repo),
-               "--repeats", str(repeats), "--image", str(image)]
-    output = subprocess.run(command, check=True, capture_output=True, text=True, timeout=3600).stdout
-    return json.loads(output.strip().splitlines()[-1])
+    return run_child(Path(__file__).resolve(), ["--child", name, "--repo", str(repo), "--repeats", str(repeats),
+                                                "--image", str(image)], python, timeout=3600)
 
 
 def _ms(value) -> str:
@@ -266,31 +265,19 @@ def main(argv=None) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as temporary:
         temporary = Path(temporary)
-        base = None
-        if arguments.baseline is not None:
-            base = temporary / "baseline"
-            base.mkdir()
-            archive = subprocess.run(["git", "-C", str(REPO), "archive", arguments.baseline],
-                                     check=True, capture_output=True).stdout
-            subprocess.run(["tar", "-x", "-C", str(base)], input=archive, check=True)
+        base = extract_commit(arguments.baseline, temporary / "baseline") if arguments.baseline is not None else None
         for name in arguments.scenes:
             row = {"scene": name}
             # The checkouts alternate round by round (ABBA...), which spreads the machine's varying
             # load over both; each round is a fresh process (its first build compiles the shaders).
             variants = [("baseline", base), ("current", REPO)] if base is not None else [("current", REPO)]
-            children = {label: [] for label, _ in variants}
-            for round_index in range(arguments.rounds):
-                for label, repo in (variants if round_index % 2 == 0 else variants[::-1]):
-                    children[label].append(_child(repo, name, arguments.repeats,
-                                                  temporary / f"{label}_{name}.npz", sys.executable))
+            children = alternate(variants, arguments.rounds, lambda label, repo: _child(
+                repo, name, arguments.repeats, temporary / f"{label}_{name}.npz", sys.executable))
             for label, _ in variants:
                 row[label] = _medians(children[label])
             if base is not None:
                 old, new = (np.load(temporary / f"{label}_{name}.npz") for label in ("baseline", "current"))
-                # Largest absolute difference over the image's largest value (0: identical).
-                row["image_difference"] = {key: float(np.max(np.abs(old[key] - new[key]))
-                                                      / max(float(np.max(np.abs(old[key]))), 1e-30))
-                                           for key in IMAGES}
+                row["image_difference"] = image_difference(old, new, IMAGES)
             rows.append(row)
             print(json.dumps({"scene": name, **{label: row[label]["stages"].get("build") for label, _ in variants},
                               **({"image_difference": row["image_difference"]} if base is not None else {})}),

@@ -17,16 +17,15 @@ built from the old GLSL. Only GLSL changes that keep the interface and defines a
 from __future__ import annotations
 
 import argparse
-import io
 import statistics
-import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from checkout_ab import extract_commit
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
@@ -66,11 +65,7 @@ def main(argv=None) -> int:
     parser.add_argument("--vsgl-count", type=int, default=None, help="default 1024 for vsgl_shading, else 256")
     arguments = parser.parse_args(argv)
 
-    old_root = Path(tempfile.mkdtemp(prefix="pass_ab_"))
-    archive = subprocess.run(["git", "-C", str(REPO), "archive", arguments.old, "glsl"], check=True,
-                             capture_output=True).stdout
-    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
-        tar.extractall(old_root)
+    old_root = extract_commit(arguments.old, Path(tempfile.mkdtemp(prefix="pass_ab_")), "glsl")
 
     import importlib
 

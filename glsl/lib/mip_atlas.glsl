@@ -1,3 +1,5 @@
+// @require lib/mip_level0.glsl
+//
 // Mip chains of the RSM quantities, read with exact float32 weights (a Python GPUTexture has no mip
 // levels, shared/reference/blender-gpu.md). Six planes of four channels each
 // (vsgl_addon/passes/vsgl_generation.py):
@@ -27,24 +29,6 @@ ivec2 mip_atlas_origin(int size, int level, int plane)
     return ivec2(0, y);
   }
   return ivec2(half_size, y + half_size - ((2 * half_size) >> (level - 1)));
-}
-
-vec4 level0_fetch(int plane, ivec2 texel)
-{
-  switch (plane) {
-    case 0:
-      return texelFetch(level0_plane0, texel, 0);
-    case 1:
-      return texelFetch(level0_plane1, texel, 0);
-    case 2:
-      return texelFetch(level0_plane2, texel, 0);
-    case 3:
-      return texelFetch(level0_plane3, texel, 0);
-    case 4:
-      return texelFetch(level0_plane4, texel, 0);
-    default:
-      return texelFetch(level0_plane5, texel, 0);
-  }
 }
 
 vec4 mip_atlas_fetch(int size, int level, int plane, ivec2 texel)
