@@ -50,11 +50,11 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from validation_suite import scene_with_truth, suite  # noqa: E402
+from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
 from build_validation_scenes import RESOLUTION  # noqa: E402
 from energy_budget import rsm_vpls, visible_share, vpl_light  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
-from tradeoff.demo import COVERED, log  # noqa: E402
+from tradeoff.demo import log  # noqa: E402
 from visibility_diagnosis import exact_visibility  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -76,7 +76,6 @@ def errors(x, a, b, truth):
 
 
 def decompose(name, path, stride, samples, overrides, vpls_too=True, knobs=None, seed=0):
-    from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.passes.vsgl_shading import ISM_MAX_RADIUS
     from vsgl_addon.pipeline import VSGL_OWN_REFLECTOR_SIGMAS, build_visibility
     from vsgl_addon.reference import ism
@@ -93,21 +92,7 @@ def decompose(name, path, stride, samples, overrides, vpls_too=True, knobs=None,
     bench = Bench(description, width, height)
     stages = {}
     try:
-        arrays = bench.gbuffer.to_numpy()
-        rd_img = read_texture(bench.inputs.diffuse_reflectance, width, height)[..., :3]
-        f0_img = read_texture(bench.inputs.specular_f0, width, height)[..., :3]
-        pick = np.zeros((height, width), bool)
-        pick[stride // 2::stride, stride // 2::stride] = True
-        pick &= (arrays["position"][..., 3] > COVERED) & (truth["alpha"] > COVERED)
-        position = arrays["position"][..., :3][pick].astype(np.float64)
-        normal = arrays["normal"][..., :3][pick].astype(np.float64)
-        normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
-        roughness = arrays["normal"][..., 3][pick].astype(np.float64) ** 2
-        alpha = np.maximum(roughness, 1e-3)
-        rd, f0 = rd_img[pick].astype(np.float64), f0_img[pick].astype(np.float64)
-        camera = np.asarray(bench.gbuffer.camera_vector, np.float64).reshape(-1)
-        view = camera[:3] - position if camera.shape[0] == 3 or camera[3] > 0 else np.broadcast_to(camera[:3], position.shape)
-        view = view / np.linalg.norm(view, axis=-1, keepdims=True)
+        pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride)
         material = bench.material_index[pick]
 
         start = time.perf_counter()
@@ -132,7 +117,7 @@ def decompose(name, path, stride, samples, overrides, vpls_too=True, knobs=None,
             for table, atlas in zip(vsgls.table_arrays(), vsgls.isms):
                 table = {k: np.asarray(v, np.float64) for k, v in table.items()}
                 maps = atlas.count // len(table["variance"])
-                _, _, terms = shade(table, position, normal, view, rd, f0, roughness,
+                _, _, terms = shade(table, position, normal, view, rd, f0, alpha,
                                     diffuse_mode=diffuse_mode_for_kernel(settings.kernel), per_term=True)
                 weight = terms.sum(axis=3) @ LUMINANCE  # (P, N, 2)
                 # The knobs change the float64 lookups only: the maps stay the GPU's.
