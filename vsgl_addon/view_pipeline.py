@@ -131,9 +131,6 @@ class ViewPipeline:
         # alone, a slow machine's fixed cost shrinks the bands to a row each.
         self._band_times: deque = deque(maxlen=8)
         self._band_fixed_seconds: float | None = None
-        # Rows of the last band: the next may at most double it. Rows differ in cost (sky above the
-        # scene costs nothing), so a rate measured on cheap rows must not size one band for the rest.
-        self._last_band_rows = 0
         # Seconds of each row beyond the band's fixed part, measured band by band over the last
         # sample of this view: the next sample's rows cost the same, so its bands are sized from it.
         self._row_seconds: np.ndarray | None = None
@@ -377,8 +374,10 @@ class ViewPipeline:
         profile = self._row_seconds
         if profile is not None and len(profile) == height and np.all(np.isfinite(profile[first:])):
             rows = max(int(np.searchsorted(np.cumsum(profile[first:]), remaining - fixed, side="right")), 1)
-        elif self._last_band_rows:
-            rows = min(rows, 2 * self._last_band_rows)
+        elif self._band_times:
+            # Without it a band at most doubles the last: rows differ in cost (sky above the scene
+            # costs nothing), so a rate measured on cheap rows must not size one band for the rest.
+            rows = min(rows, 2 * max(int(self._band_times[-1][0]) // width, 1))
         end = min(height, first + max(1, rows))
         clock = self.clock()
         view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, end - first,
@@ -391,7 +390,6 @@ class ViewPipeline:
         self.backend.finish(sample)
         seconds = self.clock() - clock
         self._fit_band_cost(width * (end - first), seconds)
-        self._last_band_rows = end - first
         if self._row_seconds is None or len(self._row_seconds) != height:
             self._row_seconds = np.full(height, np.nan)
         self._row_seconds[first:end] = max(seconds - self._band_fixed_seconds, 0.0) / (end - first)
@@ -478,7 +476,6 @@ class ViewPipeline:
         self._seconds_per_pixel = None
         self._band_fixed_seconds = None
         self._band_times.clear()
-        self._last_band_rows = 0
         self._row_seconds = None
 
     def gpu_resource_count(self) -> int:
