@@ -123,24 +123,25 @@ def test_view_change_does_not_rerun_the_light_passes_and_viewports_share_them(de
         view, projection = camera_view(demo)
         views.request_view(1, view, projection, REGION)
         run_until_idle(views, samples=1)
-        assert len(builds) == 1
+        assert len(builds) == 2  # the coarse image's preview passes, then the sample's
         # Orbit: another view matrix. G-buffer and shading only.
         c, s = math.cos(0.2), math.sin(0.2)
         turned = np.array(view) @ np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
         assert views.request_view(1, turned, projection, REGION)
         assert not views.request_view(1, turned, projection, REGION)  # the same again: no change
         assert run_until_idle(views, samples=1) == [(COARSE, COARSE), (SAMPLE, SAMPLE)]
-        assert len(builds) == 1
-        # A second viewport shares the light passes.
+        assert len(builds) == 2
+        # A second viewport shares the light passes: the first one's, with no preview of its own.
         views.request_view(2, view, projection, (100, 80))
         assert run_until_idle(views, samples=1) == [(LIGHTS, COARSE), (SAMPLE, SAMPLE)]
-        assert len(builds) == 1
-        # The scene changed (depsgraph handler) or a pass parameter changed: the lights rerun, once.
+        assert len(builds) == 2 and not views.pipelines[2].history[-2]["preview_lights"]
+        # The scene changed (depsgraph handler) or a pass parameter changed: the lights rerun, once
+        # (the preview's and the samples' passes, each shared).
         views.mark_scene_dirty()
         assert [work for work, _ in run_until_idle(views, samples=1)].count(LIGHTS) == 2  # one per viewport
-        assert len(builds) == 2
+        assert len(builds) == 4
         run_until_idle(views, settings=VSGLSettings(vsgl_count=8, rsm_size=64), samples=1)
-        assert len(builds) == 3
+        assert len(builds) == 6
     finally:
         views.free()
 

@@ -120,7 +120,8 @@ def test_view_updates_make_no_cpu_round_trip(demo):
 
 @pytest.mark.parametrize("vpl_shadows", [False, True])
 def test_a_light_change_reads_nothing_back_and_uploads_no_point_set(demo, vpl_shadows):
-    """A light moved: the light builds (one per sample's seed) read nothing back: no VSGL table (the
+    """A light moved: the light builds (the coarse image's preview, then one per sample's seed) read
+    nothing back: no VSGL table (the
     shadow maps' origins are made on the GPU), no VPL count (read when the statistics are shown),
     and no view total (the demo's one RSM view per set gets all N VSGLs whatever its power, so the
     planner needs none; its power is read when the statistics or the report ask). The shadow maps'
@@ -149,7 +150,7 @@ def test_a_light_change_reads_nothing_back_and_uploads_no_point_set(demo, vpl_sh
         _run(pipeline, describe, 0.25, 2, settings=settings)
         entries = list(pipeline.history)[-(pipeline.steps - steps):]
         builds = sum(1 for entry in entries if entry.get("work") == "lights" or "light_seconds" in entry)
-        assert builds == 2
+        assert builds == 3  # the coarse image's preview passes, then one per sample's seed
         assert pipeline.guide_builds == 1  # the triangles and the view stayed: the guide G-buffer too
         # The demo has a sharp reflector: the VPLs, and with VPL shadows their clusters' maps, are made.
         assert pipeline.lights.vpls is not None
@@ -207,7 +208,7 @@ def test_coarse_image_keeps_edges_sharper_than_bilinear(demo):
 
     view, projection = demo.camera.view_matrix(), demo.camera.projection_matrix()
     size = (192, 144)
-    pipeline = ViewPipeline()
+    pipeline = ViewPipeline(preview_lights=False)  # the coarse image of the light passes compared to
     renderer = FrameRenderer()
     lights = SceneLights.build(demo, SETTINGS)
     try:
@@ -313,3 +314,34 @@ def test_coarse_preview_thins_the_vpls_and_the_samples_shade_them_all(demo, monk
     with_preview = converged()
     monkeypatch.setattr(module, "preview_stride", lambda texels: 1)
     assert np.array_equal(with_preview, converged())
+
+
+def test_preview_light_passes_light_only_the_coarse_image_and_the_converged_image_is_unchanged(demo):
+    """The coarse image after a change is lit by preview_light_settings' passes (here 16 VSGLs per set
+    of 32² RSMs); the samples rebuild them at the settings' own, so two samples converge to the very
+    image of a pipeline without the preview, bit for bit, every pass."""
+    from vsgl_addon.view_pipeline import preview_light_settings
+
+    view, projection = demo.camera.view_matrix(), demo.camera.projection_matrix()
+    preview = preview_light_settings(SETTINGS)
+    assert (preview.vsgl_count, preview.rsm_size) == (16, 32)
+    images = {}
+    for preview_lights in (True, False):
+        pipeline = ViewPipeline(step_budget=1e9, preview_lights=preview_lights)
+        try:
+            pipeline.request_view(view, projection, REGION)
+            assert pipeline.step(lambda: demo, SETTINGS, 0.25, 2) == "lights"
+            assert pipeline.history[-1]["preview_lights"] == preview_lights
+            coarse = _draw(pipeline)
+            assert np.isfinite(coarse).all() and coarse[..., :3].max() > 0.0
+            _run(pipeline, lambda: demo, 0.25, 2)
+            assert pipeline.samples == 2 and not pipeline.lights_preview
+            images[preview_lights] = {view_pass: _draw(pipeline, view_pass)
+                                      for view_pass in ("combined", "indirect_diffuse", "indirect_specular")}
+            images[preview_lights]["coarse"] = coarse
+        finally:
+            pipeline.free()
+    for view_pass in ("combined", "indirect_diffuse", "indirect_specular"):
+        np.testing.assert_array_equal(images[True][view_pass], images[False][view_pass], err_msg=view_pass)
+    # The preview's coarse image is another one (fewer, wider VSGLs), not the same passes twice.
+    assert not np.array_equal(images[True]["coarse"], images[False]["coarse"])
