@@ -47,6 +47,27 @@ def test_a_light_that_hits_nothing_costs_nothing_and_the_other_is_whole(kernel):
     np.testing.assert_allclose(table["power"][rows].sum(axis=0), table["rsm_total_power"][down], rtol=0.05)
 
 
+@pytest.mark.gpu
+def test_one_view_without_power_gets_vsgls_of_zero_power_that_light_nothing():
+    """One RSM view in the frame gets all N without its power being read back
+    (FramePlan.allocation_reads_powers); when it reflects nothing (a black floor without specular), those N
+    VSGLs carry zero power, finite, and the frame's indirect light stays zero."""
+    scene = sb.reset()
+    sb.plane("Floor", size=6.0, material=sb.principled("Black", base_color=(0.0, 0.0, 0.0), specular_ior_level=0.0))
+    sb.spot_light(name="Down", power=500.0, location=(0, 0, 2), look_at_point=(0, 0, 0))
+    sb.camera()
+    description = extract_scene(sb.depsgraph(scene))
+    settings = VSGLSettings(vsgl_count=64, rsm_size=64)
+    table = generate_scene_vsgls(description, settings)
+    for name, values in table.items():
+        assert np.all(np.isfinite(values)), name
+    assert table["rsm_view_count"].tolist() == [1] and len(table["light_index"]) == 64
+    assert np.all(table["power"] == 0.0) and np.all(table["rsm_total_power"] == 0.0)
+    images = sb.render_frame(description, settings, 48, 36)
+    sb.assert_finite_frame(images)
+    assert images.indirect.max() == 0.0
+
+
 def test_positional_distribution_setting_is_checked_and_read_from_the_scene():
     from types import SimpleNamespace
 

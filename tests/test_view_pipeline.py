@@ -402,3 +402,56 @@ def test_the_guide_is_kept_across_light_changes_and_rebuilt_for_a_view_or_geomet
     pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (100, 50))  # a resized region
     converge(scene(moved))
     assert backend.guides == 4 and pipeline.guide.size == (100, 50)
+
+
+def test_the_coarse_image_after_a_change_has_preview_light_passes_and_the_samples_the_settings_own():
+    """At N = 256 and 128² RSMs: the change's coarse image is lit by preview_light_settings' passes
+    (N / 8, half the RSM side); the first sample rebuilds them at the settings' own, of the same
+    seed, so every sample (what the converged image averages) has the passes it has without the
+    preview. At scale 1 the coarse image is a sample: it gets the settings' own passes at once."""
+    from dataclasses import replace
+
+    from vsgl_addon.view_pipeline import preview_light_settings
+
+    settings = replace(SETTINGS, vsgl_count=256, rsm_size=128)
+    assert preview_light_settings(settings) == replace(settings, vsgl_count=32, rsm_size=64)
+    assert preview_light_settings(SETTINGS) is SETTINGS  # N = 16 and 32² are the floors
+
+    def record(preview_lights, scale, samples=2):
+        Thing.alive = 0
+        clock = Clock()
+        backend = FakeBackend(clock)
+        built, rendered = [], []
+        scene_lights, render_view = backend.scene_lights, backend.render_view
+
+        def lights_of(description, used):
+            built.append(used)
+            return scene_lights(description, used)
+
+        def view_of(renderer, lights, used, *rest, **keywords):
+            rendered.append(used)
+            return render_view(renderer, lights, used, *rest, **keywords)
+
+        backend.scene_lights, backend.render_view = lights_of, view_of
+        pipeline = ViewPipeline(backend, clock, preview_lights=preview_lights)
+        try:
+            pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+            for _ in range(200):
+                if pipeline.step(describe, settings, scale, samples) is None:
+                    break
+            image = pipeline.target.image.copy()
+            samples_rendered = [used for used, size in zip(rendered, backend.renders) if size[0] == REGION[0]]
+            return built, rendered, samples_rendered, image, pipeline.samples
+        finally:
+            pipeline.free()
+            assert Thing.alive == 0
+
+    built, rendered, sampled, image, samples = record(True, 0.25)
+    assert built[0] == preview_light_settings(settings) and rendered[0] == built[0]
+    assert built[1:] == [settings, replace(settings, seed=settings.seed + 1)]
+    assert all(used in built[1:] for used in sampled) and samples == 2
+    plain_built, _, plain_sampled, plain_image, _ = record(False, 0.25)
+    assert plain_built == built[1:] and plain_sampled == sampled
+    np.testing.assert_array_equal(image, plain_image)
+    full_built, full_rendered, _, _, _ = record(True, 1.0)
+    assert full_built[0] == settings and full_rendered[0] == settings

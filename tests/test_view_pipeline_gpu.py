@@ -119,16 +119,16 @@ def test_view_updates_make_no_cpu_round_trip(demo):
 
 
 @pytest.mark.parametrize("vpl_shadows", [False, True])
-def test_a_light_change_reads_back_only_the_views_totals_and_uploads_no_point_set(demo, vpl_shadows):
-    """A light moved: each light build (one per sample's seed) reads back only the one-column tables
-    from which the planner shares the VSGLs among the RSM views (160 bytes each), no VSGL table (the
-    shadow maps' origins are made on the GPU) and no VPL count (read when the statistics are shown);
-    the shadow maps' point sets stay on the GPU across builds of the same triangles (8 MB a seed).
-    With VPL shadows (the default) too: the VPLs' clusters and their maps' origins are made on the
-    GPU (vpl_culling.extract_vpls with shadows), so nothing else is read back either."""
+def test_a_light_change_reads_nothing_back_and_uploads_no_point_set(demo, vpl_shadows):
+    """A light moved: the light builds (the coarse image's preview, then one per sample's seed) read
+    nothing back: no VSGL table (the
+    shadow maps' origins are made on the GPU), no VPL count (read when the statistics are shown),
+    and no view total (the demo's one RSM view per set gets all N VSGLs whatever its power, so the
+    planner needs none; its power is read when the statistics or the report ask). The shadow maps'
+    point sets stay on the GPU across builds of the same triangles (8 MB a seed). With VPL shadows
+    (the default) too: the VPLs' clusters and their maps' origins are made on the GPU
+    (vpl_culling.extract_vpls with shadows)."""
     from dataclasses import replace
-
-    from vsgl_addon.layouts import VSGL_TABLE
 
     settings = replace(SETTINGS, vpl_visibility=vpl_shadows)
 
@@ -150,16 +150,37 @@ def test_a_light_change_reads_back_only_the_views_totals_and_uploads_no_point_se
         _run(pipeline, describe, 0.25, 2, settings=settings)
         entries = list(pipeline.history)[-(pipeline.steps - steps):]
         builds = sum(1 for entry in entries if entry.get("work") == "lights" or "light_seconds" in entry)
-        assert builds == 2
+        assert builds == 3  # the coarse image's preview passes, then one per sample's seed
         assert pipeline.guide_builds == 1  # the triangles and the view stayed: the guide G-buffer too
-        reads = RoundTrips.read_backs - read_backs
-        views = next(entry["counts"] for entry in reversed(entries) if "counts" in entry)["rsm_views"]
         # The demo has a sharp reflector: the VPLs, and with VPL shadows their clusters' maps, are made.
         assert pipeline.lights.vpls is not None
         assert (pipeline.lights.vpls.isms is not None) == vpl_shadows
-        totals = reads
-        assert 0 < totals <= builds * views * len(pipeline.lights.plan.receiver_sets)
-        assert RoundTrips.read_back_bytes - read_bytes == totals * 16 * len(VSGL_TABLE.slots)
+        assert (RoundTrips.read_backs - read_backs, RoundTrips.read_back_bytes - read_bytes) == (0, 0)
+        # Asked for, the plan's measured bounce powers are read then, one VSGL table per set, and
+        # equal the power of the one-kernel table the planner read before.
+        plan = pipeline.lights.plan
+        light_plan = next(entry for entry in plan.lights if entry.gets_rsm)
+        assert light_plan.rsm_views == 1 and len(plan.receiver_sets) == 3
+        report = plan.to_dict()
+        assert RoundTrips.read_backs - read_backs == len(plan.receiver_sets)
+        powers = report["lights"][light_plan.index]["rsm_power"]
+        assert set(powers) == set(plan.receiver_sets) and all(power > 0.0 for power in powers.values())
+        assert "% of the bounce" in plan.light_line(light_plan)
+        assert RoundTrips.read_backs - read_backs == len(plan.receiver_sets)  # read once
+        from vsgl_addon.passes.vsgl_generation import VSGLGeneration
+        from vsgl_addon.planner import view_power
+
+        for lobe, table_set in zip(plan.receiver_sets, (pipeline.lights.vsgls, pipeline.lights.glossy_vsgls,
+                                                        pipeline.lights.whole_vsgls)):
+            (view,) = table_set.views_by_light[light_plan.index]
+            generation = VSGLGeneration()  # what the planner read before: a one-kernel table
+            try:
+                generation.build_mip_atlas(view.rsm_textures(), None)
+                generation.generate(1, settings.k, settings.kernel)
+                expected = view_power(generation.read_table()["rsm_total_power"])
+            finally:
+                generation.free()
+            assert powers[lobe] == pytest.approx(expected, rel=1e-6)
         # Without the kept point sets: 8 MB per build.
         assert RoundTrips.upload_bytes - upload_bytes < 2 * 1024 * 1024
         # Asked for, the VPL count of the GPU extraction is read then (4 bytes), with or without VPL
@@ -187,7 +208,7 @@ def test_coarse_image_keeps_edges_sharper_than_bilinear(demo):
 
     view, projection = demo.camera.view_matrix(), demo.camera.projection_matrix()
     size = (192, 144)
-    pipeline = ViewPipeline()
+    pipeline = ViewPipeline(preview_lights=False)  # the coarse image of the light passes compared to
     renderer = FrameRenderer()
     lights = SceneLights.build(demo, SETTINGS)
     try:
@@ -293,3 +314,34 @@ def test_coarse_preview_thins_the_vpls_and_the_samples_shade_them_all(demo, monk
     with_preview = converged()
     monkeypatch.setattr(module, "preview_stride", lambda texels: 1)
     assert np.array_equal(with_preview, converged())
+
+
+def test_preview_light_passes_light_only_the_coarse_image_and_the_converged_image_is_unchanged(demo):
+    """The coarse image after a change is lit by preview_light_settings' passes (here 16 VSGLs per set
+    of 32² RSMs); the samples rebuild them at the settings' own, so two samples converge to the very
+    image of a pipeline without the preview, bit for bit, every pass."""
+    from vsgl_addon.view_pipeline import preview_light_settings
+
+    view, projection = demo.camera.view_matrix(), demo.camera.projection_matrix()
+    preview = preview_light_settings(SETTINGS)
+    assert (preview.vsgl_count, preview.rsm_size) == (16, 32)
+    images = {}
+    for preview_lights in (True, False):
+        pipeline = ViewPipeline(step_budget=1e9, preview_lights=preview_lights)
+        try:
+            pipeline.request_view(view, projection, REGION)
+            assert pipeline.step(lambda: demo, SETTINGS, 0.25, 2) == "lights"
+            assert pipeline.history[-1]["preview_lights"] == preview_lights
+            coarse = _draw(pipeline)
+            assert np.isfinite(coarse).all() and coarse[..., :3].max() > 0.0
+            _run(pipeline, lambda: demo, 0.25, 2)
+            assert pipeline.samples == 2 and not pipeline.lights_preview
+            images[preview_lights] = {view_pass: _draw(pipeline, view_pass)
+                                      for view_pass in ("combined", "indirect_diffuse", "indirect_specular")}
+            images[preview_lights]["coarse"] = coarse
+        finally:
+            pipeline.free()
+    for view_pass in ("combined", "indirect_diffuse", "indirect_specular"):
+        np.testing.assert_array_equal(images[True][view_pass], images[False][view_pass], err_msg=view_pass)
+    # The preview's coarse image is another one (fewer, wider VSGLs), not the same passes twice.
+    assert not np.array_equal(images[True]["coarse"], images[False]["coarse"])

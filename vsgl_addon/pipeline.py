@@ -20,7 +20,7 @@ import numpy as np
 from .layouts import VSGL_TABLE
 from .passes.rsm import SceneGPU, render_rsm_views
 from .passes.vsgl_generation import VSGLGeneration, upload_pdf
-from .planner import plan_frame, share_counts, view_power
+from .planner import DeferredPowers, plan_frame, share_counts, view_power
 from .reference.vsgl import LUMINANCE_WEIGHTS
 from .scene_points import triangle_areas
 from .settings import VSGLSettings
@@ -67,6 +67,8 @@ class SceneVSGLs:
     isms: list = field(default_factory=list)
     # (table dict, VSGLTable) of every generation's VSGLs in one table (merge()), or None.
     merged: tuple | None = None
+    # Lights whose rsm_total_power is still in their tables only (render_scene_vsgls did not need it).
+    deferred_totals: set = field(default_factory=set)
 
     @property
     def vsgl_count(self) -> int:
@@ -116,8 +118,8 @@ class SceneVSGLs:
     def read(self) -> dict[str, np.ndarray]:
         """The export table (see generate_scene_vsgls), read back from the GPU."""
         tables, light_rows, view_rows = [], [], []
-        for light_index, view_index, generation in self.generations:
-            table = generation.read_table()
+        read = [generation.read_table() for _, _, generation in self.generations]
+        for (light_index, view_index, generation), table in zip(self.generations, read):
             tables.append({name: table[name] for name in VSGL_FIELDS})
             light_rows.append(np.full(generation.vsgl_count, light_index))
             view_rows.append(np.full(generation.vsgl_count, view_index))
@@ -129,6 +131,10 @@ class SceneVSGLs:
         merged["view_index"] = np.concatenate(view_rows) if view_rows else np.zeros(0, np.int64)
         light_count = len(self.rsm_total_power)
         merged["rsm_total_power"] = self.rsm_total_power.copy()
+        for light_index in self.deferred_totals:  # every view of theirs has a table
+            merged["rsm_total_power"][light_index] = np.sum(
+                [table["rsm_total_power"] for table, (index, _, _) in zip(read, self.generations)
+                 if index == light_index] or [np.zeros(3)], axis=0)
         merged["rsm_size"] = np.full(light_count, self.rsm_size, np.int64)
         merged["rsm_view_count"] = np.array([len(self.views_by_light.get(i, [])) for i in range(light_count)],
                                             np.int64)
@@ -139,6 +145,7 @@ class SceneVSGLs:
             atlas.free()
         self.isms.clear()
         self.merged = None  # Blender frees a GPUTexture with its last reference
+        self.deferred_totals = set()
         for _, _, generation in self.generations:
             generation.free()
         self.generations.clear()
@@ -190,6 +197,17 @@ def _view_pdf_texture(view, receivers):
     return upload_pdf(view_pdf(np.where(arrays.coverage, weight, 0.0), importance), view.size)
 
 
+def _power_reader(result: "SceneVSGLs", light_index: int):
+    """The per-view powers of light ``light_index``'s views in ``result``, read back from their
+    tables when called; None once the tables were freed unread."""
+    def read():
+        if light_index not in result.deferred_totals:  # freed
+            return None
+        return [view_power(g.read_table()["rsm_total_power"]) for index, _, g in result.generations
+                if index == light_index]
+    return read
+
+
 def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lobe: str = "all",
                        proxies=(), sharp_alpha: float = 0.0, plan=None, receivers=None) -> SceneVSGLs:
     """RSM views of the lights the frame plan gives them, then the frame's VSGLs (tables stay on the GPU).
@@ -209,9 +227,8 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
         plan = plan_frame(scene_gpu.scene, settings)
     result = SceneVSGLs({}, [], np.zeros((light_count, 3)), settings.rsm_size)
     two_vsgl = settings.kernel == "two-vsgl"
-    pending = []  # (light index, view index, generation) with the view's total read, not yet sampled
+    pending = []  # (light index, view index, generation) with the view's mip atlas, not yet sampled
     try:
-        view_powers = {}
         for light_index in plan.rsm_lights():
             light_plan = plan.lights[light_index]
             # The views the planner culled already (light_reach): not tested a second time per frame.
@@ -219,19 +236,30 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             views = render_rsm_views(scene_gpu, light_index, light_plan.rsm_size, receiver_lobe,
                                      proxies, sharp_alpha, specs)
             result.views_by_light[light_index] = views
-            totals = []
             for view_index, view in enumerate(views):
                 generation = VSGLGeneration()
                 pending.append((light_index, view_index, generation))
                 pdf = (_view_pdf_texture(view, receivers)
                        if receivers is not None and plan.runs("view_pdf") else None)
                 generation.build_mip_atlas(view.rsm_textures(), pdf)
+        view_counts = {index: len(views) for index, views in result.views_by_light.items()}
+        if plan.allocation_reads_powers(view_counts):
+            totals = {index: [] for index in view_counts}
+            for light_index, _, generation in pending:
                 # One kernel is enough to read the view's total from the atlas's top level.
                 generation.generate(1 if not two_vsgl else 2, settings.k, settings.kernel)
-                totals.append(generation.read_table()["rsm_total_power"])
-            if totals:
-                result.rsm_total_power[light_index] = np.sum(totals, axis=0)
-            view_powers[light_index] = [view_power(total) for total in totals]
+                totals[light_index].append(generation.read_table()["rsm_total_power"])
+            view_powers = {}
+            for light_index, light_totals in totals.items():
+                if light_totals:
+                    result.rsm_total_power[light_index] = np.sum(light_totals, axis=0)
+                view_powers[light_index] = [view_power(total) for total in light_totals]
+        else:
+            # The shares do not depend on the powers: the totals are read back only when the
+            # statistics, the report or the export ask (the tables hold them, row rsm_total_power).
+            view_powers = {index: DeferredPowers(count, _power_reader(result, index))
+                           for index, count in view_counts.items()}
+            result.deferred_totals = set(view_counts)
         counts = plan.allocate(view_powers, receiver_lobe)
         while pending:
             light_index, view_index, generation = pending.pop(0)

@@ -99,12 +99,39 @@ class LightPlan:
     # The RSMViewSpecs of its rsm_views views (light_reach found them; the RSM pass renders them)
     view_specs: list = field(default_factory=list, repr=False)
     rsm_power: dict = field(default_factory=dict)  # set -> lum Σ Φ(Rd + Rs) over its views, W
+    # set -> function reading rsm_power back from the GPU when the statistics or the report ask
+    # (the allocation did not need it: FramePlan.allocation_reads_powers); None once unreadable.
+    power_readers: dict = field(default_factory=dict, repr=False)
     vsgls: dict = field(default_factory=dict)  # set -> VSGLs (sum over views)
     view_vsgls: dict = field(default_factory=dict)  # set -> VSGLs per view
 
     @property
     def gets_rsm(self) -> bool:
         return self.rsm_views > 0
+
+    def measured_power(self, receiver_set: str, default: float | None = 0.0) -> float | None:
+        """rsm_power[receiver_set] (``default`` without one), read back now if it was deferred;
+        None when its tables were freed unread."""
+        if receiver_set in self.power_readers:
+            powers = self.power_readers[receiver_set]()
+            if powers is None:
+                return None
+            del self.power_readers[receiver_set]
+            self.rsm_power[receiver_set] = float(np.sum(powers))
+        return self.rsm_power.get(receiver_set, default)
+
+    def measured_powers(self) -> dict:
+        return {name: power for name in [*self.rsm_power, *self.power_readers]
+                if (power := self.measured_power(name, None)) is not None}
+
+
+@dataclass(frozen=True)
+class DeferredPowers:
+    """A light's per-view powers not measured before the allocation: ``views`` views, ``read()``
+    the powers (or None) when asked."""
+
+    views: int
+    read: object
 
 
 @dataclass
@@ -136,19 +163,40 @@ class FramePlan:
     def rsm_lights(self) -> list[int]:
         return [light.index for light in self.lights if light.gets_rsm]
 
+    def allocation_reads_powers(self, view_counts: dict) -> bool:
+        """Whether sharing one set's VSGLs among the views (``view_counts``: light index -> its
+        views) needs their measured powers, a read-back before the kernels run: not with 003's two
+        VSGLs per view, nor with one view in all, which allocate_vsgls gives all N (a view without
+        power then gets VSGLs of zero power, which light nothing)."""
+        return self.kernel != "two-vsgl" and sum(view_counts.values()) > 1
+
     def allocate(self, view_powers: dict, receiver_set: str = "all") -> dict:
         """light index -> VSGLs per view (int64 array) for one VSGL set, from each view's measured
-        bounce power lum(Σ Φ(Rd + Rs)) (``view_powers``: light index -> per-view powers); recorded
-        in the plan. two-vsgl: two per view (003; N unused)."""
+        bounce power lum(Σ Φ(Rd + Rs)) (``view_powers``: light index -> per-view powers, or
+        DeferredPowers where allocation_reads_powers is False); recorded in the plan. two-vsgl:
+        two per view (003; N unused)."""
+        deferred = {index: powers for index, powers in view_powers.items() if isinstance(powers, DeferredPowers)}
+        if deferred and self.allocation_reads_powers({i: p.views for i, p in deferred.items()}
+                                                     | {i: len(p) for i, p in view_powers.items() if i not in deferred}):
+            raise ValueError("these views' shares depend on their powers: measure them first")
         if self.kernel == "two-vsgl":
-            counts = {index: np.full(len(powers), 2, np.int64) for index, powers in view_powers.items()}
+            counts = {index: np.full(powers.views if index in deferred else len(powers), 2, np.int64)
+                      for index, powers in view_powers.items()}
             dropped = 0.0
         else:
-            counts, dropped = allocate_vsgls(self.vsgl_budget, view_powers)
+            # The one view's share is N whatever power it has; its dropped fraction is 0 either way.
+            counts, dropped = allocate_vsgls(self.vsgl_budget, {
+                index: np.ones(deferred[index].views) if index in deferred else powers
+                for index, powers in view_powers.items()})
         by_index = {light.index: light for light in self.lights}
         for index, powers in view_powers.items():
             light = by_index[index]
-            light.rsm_power[receiver_set] = float(np.sum(powers))
+            if index in deferred:
+                light.rsm_power.pop(receiver_set, None)
+                light.power_readers[receiver_set] = powers.read
+            else:
+                light.power_readers.pop(receiver_set, None)
+                light.rsm_power[receiver_set] = float(np.sum(powers))
             light.view_vsgls[receiver_set] = [int(c) for c in counts[index]]
             light.vsgls[receiver_set] = int(np.sum(counts[index]))
         self.dropped_bounce[receiver_set] = dropped
@@ -172,9 +220,10 @@ class FramePlan:
         counts = ", ".join(f"{light.vsgls[name]} {'VSGLs' if len(sets) == 1 else name}" for name in sets)
         share = ""
         if sets:
-            total = sum(other.rsm_power.get(sets[0], 0.0) for other in self.lights)
-            if total > 0.0:
-                share = f", {100.0 * light.rsm_power[sets[0]] / total:.1f} % of the bounce"
+            powers = [other.measured_power(sets[0]) for other in self.lights]
+            total = sum(power for power in powers if power is not None)
+            if total > 0.0 and None not in powers:
+                share = f", {100.0 * light.measured_power(sets[0]) / total:.1f} % of the bounce"
         views = f"{light.rsm_views} RSM view{'s' if light.rsm_views != 1 else ''} {light.rsm_size}²"
         size = f"; {light.size_reason}" if light.size_reason else ""
         return f"Light {light.name}: {views}, {counts or 'VSGLs not allocated yet'}{share} — {light.reason}{size}"
@@ -191,7 +240,7 @@ class FramePlan:
             "lights": [{"index": light.index, "name": light.name, "rsm_views": light.rsm_views,
                         "rsm_size": light.rsm_size, "size_reason": light.size_reason,
                         "bounce_estimate": light.bounce_estimate,
-                        "rsm_power": dict(light.rsm_power), "vsgls": dict(light.vsgls),
+                        "rsm_power": light.measured_powers(), "vsgls": dict(light.vsgls),
                         "view_vsgls": dict(light.view_vsgls), "reason": light.reason}
                        for light in self.lights],
             "proxies": [{"object": int(proxy.object_index), "area": float(proxy.area),

@@ -44,6 +44,27 @@ STEP_BUDGET = 0.06
 #: Samples averaged before the viewport stops refining (the property viewport_samples overrides it).
 DEFAULT_SAMPLES = 16
 LIGHTS, COARSE, SAMPLE = "lights", "coarse", "sample"
+#: The coarse image after a change is lit by light passes of N / PREVIEW_VSGL_DIVISOR VSGLs per set
+#: (at least PREVIEW_MIN_VSGLS): as many fewer imperfect shadow maps, the light build's largest
+#: stage (benchmarks/results/light_build_profile.md), and lobes summed per pixel by VSGL shading,
+#: the coarse view passes' largest; and by RSMs of half the side (at least PREVIEW_MIN_RSM_SIZE):
+#: a quarter of the texels to render, reduce into mip chains and extract VPLs from. Fewer VSGLs are
+#: wider Gaussians of the same reflected light (000 Eq. 5), a smoother estimate of it; the samples
+#: rebuild the passes at the settings' own N and RSM size, so the converged image is the one
+#: without the preview (benchmarks/first_coarse_image.py, tests/test_view_pipeline_gpu.py).
+PREVIEW_VSGL_DIVISOR = 8
+PREVIEW_MIN_VSGLS = 16
+PREVIEW_MIN_RSM_SIZE = 32
+
+
+def preview_light_settings(settings: VSGLSettings) -> VSGLSettings:
+    """The settings of the coarse image's light passes (see PREVIEW_VSGL_DIVISOR); ``settings``
+    itself when they would be no cheaper."""
+    count = max(settings.vsgl_count // PREVIEW_VSGL_DIVISOR, min(PREVIEW_MIN_VSGLS, settings.vsgl_count))
+    size = max(settings.rsm_size // 2, min(PREVIEW_MIN_RSM_SIZE, settings.rsm_size))
+    if count >= settings.vsgl_count and size >= settings.rsm_size:
+        return settings
+    return settings.overridden(vsgl_count=count, rsm_size=size)
 
 
 @dataclass
@@ -97,7 +118,10 @@ def view_size(region_size, scale: float) -> tuple[int, int]:
 class ViewPipeline:
     """One viewport's light passes, accumulation images and progress (see the module documentation)."""
 
-    def __init__(self, backend=None, clock=time.perf_counter, step_budget: float = STEP_BUDGET):
+    def __init__(self, backend=None, clock=time.perf_counter, step_budget: float = STEP_BUDGET,
+                 preview_lights: bool = True):
+        """``preview_lights``: light the coarse image after a change with preview_light_settings'
+        passes (False: with the settings' own, as every sample is)."""
         if backend is None:
             from .view_gpu import GPUViewBackend
 
@@ -110,6 +134,9 @@ class ViewPipeline:
         self.lights_version = -1
         self.lights_settings: VSGLSettings | None = None  # the base settings (seed offset 0)
         self.lights_seed = 0  # seed offset of the current light passes
+        self.preview_lights = preview_lights
+        self.lights_preview = False  # the current light passes are preview_light_settings'
+        self._lights_built = None  # the settings the current light passes were built with
         self.renderer = None
         self.request: ViewRequest | None = None
         self.target = None  # accumulation images at the region's size
@@ -203,7 +230,9 @@ class ViewPipeline:
         entry = {"index": self.steps, "work": work}
         try:
             if work == LIGHTS:
-                entry["light_seconds"] = self._rebuild_lights(describe_scene, settings, 0)
+                entry["light_seconds"] = self._rebuild_lights(describe_scene, settings, 0,
+                                                              preview=self._coarse_is_preview(scale))
+                entry["preview_lights"] = self.lights_preview
                 work = COARSE
             if work == COARSE or not self._fresh(scale):
                 entry.update(self._render_coarse(scale))
@@ -222,7 +251,14 @@ class ViewPipeline:
         self.steps += 1
         return entry["work"]
 
-    def _rebuild_lights(self, describe_scene, settings: VSGLSettings, seed_offset: int) -> float:
+    def _coarse_is_preview(self, scale: float) -> bool:
+        """Whether the coarse image about to be made is smaller than the region (at its size it is
+        the first sample, whose light passes are the settings' own)."""
+        full = tuple(self.request.region_size)
+        return self.preview_lights and view_size(full, scale * self.coarse_factor) != full
+
+    def _rebuild_lights(self, describe_scene, settings: VSGLSettings, seed_offset: int,
+                        preview: bool = False) -> float:
         started = self.clock()
         self._free_lights()
         description = describe_scene()
@@ -231,8 +267,13 @@ class ViewPipeline:
             self.renderer = self.backend.frame_renderer()
         version = self.scene_version
         seeded = settings if seed_offset == 0 else settings.overridden(seed=settings.seed + seed_offset)
-        self.lights = self.backend.scene_lights(description, seeded)
+        # Passes of the settings' own that another viewport holds cost nothing: no preview then.
+        if preview and getattr(self.backend, "has_lights", lambda _: False)(seeded):
+            preview = False
+        built = preview_light_settings(seeded) if preview else seeded
+        self.lights = self.backend.scene_lights(description, built)
         self.lights_version, self.lights_settings, self.lights_seed = version, settings, seed_offset
+        self.lights_preview, self._lights_built = built is not seeded, built
         return self.clock() - started
 
     def _ensure_target(self, attribute: str, size):
@@ -245,8 +286,8 @@ class ViewPipeline:
         return target
 
     def _seeded_settings(self):
-        settings = self.lights_settings
-        return settings if self.lights_seed == 0 else settings.overridden(seed=settings.seed + self.lights_seed)
+        """The settings the current light passes were built with (the view passes read them too)."""
+        return self._lights_built
 
     def _render_coarse(self, scale: float) -> dict:
         request = self.request
@@ -279,8 +320,8 @@ class ViewPipeline:
         self._rows_done = 0
         self._band_seed = None
         self._row_seconds = None  # a new view, scene or setting: its rows cost what they cost
-        # At scale 1 the coarse image is a full-resolution sample already.
-        self.samples = 1 if (width, height) == tuple(full) else 0
+        # At scale 1 the coarse image is a full-resolution sample already (unless preview-lit).
+        self.samples = 1 if (width, height) == tuple(full) and not self.lights_preview else 0
         if self.samples:
             self._seeds_used.add(self.lights_seed)
         self.has_image = True
@@ -353,7 +394,14 @@ class ViewPipeline:
 
     def _refine(self, describe_scene, settings: VSGLSettings, started: float, max_samples: int) -> dict:
         entry: dict = {"level": SAMPLE}
-        if self._rows_done == 0 and self.lights_seed in self._seeds_used:
+        if self._rows_done == 0 and self.lights_preview:
+            # The preview's passes lit the coarse image only: the samples' are the settings' own,
+            # of the same seed.
+            entry["light_seconds"] = self._rebuild_lights(describe_scene, settings, self.lights_seed)
+            if self.clock() - started > self.step_budget / 2:
+                entry["rows"] = (0, 0, self.request.region_size[1])
+                return entry
+        elif self._rows_done == 0 and self.lights_seed in self._seeds_used:
             # The next sample needs light passes of a seed this accumulation has not used yet.
             offset = max(self._seeds_used) + 1
             entry["light_seconds"] = self._rebuild_lights(describe_scene, settings, offset)
@@ -451,6 +499,8 @@ class ViewPipeline:
         self.lights_version = -1
         self.lights_settings = None
         self.lights_seed = 0
+        self.lights_preview = False
+        self._lights_built = None
 
     def free(self) -> None:
         """Release every GPU resource; the next step starts from scratch."""
@@ -530,6 +580,10 @@ class _SharedLightsBackend:
 
     def scene_lights(self, description, settings):
         return self._viewports._acquire_lights(self._backend, description, settings)
+
+    def has_lights(self, settings: VSGLSettings) -> bool:
+        """Whether another viewport holds light passes of this scene state and settings."""
+        return (self._viewports.scene_version, settings) in self._viewports._lights
 
     def free(self) -> None:
         """Nothing: the shared backend is the ViewportSet's, freed with it."""

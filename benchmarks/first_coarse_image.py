@@ -1,0 +1,207 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Change → first coarse image in the Rendered viewport's pipeline, without the window (not a test).
+
+    .venv/bin/python benchmarks/first_coarse_image.py [--baseline REV] [--rounds 2] [--repeats 4]
+                                                      [--scene demo] [--no-write]
+
+demo.blend with its saved settings, a view_pipeline.ViewPipeline on the real passes (bpy module,
+llvmpipe) through the camera at 1311 × 786 (the window of benchmarks/interactive.py), scale 0.25: the
+first light is moved and the pipeline stepped once (the light passes of the new state, then the
+coarse image), ``--repeats`` times per process after one warm-up move that compiles the shaders.
+Per step: its seconds, its light passes' and its view render's. Variants, each in ``--rounds`` fresh
+processes, alternating round by round (checkout_ab.alternate; absolute times are noisy on this shared
+2-core machine, read the ratios): this checkout with the preview's light passes
+(view_pipeline.preview_light_settings) and without (``preview_lights=False``: the settings' own, as
+before), and with ``--baseline REV`` an export of commit REV. Each current process also steps the
+pipeline until its samples converged (2 samples at 164 × 98) with and without the preview and
+compares the two accumulated images (they must be identical) and the coarse images against the
+converged one (relative RMSE). Writes benchmarks/results/first_coarse_image.{md,json} unless --no-write.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+from checkout_ab import alternate, extract_commit, run_child
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = REPO / "benchmarks" / "results"
+REGION = (1311, 786)
+SCALE = 0.25
+CONVERGE_REGION = (164, 98)
+CONVERGE_SAMPLES = 2
+
+
+def _scene_path(name: str) -> Path:
+    return REPO / "demo.blend" if name == "demo" else REPO / "benchmarks" / "scenes" / f"{name}.blend"
+
+
+def measure(repo: Path, scene: str, repeats: int, preview: bool | None) -> dict:
+    """The steps in this process, the add-on imported from ``repo``; ``preview`` None: the
+    checkout's ViewPipeline as it is (a baseline without the option)."""
+    sys.path.insert(0, str(repo))
+    import bpy
+    import numpy as np
+
+    from vsgl_addon import register
+    from vsgl_addon.gpu_context import ensure_gpu_context
+    from vsgl_addon.scene import extract_scene
+    from vsgl_addon.settings import VSGLSettings
+    from vsgl_addon.view_pipeline import ViewPipeline
+
+    ensure_gpu_context()
+    register()
+    bpy.ops.wm.open_mainfile(filepath=str(_scene_path(scene)), load_ui=False)
+    settings = VSGLSettings.from_properties(bpy.context.scene.vsgl)
+    light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
+
+    def describe():
+        return extract_scene(bpy.context.evaluated_depsgraph_get())
+
+    def pipeline_of():
+        return ViewPipeline() if preview is None else ViewPipeline(preview_lights=preview)
+
+    camera = describe().camera
+    view, projection = camera.view_matrix(), camera.projection_matrix()
+    steps = []
+    pipeline = pipeline_of()
+    try:
+        pipeline.request_view(view, projection, REGION)
+        for index in range(repeats + 1):
+            light.location.x += 0.05 * (1 if index % 2 == 0 else -1)
+            bpy.context.view_layer.update()
+            pipeline.mark_scene_dirty()
+            pipeline.step(describe, settings, SCALE, 2)
+            entry = pipeline.history[-1]
+            if "error" in entry:
+                raise RuntimeError(entry["error"])
+            if index:
+                steps.append({"seconds": entry["seconds"], "light_seconds": entry.get("light_seconds", 0.0),
+                              "view_seconds": entry.get("view_seconds", 0.0), "size": list(entry.get("size") or ()),
+                              "preview_lights": bool(entry.get("preview_lights", False))})
+    finally:
+        pipeline.free()
+    row = {"steps": steps}
+    if preview is not None:
+        row["converged"] = converged_images(bpy, np, describe, settings, view, projection)
+    return row
+
+
+def _draw(pipeline, np, size):
+    import gpu
+
+    offscreen = gpu.types.GPUOffScreen(*size, format="RGBA32F")
+    try:
+        with offscreen.bind():
+            framebuffer = gpu.state.active_framebuffer_get()
+            framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0))
+            gpu.state.viewport_set(0, 0, *size)
+            assert pipeline.draw("combined")
+            buffer = framebuffer.read_color(0, 0, size[0], size[1], 4, 0, "FLOAT")
+        buffer.dimensions = size[0] * size[1] * 4
+        return np.array(buffer, np.float32).reshape(size[1], size[0], 4)[..., :3]
+    finally:
+        offscreen.free()
+
+
+def converged_images(bpy, np, describe, settings, view, projection) -> dict:
+    """With and without the preview: the coarse image and the converged one at CONVERGE_REGION."""
+    from vsgl_addon.view_pipeline import ViewPipeline
+
+    images = {}
+    for preview in (True, False):
+        pipeline = ViewPipeline(step_budget=1e9, preview_lights=preview)
+        try:
+            pipeline.request_view(view, projection, CONVERGE_REGION)
+            pipeline.step(describe, settings, SCALE, CONVERGE_SAMPLES)
+            images[("coarse", preview)] = _draw(pipeline, np, CONVERGE_REGION)
+            while pipeline.step(describe, settings, SCALE, CONVERGE_SAMPLES) is not None:
+                pass
+            images[("converged", preview)] = _draw(pipeline, np, CONVERGE_REGION)
+        finally:
+            pipeline.free()
+    reference = images[("converged", False)].astype(np.float64)
+    norm = float(np.sqrt(np.mean(reference ** 2)))
+
+    def rmse(image):
+        return float(np.sqrt(np.mean((image.astype(np.float64) - reference) ** 2)) / norm)
+
+    return {"identical": bool(np.array_equal(images[("converged", True)], images[("converged", False)])),
+            "largest_difference": float(np.max(np.abs(images[("converged", True)] - images[("converged", False)]))),
+            "coarse_rmse_preview": rmse(images[("coarse", True)]),
+            "coarse_rmse_full": rmse(images[("coarse", False)])}
+
+
+def _median(steps, key):
+    return statistics.median(step[key] for step in steps)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scene", default="demo")
+    parser.add_argument("--repeats", type=int, default=4)
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--baseline", default=None)
+    parser.add_argument("--no-write", action="store_true")
+    parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--repo", type=Path, default=REPO, help=argparse.SUPPRESS)
+    arguments = parser.parse_args(argv)
+    if arguments.child is not None:
+        preview = {"on": True, "off": False, "as-is": None}[arguments.child]
+        print(json.dumps(measure(arguments.repo, arguments.scene, arguments.repeats, preview)))
+        return 0
+
+    with tempfile.TemporaryDirectory() as temporary:
+        variants = [("preview", REPO), ("no preview", REPO)]
+        if arguments.baseline is not None:
+            variants.append((arguments.baseline, extract_commit(arguments.baseline, Path(temporary) / "baseline")))
+        child = {"preview": "on", "no preview": "off"}
+
+        def run(label, repo):
+            return run_child(Path(__file__).resolve(), ["--child", child.get(label, "as-is"), "--repo", str(repo),
+                                                        "--scene", arguments.scene, "--repeats", str(arguments.repeats)],
+                             sys.executable, timeout=3600)
+
+        results = alternate(variants, arguments.rounds, run)
+    rows = {}
+    for label, _ in variants:
+        steps = [step for child_row in results[label] for step in child_row["steps"]]
+        rows[label] = {"seconds": _median(steps, "seconds"), "light_seconds": _median(steps, "light_seconds"),
+                       "view_seconds": _median(steps, "view_seconds"), "steps": steps,
+                       "converged": [child_row.get("converged") for child_row in results[label] if "converged" in child_row]}
+    print(json.dumps({label: {key: row[key] for key in ("seconds", "light_seconds", "view_seconds")}
+                      for label, row in rows.items()}))
+    if arguments.no_write:
+        return 0
+    reference = arguments.baseline or "no preview"
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "first_coarse_image.json").write_text(json.dumps(rows, indent=2))
+    lines = ["# Change → first coarse image, without the window\n",
+             f"{arguments.scene}, its saved settings, a light moved, {REGION[0]}×{REGION[1]} at scale {SCALE}; "
+             f"median of {arguments.rounds} processes × {arguments.repeats} steps per variant, alternating "
+             "(benchmarks/first_coarse_image.py), ms. The step is the light passes of the new state and the "
+             "coarse image (its view render: passes, full-resolution guide, resolve).\n",
+             f"| variant | step | light passes | view render | step / {reference} |", "|---|---|---|---|---|"]
+    for label, row in rows.items():
+        lines.append(f"| {label} | {1000 * row['seconds']:.0f} | {1000 * row['light_seconds']:.0f} | "
+                     f"{1000 * row['view_seconds']:.0f} | {row['seconds'] / rows[reference]['seconds']:.2f} |")
+    checks = [c for c in rows["preview"]["converged"] + rows["no preview"]["converged"] if c]
+    if checks:
+        lines.append(f"\nConverged ({CONVERGE_SAMPLES} samples at {CONVERGE_REGION[0]}×{CONVERGE_REGION[1]}) with "
+                     "and without the preview: "
+                     + ("identical" if all(c["identical"] for c in checks) else "DIFFERENT")
+                     + f" in {len(checks)} of {len(checks)} processes (largest difference "
+                     f"{max(c['largest_difference'] for c in checks):.1e}). The coarse image's relative RMSE "
+                     f"against that converged image: with the preview {statistics.median(c['coarse_rmse_preview'] for c in checks):.3f}, "
+                     f"without {statistics.median(c['coarse_rmse_full'] for c in checks):.3f}.")
+    (RESULTS / "first_coarse_image.md").write_text("\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
