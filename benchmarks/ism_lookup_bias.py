@@ -41,8 +41,8 @@ from tradeoff.metrics import Errors  # noqa: E402
 from validation_suite import frame_errors, scene_with_truth, suite  # noqa: E402
 
 RESULTS = REPO / "benchmarks" / "results"
-#: O:D:B:S triples, the first the depth bias (D is then unused).
-BIASES = ("0:0.5:0", "0:0.5:1", "1:0.5:0", "1:0.5:1")
+#: O:D:B:S (missing trailing values: D 0.5, B 0, S 0), the first the slope-scaled depth bias alone.
+BIASES = ("0:0.5:0:0", "1:1:0:0", "2:1:0:0", "0:0.5:1:0", "0:1:0:2")
 KEYS = ("mean_ratio", "rel", "rel_robust")
 
 

@@ -25,7 +25,9 @@ its parent, coarsest first. A map with one valid texel comes out full; valid tex
 
 **Lookup**: a receiver at x sees the ISM's origin when |x − o| ≤ stored + bias. The bias (the
 texel's footprint at the receiver's distance, slope-scaled by the receiver's incidence, plus a
-floor) keeps the surface a VSGL sits on from shadowing itself. ``ism_pcf`` averages that test over the (2k+1)² texels around
+floor) keeps the surface a VSGL sits on from shadowing itself; a receiver facing away from the
+origin moves off its own surface, away from it, instead (``lookup_offsets``: the depth bias let the
+light of VSGLs behind a thin wall through it). ``ism_pcf`` averages that test over the (2k+1)² texels around
 the receiver's, wrapping across the octahedral folds: the VSGL is a Gaussian of positions (σ_v), not
 a point, so its shadow is soft, and k follows σ_v / |x − o| in texels.
 """
