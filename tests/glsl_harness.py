@@ -216,8 +216,12 @@ class GLSLProbe:
 def probe(body: str, input_sizes: Mapping[str, int], outputs: int | Mapping[str, int] = 1, *,
           libraries: Sequence[str] = (), declarations: str = "", roots: Sequence[Path] = (),
           image_names: Sequence[str] = ()) -> GLSLProbe:
-    """The compiled probe for this body and interface (cached by its source and samplers)."""
-    key = repr((body, list(input_sizes.items()),
+    """The compiled probe for this body and interface (cached by its source, samplers and the
+    libraries' current defines, shaders.LIBRARY_DEFINES)."""
+    from vsgl_addon.shaders import LIBRARY_DEFINES
+
+    defines = [(library, sorted(LIBRARY_DEFINES[library]().items())) for library in sorted(LIBRARY_DEFINES)]
+    key = repr((body, defines, list(input_sizes.items()),
                 outputs if not isinstance(outputs, Mapping) else list(outputs.items()),
                 list(libraries), declarations, [str(root) for root in roots], list(image_names)))
     if key not in _probes:

@@ -124,9 +124,29 @@ def test_the_pass_declares_its_contract():
         ism_pass.PASS.run(sp.scene_point_sets(_geometry(_quad(0, 0, 1, 1)), 4, 1), np.zeros((1, 3)), [0], 12)
 
 
-def test_glsl_filtered_lookup_matches_the_reference():
+@pytest.fixture
+def lookup_bias(request):
+    """The lookup's bias of the test (passes/ism.py set_lookup_bias: receiver offset along the
+    normal in footprints, depth bias left in texels; None the default), restored after."""
+    saved = ism.NORMAL_OFFSET, ism.NORMAL_OFFSET_DEPTH, ism.BACK_OFFSET, ism.SPREAD_BIAS
+    if request.param is not None:
+        ism_pass.set_lookup_bias(*request.param)
+    yield ism.NORMAL_OFFSET, ism.NORMAL_OFFSET_DEPTH, ism.BACK_OFFSET, ism.SPREAD_BIAS
+    ism_pass.set_lookup_bias(*saved)
+
+
+# (normal offset, depth bias left, back offset, spread cap): the slope-scaled depth bias; receivers
+# moved along their normal; the depth bias with receivers facing away moved away; both moved; the
+# depth bias capped by the map's spread.
+LOOKUP_BIASES = [(0.0, 0.5, 0.0, 0.0), (1.0, 0.5, 0.0, 0.0), (0.0, 0.5, 1.0, 0.0), (1.5, 1.0, 0.5, 0.0),
+                 (0.0, 0.5, 0.0, 1.5)]
+
+
+@pytest.mark.parametrize("lookup_bias", LOOKUP_BIASES, indirect=True)
+def test_glsl_filtered_lookup_matches_the_reference(lookup_bias):
     """ism_pcf on a scene's filled map, for receivers all around the origin (every fold of the
-    octahedral map) at radii 0, 1 and 3, with their normals (slope-scaled bias)."""
+    octahedral map) at radii 0, 1 and 3, with their normals (slope-scaled bias, or the receiver
+    moved along its normal)."""
     scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
     points = sp.scene_point_sets(scene, 20000, 1, seed=4)
     origin = np.array([0.0, 0.0, 1.5])
@@ -176,9 +196,11 @@ def test_maps_that_would_not_fit_one_atlas_get_a_smaller_side(monkeypatch):
         ism_pass.atlas_layout(8, 128)
 
 
-def test_glsl_bilinear_and_nearest_lookups_match_the_reference():
+@pytest.mark.parametrize("lookup_bias", LOOKUP_BIASES, indirect=True)
+def test_glsl_bilinear_and_nearest_lookups_match_the_reference(lookup_bias):
     """ism_pcf_bilinear (receivers all around the origin: blocks at the square's edges are kept
-    inside it) and ism_visible_nearest (ism_pcf at radius 0) against the float64 twin."""
+    inside it) and ism_visible_nearest (ism_pcf at radius 0) against the float64 twin, with either
+    bias."""
     scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
     points = sp.scene_point_sets(scene, 20000, 1, seed=4)
     origin = np.array([0.0, 0.0, 1.5])

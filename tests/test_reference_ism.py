@@ -213,6 +213,53 @@ def test_a_wall_shadows_what_lies_behind_it_and_a_floor_does_not_shadow_itself()
     assert 0.0 < value[0] < 1.0
 
 
+def _box(x0, x1, y0, y1, z1):
+    """The faces x = x0, x = x1 and the top z = z1 of a block on the floor."""
+    return [((x, y0, 0.0), (x, y1, 0.0), (x, y1, z1)) for x in (x0, x1)] + \
+        [((x, y0, 0.0), (x, y1, z1), (x, y0, z1)) for x in (x0, x1)] + _quad(x0, y0, x1, y1, z1)
+
+
+@pytest.fixture
+def lookup_bias():
+    """Sets reference.ism's lookup bias (normal offset, depth bias left, back offset) for a test,
+    restored after."""
+    saved = ism.NORMAL_OFFSET, ism.NORMAL_OFFSET_DEPTH, ism.BACK_OFFSET, ism.SPREAD_BIAS
+
+    def set_bias(offset, depth, back):
+        ism.NORMAL_OFFSET, ism.NORMAL_OFFSET_DEPTH, ism.BACK_OFFSET = offset, depth, back
+
+    yield set_bias
+    ism.NORMAL_OFFSET, ism.NORMAL_OFFSET_DEPTH, ism.BACK_OFFSET, ism.SPREAD_BIAS = saved
+
+
+def test_a_thin_wall_stops_a_low_origin_s_light_with_the_normal_offset_lookups(lookup_bias):
+    """An origin 0.3 m over a floor, a wall 0.2 m thick and 1 m tall 2 m away (the sun courtyard's
+    case, scaled): the floor behind the wall is grazed from the origin, so its slope-scaled depth
+    bias (up to nine footprints) reaches through the wall and the floor there is lit; moved along
+    its normal instead it is shadowed, and the floor before the wall stays lit. The wall's far
+    face, facing away from the origin, is lit through the wall's thickness by the depth bias and
+    shadowed when receivers facing away move away (BACK_OFFSET)."""
+    scene = _geometry(_quad(-6, -6, 6, 6) + _box(2.0, 2.2, -3, 3, 1.0))
+    points = sp.scene_point_sets(scene, 60000, 1, seed=0)
+    origin = np.array([0.0, 0.0, 0.3])
+    depth = ism.pull_push(ism.close_gaps(ism.splat(points.positions[0], origin, 64)))
+    behind = np.stack([np.linspace(2.4, 5.0, 50), np.linspace(-1, 1, 50), np.zeros(50)], -1)
+    before = np.stack([np.linspace(-2.5, 1.5, 80), np.linspace(-1, 1, 80), np.zeros(80)], -1)
+    before = before[np.linalg.norm(before - origin, axis=-1) > 0.5]
+    far_face = np.stack([np.full(50, 2.2), np.linspace(-1, 1, 50), np.linspace(0.05, 0.6, 50)], -1)
+    up, away = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+
+    def lit(receivers, normal):
+        return ism.ism_pcf_bilinear(depth, origin, receivers, normals=np.tile(normal, (len(receivers), 1))).mean()
+
+    lookup_bias(0.0, 0.5, 0.0)
+    assert lit(behind, up) > 0.9 and lit(far_face, away) > 0.9 and lit(before, up) == 1.0
+    lookup_bias(1.0, 1.0, 0.0)
+    assert lit(behind, up) < 0.05 and lit(before, up) > 0.95
+    lookup_bias(0.0, 0.5, 1.0)
+    assert lit(far_face, away) < 0.05 and lit(before, up) == 1.0
+
+
 def test_close_gaps_closes_holes_in_a_near_occluder_and_keeps_its_outline():
     """A near square (depth 1) over a far background (depth 5) with holes 1 and 2·reach − 1 texels
     wide and an empty texel: the holes take the square's depth, every background texel outside

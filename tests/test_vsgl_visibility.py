@@ -22,7 +22,7 @@ pytestmark = pytest.mark.gpu
 SIZE = (64, 48)
 
 
-def _occluded_scene(with_occluder=True):
+def _occluded_scene(with_occluder=True, light="SPOT"):
     """A spot lights the floor at x < 0; a receiving panel at x = 1.5 faces it; an occluding wall at
     x = 0.5, wider and taller than every path from the floor to the panel, stands between them; the
     camera looks down at the panel from between the wall and the panel."""
@@ -34,8 +34,15 @@ def _occluded_scene(with_occluder=True):
     if with_occluder:
         sb.plane("Occluder", size=(3.0, 8.0), location=(0.5, 0.0, 1.5), rotation=(0.0, math.radians(90), 0.0),
                  material=sb.principled("Occluder", base_color=(0.0, 0.0, 0.0), roughness=0.9, specular_ior_level=0.0))
-    sb.spot_light(power=2000.0, location=(-1.0, 0.0, 3.0), look_at_point=(-1.0, 0.0, 0.0),
-                  spot_size=math.radians(60))
+    if light == "SPOT":
+        sb.spot_light(power=2000.0, location=(-1.0, 0.0, 3.0), look_at_point=(-1.0, 0.0, 0.0),
+                      spot_size=math.radians(60))
+    elif light == "POINT":
+        sb.point_light(power=2000.0, location=(-1.0, 0.0, 3.0))
+    elif light == "AREA":
+        sb.area_light(power=2000.0, size=0.5, location=(-1.0, 0.0, 3.0))
+    else:  # a sun from above and behind the floor, so the panel's front stays out of it
+        sb.sun_light(strength=3.0, rotation=(0.0, math.radians(-30), 0.0))
     sb.camera(location=(1.0, 0.0, 4.0), look_at_point=(1.5, 0.0, 0.7), lens=35.0, resolution=SIZE)
     return extract_scene(sb.depsgraph())
 
@@ -70,12 +77,15 @@ def test_a_wall_between_the_lit_floor_and_a_receiver_stops_the_bounce(points, at
     assert kept <= at_most
 
 
-def test_a_flat_lit_floor_does_not_shadow_itself():
-    """Without the occluder the panel sees the whole floor: visibility takes 1.3 % of its light here,
-    and must not take more than 2 %."""
-    description = _occluded_scene(with_occluder=False)
+@pytest.mark.parametrize("light,rsm_size", [("SPOT", 64), ("SPOT", 32), ("SPOT", 128), ("POINT", 64), ("AREA", 64),
+                                            ("SUN", 64)])
+def test_a_flat_lit_floor_does_not_shadow_itself(light, rsm_size):
+    """Without the occluder the panel sees the whole floor: visibility takes 1.3 % of its light here
+    (the spot, RSM 64²), and must not take more than 2 % at any light type and RSM size (the VSGLs
+    sit on the floor, their maps' origins σv/2 over it)."""
+    description = _occluded_scene(with_occluder=False, light=light)
     panel = _object_pixels(description, "Panel")
-    settings = VSGLSettings(vsgl_count=128, rsm_size=64)
+    settings = VSGLSettings(vsgl_count=128, rsm_size=rsm_size)
     off = sb.render_frame(description, settings.overridden(visibility=False), *SIZE)
     on = sb.render_frame(description, settings.overridden(visibility=True), *SIZE)
     ratio = on.indirect[panel].sum() / off.indirect[panel].sum()

@@ -120,7 +120,11 @@ def _dependency_order(stage: str, roots: tuple[Path, ...]) -> list[tuple[str, Pa
 def _ism_defines() -> dict[str, object]:
     from .reference import ism
 
-    return {"ISM_ORIGIN_SIGMAS": repr(float(ism.SHADOW_ORIGIN_SIGMAS))}
+    return {"ISM_ORIGIN_SIGMAS": repr(float(ism.SHADOW_ORIGIN_SIGMAS)),
+            "ISM_NORMAL_OFFSET": repr(float(ism.NORMAL_OFFSET)),
+            "ISM_NORMAL_OFFSET_DEPTH": repr(float(ism.NORMAL_OFFSET_DEPTH)),
+            "ISM_BACK_OFFSET": repr(float(ism.BACK_OFFSET)),
+            "ISM_SPREAD": repr(float(ism.SPREAD_BIAS))}
 
 
 #: Defines a library takes from its float64 twin, added to every shader that requires it (read at

@@ -52,6 +52,40 @@ float ism_bias(float distance, int size, float tan_incidence, float slope, float
          floor_metres;
 }
 
+// The lookup's receiver offset along its normal in filter footprints (0: none), the depth bias
+// left with it in texel footprints, and the offset away from the origin of a receiver facing away
+// from it (0: none): the defines ISM_NORMAL_OFFSET, ISM_NORMAL_OFFSET_DEPTH and ISM_BACK_OFFSET of
+// every shader that requires this file (reference NORMAL_OFFSET, NORMAL_OFFSET_DEPTH, BACK_OFFSET).
+const float ISM_RECEIVER_OFFSET = float(ISM_NORMAL_OFFSET);
+const float ISM_RECEIVER_DEPTH = float(ISM_NORMAL_OFFSET_DEPTH);
+const float ISM_RECEIVER_BACK_OFFSET = float(ISM_BACK_OFFSET);
+// The bilinear lookup's bias at most ISM_SPREAD_BIAS times its four texels' depth spread plus
+// ISM_RECEIVER_DEPTH texel footprints; 0: no such cap (the define ISM_SPREAD, reference SPREAD_BIAS).
+const float ISM_SPREAD_BIAS = float(ISM_SPREAD);
+
+// Where the receiver moves off its own surface (reference lookup_offsets; the offsets are compile-time
+// constants): `offset` (receiver - origin) moved along the unit `normal` (facing the camera) and
+// `distance` its new length, the depth bias left returned; -1 where the receiver stays and the
+// caller's slope-scaled depth bias applies. A receiver facing the origin moves towards it by
+// ISM_RECEIVER_OFFSET * footprint texel footprints times the sine of its incidence (against its own
+// plane a depth margin without a cap; against an occluder in front at most half of it nearer); one
+// facing away moves ISM_RECEIVER_BACK_OFFSET * footprint texel footprints away from it (its own
+// surface then hides the origin, where a depth bias lets a VSGL behind a thin wall through).
+float ism_receiver_offset(inout vec3 offset, inout float distance, vec3 normal, float texel_angle, float footprint)
+{
+  float towards = dot(normal, -offset);
+  bool back = ISM_RECEIVER_BACK_OFFSET > 0.0 && towards < 0.0;
+  if (!back && !(ISM_RECEIVER_OFFSET > 0.0)) {
+    return -1.0;
+  }
+  float texel = footprint * distance * texel_angle;
+  float cos_theta = clamp(abs(towards) / max(distance, 1e-30), 0.0, 1.0);
+  float front = ISM_RECEIVER_OFFSET * texel * sqrt(max(1.0 - cos_theta * cos_theta, 0.0));
+  offset += (back ? ISM_RECEIVER_BACK_OFFSET * texel : towards >= 0.0 ? front : -front) * normal;
+  distance = length(offset);
+  return back ? 1e-3 : ISM_RECEIVER_DEPTH * distance * texel_angle + 1e-3;
+}
+
 // The texel across an edge of an octahedral map: the mirror image about the edge's midpoint
 // (reference octahedral_wrap).
 ivec2 octahedral_wrap(ivec2 texel, int size)
@@ -79,9 +113,12 @@ float ism_pcf(sampler2D atlas, ivec2 tile, int size, vec3 origin, vec3 receiver,
 {
   vec3 offset = receiver - origin;
   float distance = length(offset);
-  float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
-  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
-  float bias = ism_bias(distance, size, tan_theta, 1.0 + float(radius), 1e-3);
+  float bias = ism_receiver_offset(offset, distance, normal, 3.5449077018110318 / float(size), 1.0 + float(radius));
+  if (bias < 0.0) {
+    float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
+    float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
+    bias = ism_bias(distance, size, tan_theta, 1.0 + float(radius), 1e-3);
+  }
   ivec2 centre = ism_texel(offset, size);
   float lit = 0.0;
   for (int dy = -radius; dy <= radius; dy++) {
@@ -125,7 +162,8 @@ ISMLookup ism_lookup_constants(sampler2D atlas, int size)
 // texels around the receiver's continuous position in the map, weighted bilinearly, so the result
 // varies smoothly across texels, with the bias of two texels' footprint; else the test of the one
 // texel holding the receiver's direction (reference ism_pcf at radius 0, the bias of one texel):
-// the same block with weights 0 or 1. The block is kept inside the square (clamped at its edges,
+// the same block with weights 0 or 1. With ISM_RECEIVER_OFFSET > 0 the receiver moves along its
+// normal instead, with a small depth bias left (ism_receiver_offset). The block is kept inside the square (clamped at its edges,
 // not wrapped across the folds: see the reference) and read by one textureGather of the four texels
 // around their shared corner (gather order: (0, 1), (1, 1), (1, 0), (0, 0)).
 // tile_corner: the map's tile's first texel + 1 (the gather's corner is between texels), `offset`
@@ -134,16 +172,24 @@ ISMLookup ism_lookup_constants(sampler2D atlas, int size)
 float ism_lookup_at(sampler2D atlas, ISMLookup c, vec2 tile_corner, vec3 offset, float distance, vec3 normal,
                     bool filtered)
 {
-  float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
-  float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
-  float bias = (filtered ? 2.0 : 1.0) * distance * 3.5449077018110318 * c.inv_size *
-               (1.0 + min(tan_theta, ISM_MAX_SLOPE)) + 1e-3;
+  float bias = ism_receiver_offset(offset, distance, normal, c.texel_angle, filtered ? 2.0 : 1.0);
+  if (bias < 0.0) {
+    float cos_theta = clamp(abs(dot(normal, -offset)) / max(distance, 1e-30), 0.0, 1.0);
+    float tan_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0)) / max(cos_theta, 1e-3);
+    bias = (filtered ? 2.0 : 1.0) * distance * 3.5449077018110318 * c.inv_size *
+           (1.0 + min(tan_theta, ISM_MAX_SLOPE)) + 1e-3;
+  }
   vec2 cell = (octahedral_encode(offset) * 0.5 + 0.5) * c.size_f - 0.5;
   vec2 corner = clamp(floor(cell), vec2(0.0), vec2(c.last_corner));
   // Nearest: floor(cell + 0.5), the texel holding the direction (ism_texel), is corner or corner + 1.
   vec2 f = filtered ? clamp(cell - corner, 0.0, 1.0) : clamp(floor(cell + 0.5), 0.0, c.last_texel) - corner;
   f *= c.blocks;
   vec4 depth = textureGather(atlas, (tile_corner + corner) * c.inv_atlas_size, 0).wzxy;  // (c00, c10, c01, c11)
+  if (ISM_SPREAD_BIAS > 0.0 && filtered && c.blocks > 0.0) {
+    // reference ism_pcf_bilinear: the map's own spread bounds the bias.
+    float spread = max(max(depth.x, depth.y), max(depth.z, depth.w)) - min(min(depth.x, depth.y), min(depth.z, depth.w));
+    bias = min(bias, ISM_SPREAD_BIAS * spread + ISM_RECEIVER_DEPTH * distance * c.texel_angle + 1e-3);
+  }
   vec4 lit = vec4(lessThanEqual(vec4(distance), depth + bias));
   return mix(mix(lit.x, lit.y, f.x), mix(lit.z, lit.w, f.x), f.y);
 }

@@ -187,6 +187,30 @@ def set_shadow_origin_sigmas(sigmas: float) -> None:
     reference_ism.SHADOW_ORIGIN_SIGMAS = sigmas
 
 
+def set_lookup_bias(normal_offset: float, depth_texels: float | None = None, back_offset: float | None = None,
+                    spread: float | None = None) -> None:
+    """Every lookup's bias (reference.ism.lookup_offsets): the receiver offset along its normal,
+    ``normal_offset`` filter footprints (0: the slope-scaled depth bias alone), the depth bias left
+    with it, ``depth_texels`` texel footprints, and the offset away from the origin of receivers
+    facing away from it, ``back_offset`` filter footprints (0: none), and the cap of the bilinear
+    lookup's bias by its texels' depth spread, ``spread`` times it (0: none); None keeps a value.
+    Sets reference.ism.NORMAL_OFFSET, NORMAL_OFFSET_DEPTH, BACK_OFFSET and SPREAD_BIAS, which every
+    shader requiring glsl/lib/ism.glsl is compiled with (its defines ISM_NORMAL_OFFSET,
+    ISM_NORMAL_OFFSET_DEPTH, ISM_BACK_OFFSET and ISM_SPREAD; passes/contract.py compiles them again
+    when they changed)."""
+    from ..reference import ism as reference_ism
+
+    values = [float(normal_offset),
+              reference_ism.NORMAL_OFFSET_DEPTH if depth_texels is None else float(depth_texels),
+              reference_ism.BACK_OFFSET if back_offset is None else float(back_offset),
+              reference_ism.SPREAD_BIAS if spread is None else float(spread)]
+    for name, value in zip(("normal offset", "depth bias", "back offset", "spread"), values):
+        if not math.isfinite(value) or value < 0.0:
+            raise ValueError(f"lookup {name} must be finite and >= 0, got {value}")
+    (reference_ism.NORMAL_OFFSET, reference_ism.NORMAL_OFFSET_DEPTH, reference_ism.BACK_OFFSET,
+     reference_ism.SPREAD_BIAS) = values
+
+
 def vsgl_map_origins(table_texture, vsgl_count: int, maps_per_vsgl: int, first_map: int, point_sets: int,
                      own_reflector_sigmas: float) -> MapOrigins:
     """The splat's table of the maps of a VSGL table texture (layouts.VSGL_TABLE, ``vsgl_count``

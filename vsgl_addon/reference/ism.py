@@ -25,7 +25,9 @@ its parent, coarsest first. A map with one valid texel comes out full; valid tex
 
 **Lookup**: a receiver at x sees the ISM's origin when |x − o| ≤ stored + bias. The bias (the
 texel's footprint at the receiver's distance, slope-scaled by the receiver's incidence, plus a
-floor) keeps the surface a VSGL sits on from shadowing itself. ``ism_pcf`` averages that test over the (2k+1)² texels around
+floor) keeps the surface a VSGL sits on from shadowing itself; a receiver facing away from the
+origin moves off its own surface, away from it, instead (``lookup_offsets``: the depth bias let the
+light of VSGLs behind a thin wall through it). ``ism_pcf`` averages that test over the (2k+1)² texels around
 the receiver's, wrapping across the octahedral folds: the VSGL is a Gaussian of positions (σ_v), not
 a point, so its shadow is soft, and k follows σ_v / |x − o| in texels.
 """
@@ -279,14 +281,69 @@ def tan_incidence(normals, offsets, distance):
     return np.sqrt(np.maximum(1.0 - cos_theta * cos_theta, 0.0)) / np.maximum(cos_theta, 1e-3)
 
 
+#: The lookup's receiver offset along its normal, in filter footprints (:func:`lookup_offsets`); 0:
+#: none, the slope-scaled depth bias of :func:`ism_bias`. The GPU's twins are ISM_NORMAL_OFFSET,
+#: ISM_NORMAL_OFFSET_DEPTH and ISM_BACK_OFFSET of glsl/lib/ism.glsl, compiled from these values
+#: (vsgl_addon/shaders.py LIBRARY_DEFINES; passes/ism.py set_lookup_bias).
+NORMAL_OFFSET = 0.0
+#: With NORMAL_OFFSET > 0, the depth bias left, in texel footprints at the receiver's distance.
+NORMAL_OFFSET_DEPTH = 0.5
+#: A receiver facing away from the map's origin moves this many filter footprints away from it
+#: along its normal, with no depth bias but 1 mm; 0: it is biased as one facing the origin. 1 gives
+#: the sun courtyard 1.405 of Cycles' light instead of 1.432 (its shaded wall's glossy tiles 1.57
+#: instead of 1.64) and leaves the rest of the suite within 0.003 (benchmarks/ism_lookup_bias.py).
+BACK_OFFSET = 1.0
+#: The bilinear lookup's bias at most SPREAD_BIAS times the depth spread of its four texels plus
+#: NORMAL_OFFSET_DEPTH texel footprints (:func:`ism_pcf_bilinear`); 0: no such cap.
+SPREAD_BIAS = 0.0
+
+
+def lookup_offsets(offsets, normals, size: int, footprint: float):
+    """The receivers' offsets from the map's origin (..., 3) and their depth bias (...,) as the
+    lookup tests them, for a filter of ``footprint`` texels (α = √(4π)/size a texel's span, θ the
+    receiver's incidence from the origin, n its unit normal, which faces the camera).
+
+    NORMAL_OFFSET 0 (or no normals): the offsets unchanged and :func:`ism_bias`, footprint · |x − o|
+    · α · (1 + tan θ), tan θ capped at ISM_MAX_SLOPE. Else the receiver x moves off its own surface
+    along n, turned towards the origin, by δ = NORMAL_OFFSET · footprint · |x − o| · α · sin θ,
+    with a depth bias of NORMAL_OFFSET_DEPTH texel footprints plus 1 mm (Holbert's normal-offset
+    shadows). Against the receiver's own plane that is a depth margin of δ / cos θ (with
+    NORMAL_OFFSET 1 a footprint's depth slope, without a cap); against an occluder in front only
+    δ · cos θ ≤ δ / 2 nearer (and δ · sin θ sideways), where the slope-scaled depth bias moves the
+    receiver through it by up to nine footprints at grazing incidence, more than a thin wall.
+
+    BACK_OFFSET > 0: a receiver facing away from the origin (n · (o − x) < 0: its own surface
+    stands between them; the G-buffer's normal faces the camera) moves BACK_OFFSET · footprint ·
+    |x − o| · α along n, away from the origin, with 1 mm of depth bias, whatever NORMAL_OFFSET is:
+    it sees the origin only if nothing is splatted across its own surface's texels, where either
+    bias above lets the light of a VSGL behind a wall that is thinner than the bias through it."""
+    offsets = f64(offsets)
+    distance = np.linalg.norm(offsets, axis=-1)
+    if normals is None:
+        return offsets, ism_bias(distance, size, 0.0, slope=footprint)
+    normals = f64(normals)
+    towards = (normals * -offsets).sum(axis=-1)
+    cos_theta = np.clip(np.abs(towards) / np.maximum(distance, 1e-300), 0.0, 1.0)
+    sin_theta = np.sqrt(np.maximum(1.0 - cos_theta * cos_theta, 0.0))
+    bias = ism_bias(distance, size, sin_theta / np.maximum(cos_theta, 1e-3), slope=footprint)
+    texel = footprint * distance * np.sqrt(4.0 * np.pi) / size
+    shift = np.zeros_like(distance)
+    if NORMAL_OFFSET > 0.0:
+        shift = NORMAL_OFFSET * texel * sin_theta * np.where(towards >= 0.0, 1.0, -1.0)
+    back = (towards < 0.0) & (BACK_OFFSET > 0.0)
+    shift = np.where(back, BACK_OFFSET * texel, shift)
+    moved = offsets + shift[..., None] * normals
+    if NORMAL_OFFSET > 0.0:
+        bias = NORMAL_OFFSET_DEPTH * np.linalg.norm(moved, axis=-1) * np.sqrt(4.0 * np.pi) / size + 1e-3
+    return moved, np.where(back, 1e-3, bias)
+
+
 def _receiver(depth, origin, receivers, normals, bias, footprint=1.0):
     size = depth.shape[0]
     offsets = f64(receivers) - f64(origin)
-    distance = np.linalg.norm(offsets, axis=-1)
     if bias is None:
-        slope = 0.0 if normals is None else tan_incidence(normals, offsets, distance)
-        bias = ism_bias(distance, size, slope, slope=footprint)
-    return ism_texel(offsets, size), distance, f64(bias)
+        offsets, bias = lookup_offsets(offsets, normals, size, footprint)
+    return ism_texel(offsets, size), np.linalg.norm(offsets, axis=-1), f64(bias)
 
 
 def ism_visibility(depth, origin, receivers, normals=None, bias=None) -> np.ndarray:
@@ -321,23 +378,35 @@ def ism_pcf_bilinear(depth, origin, receivers, normals=None, bias=None) -> np.nd
     direction among them) instead of wrapping across the folds: the wrap's four separate fetches
     and mirrors cost the shading pass more than the rest of its lookup on llvmpipe, which runs
     both sides of a branch (benchmarks/visibility_cost.py). A 1² map: its one texel. The default
-    bias spans the filter's footprint (two texels)."""
+    bias (:func:`lookup_offsets`) spans the filter's footprint (two texels)."""
     size = depth.shape[0]
     depth = f64(depth)
     offsets = f64(receivers) - f64(origin)
-    distance = np.linalg.norm(offsets, axis=-1)
     if bias is None:
-        slope = 0.0 if normals is None else tan_incidence(normals, offsets, distance)
-        bias = ism_bias(distance, size, slope, slope=2.0)
+        offsets, bias = lookup_offsets(offsets, normals, size, 2.0)
+    distance = np.linalg.norm(offsets, axis=-1)
     cell = (octahedral_encode(offsets) * 0.5 + 0.5) * size - 0.5
     corner = np.clip(np.floor(cell), 0.0, max(size - 2, 0))
     f = np.clip(cell - corner, 0.0, 1.0) * (size > 1)
     corner = corner.astype(np.int64)
-    total = np.zeros(distance.shape)
+    block = []
     for dy in (0, 1):
         for dx in (0, 1):
             column = np.minimum(corner[..., 0] + dx, size - 1)
             row = np.minimum(corner[..., 1] + dy, size - 1)
-            weight = (f[..., 0] if dx else 1.0 - f[..., 0]) * (f[..., 1] if dy else 1.0 - f[..., 1])
-            total += weight * (distance <= depth[row, column] + f64(bias))
+            block.append(((f[..., 0] if dx else 1.0 - f[..., 0]) * (f[..., 1] if dy else 1.0 - f[..., 1]),
+                          depth[row, column]))
+    bias = f64(bias)
+    if SPREAD_BIAS > 0.0 and size > 1 and normals is not None:
+        # The map's own depth spread over the block bounds what its surface's slope needs: a wall
+        # seen face-on spreads little, so a receiver behind it gets little bias; an empty texel
+        # (EMPTY) spreads without bound and leaves the bias as it was.
+        nearest = np.minimum.reduce([d for _, d in block])
+        farthest = np.maximum.reduce([d for _, d in block])
+        spread = np.where(np.isinf(farthest), np.inf, farthest - nearest)
+        floor = NORMAL_OFFSET_DEPTH * distance * np.sqrt(4.0 * np.pi) / size + 1e-3
+        bias = np.minimum(bias, SPREAD_BIAS * spread + floor)
+    total = np.zeros(distance.shape)
+    for weight, stored in block:
+        total += weight * (distance <= stored + bias)
     return total
