@@ -5,8 +5,9 @@
 
 The scene's glossy VPLs (benchmarks/vpl_caustics.py collect_vpls) and camera G-buffer (240x180, or
 --size; --vpl-stride K keeps every K-th VPL, an unbiased subsample of the counts for large sizes),
-16x16 tiles with their depth ranges; per tile the VPLs listed (reference.vpl_culling, float64) by
-two ellipsoid-frustum tests, the exact one the pass uses (ellipsoid_frustum_overlap_exact) and 004
+16x16 tiles with their depth ranges and frusta over their covered pixels' centres (the pass's,
+reference.vpl_culling.tile_receiver_ndc); per tile the VPLs listed (float64) by two
+ellipsoid-frustum tests, the exact one the pass uses (ellipsoid_frustum_overlap_exact) and 004
 Eq. 16's plane-by-plane one (ellipsoid_frustum_overlap), with three volumes: the GGX spheroid (Eqs.
 13-15), the sphere centred on the VPL that bounds the same range (radius |c - q| + r_u), and the
 spheroid's enclosing sphere (centre c, radius r_u). A false positive is a VPL listed for a pixel's
@@ -106,8 +107,10 @@ def main(argv=None) -> int:
             cov = position[sl][..., 3].reshape(-1) > 0.0
             if not cov.any():
                 continue
-            lo = np.array([tx / width, ty / height]) * 2 - 1
-            hi = np.array([min(tx + TILE, width) / width, min(ty + TILE, height) / height]) * 2 - 1
+            # The pass's frustum: through the covered pixels' outermost centres (tile_receiver_ndc).
+            ys, xs = np.nonzero(position[sl][..., 3] > 0.0)
+            lo, hi = vc.tile_receiver_ndc([tx + xs.min(), ty + ys.min()], [tx + xs.max(), ty + ys.max()],
+                                          [width, height])
             d = depth[sl].reshape(-1)[cov]
             planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, d.min(), d.max())
             corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, d.min(), d.max())

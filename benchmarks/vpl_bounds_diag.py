@@ -48,8 +48,10 @@ def main(argv=None) -> int:
             cov = position[sl][..., 3].reshape(-1) > 0.0
             if not cov.any():
                 continue
-            lo = np.array([tx / width, ty / height]) * 2 - 1
-            hi = np.array([min(tx + TILE, width) / width, min(ty + TILE, height) / height]) * 2 - 1
+            # The pass's frustum: through the covered pixels' outermost centres (tile_receiver_ndc).
+            ys, xs = np.nonzero(position[sl][..., 3] > 0.0)
+            lo, hi = vc.tile_receiver_ndc([tx + xs.min(), ty + ys.min()], [tx + xs.max(), ty + ys.max()],
+                                          [width, height])
             d = depth[sl].reshape(-1)[cov]
             spans.append(d.max() - d.min()); tile_px.append(len(d))
             planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, d.min(), d.max())

@@ -218,8 +218,9 @@ def test_tiled_culling_exact_and_spheroids_beat_spheres(delta):
     for ty in range(size // tile):
         for tx in range(size // tile):
             sl = (slice(ty * tile, (ty + 1) * tile), slice(tx * tile, (tx + 1) * tile))
-            lo = np.array([ndc[tx * tile], ndc[ty * tile]]) - 1.0 / size
-            hi = np.array([ndc[(tx + 1) * tile - 1], ndc[(ty + 1) * tile - 1]]) + 1.0 / size
+            # The pass's frustum: through the tile's outermost pixel centres (every pixel covered).
+            lo, hi = vc.tile_receiver_ndc([tx * tile, ty * tile], [(tx + 1) * tile - 1, (ty + 1) * tile - 1],
+                                          [size, size])
             planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, depth[sl].min(), depth[sl].max())
             corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, depth[sl].min(), depth[sl].max())
             # The pass's exact test; the plane test (Eq. 16) lists a superset.
@@ -367,6 +368,61 @@ def test_tile_frustum_holds_exactly_the_tile(projection):
     beyond = world_points(rng.uniform(lo, hi, (n, 2)), rng.uniform(dmax * 1.01, dmax * 2, n))
     for outside in (beside, beyond):
         assert np.all(np.any(outside @ planes[:, :3].T + planes[:, 3] < 0.0, axis=1))
+
+
+def test_tile_receiver_frustum_spans_the_covered_pixel_centres():
+    """The tile frustum over a box of covered pixels holds their centre rays' receivers (inside every
+    side plane by about PIXEL_MARGIN pixels), however narrow the box, and lies within the frustum
+    through the tile's pixel edges; a sphere in the half-pixel strip between the outermost centres
+    and the tile's edge is listed by the edge frustum only (it lights no receiver)."""
+    width, height = 72, 40
+    v2w = look_at(np.array([-1.0, 0.0, 1.5]), np.array([2.0, 0.0, 1.5]))
+    proj = perspective(np.radians(60.0), width / height, 0.1, 20.0)
+    inv_proj = np.linalg.inv(proj)
+    size = np.array([width, height])
+
+    def ray_point(pixel_xy, depth):
+        ndc = (np.asarray(pixel_xy, float) + 0.5) / size * 2.0 - 1.0
+        view = inv_proj @ np.array([ndc[0], ndc[1], 1.0, 1.0])
+        direction = view[:3] / view[3]
+        return v2w[:3, :3] @ (direction * depth / -direction[2]) + v2w[:3, 3]
+
+    dmin, dmax = 2.0, 3.0
+    for pmin, pmax in (([64, 32], [71, 39]), ([3, 5], [3, 5]), ([16, 0], [31, 0]), ([0, 16], [15, 31])):
+        lo, hi = vc.tile_receiver_ndc(pmin, pmax, size)
+        planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, dmin, dmax)
+        corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, dmin, dmax)
+        xs, ys = np.meshgrid(np.arange(pmin[0], pmax[0] + 1), np.arange(pmin[1], pmax[1] + 1))
+        for x, y in zip(xs.ravel(), ys.ravel()):
+            for depth in (dmin, 0.5 * (dmin + dmax), dmax):
+                point = ray_point([x, y], depth)
+                values = planes @ np.append(point, 1.0) / np.linalg.norm(planes[:, :3], axis=1)
+                assert np.all(values[4:] >= -1e-9)
+                # The outermost centres' distance from their side planes, in pixels (2 d tan(fov/2)
+                # / height at depth d): the margin, foreshortened by at most cos(46 deg) at the
+                # image's edge.
+                pixel = 2.0 * depth * np.tan(np.radians(30.0)) / height
+                outermost = np.array([y == pmin[1], x == pmax[0], y == pmax[1], x == pmin[0]])
+                assert np.all(values[:4] > 0.0)
+                assert np.all(values[:4][outermost] / pixel >= 0.5 * vc.PIXEL_MARGIN)
+        # Within the tile's pixel edges' frustum, whose corners hold it.
+        tile = np.array(pmin) // 16
+        edges_lo = tile * 16 / size * 2.0 - 1.0
+        edges_hi = np.minimum(tile * 16 + 16, size) / size * 2.0 - 1.0
+        assert np.all(lo >= edges_lo) and np.all(hi <= edges_hi)
+        assert np.all(lo > edges_lo) and np.all(hi < edges_hi)
+    # A small sphere just beyond the last pixel centre column of a partial tile (x 64..71), inside
+    # the tile's edge frustum: the centre frustum rejects it, the edge frustum lists it.
+    lo, hi = vc.tile_receiver_ndc([64, 32], [71, 39], size)
+    planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, dmin, dmax)
+    corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, dmin, dmax)
+    edge_planes = vc.tile_frustum_planes(inv_proj, v2w, [64 / 36 - 1, 32 / 20 - 1], [1.0, 1.0], dmin, dmax)
+    edge_corners = vc.tile_frustum_corners(inv_proj, v2w, [64 / 36 - 1, 32 / 20 - 1], [1.0, 1.0], dmin, dmax)
+    pixel = 2.0 * 2.5 * np.tan(np.radians(30.0)) / height
+    centre = ray_point([71.4, 35.0], 2.5)  # 0.4 px beyond the last centre, 0.1 px inside the edge
+    axes, rotation = np.full(3, 0.05 * pixel), np.eye(3)
+    assert not vc.ellipsoid_frustum_overlap_exact(planes, corners, centre, axes, rotation)
+    assert vc.ellipsoid_frustum_overlap_exact(edge_planes, edge_corners, centre, axes, rotation)
 
 
 def _random_frustum(rng, flat=False):

@@ -17,7 +17,7 @@ from vsgl_addon.reference import vpl_culling as vc
 pytestmark = pytest.mark.gpu
 
 
-def wall_gbuffer(width, height, hole=False):
+def wall_gbuffer(width, height, hole=False, diagonal=False):
     eye, target = np.array([-1.0, 0.0, 1.5]), np.array([2.0, 0.0, 1.5])
     v2w = look_at(eye, target)
     proj = perspective(np.radians(60.0), width / height, 0.1, 20.0)
@@ -31,6 +31,9 @@ def wall_gbuffer(width, height, hole=False):
     if hole:  # background pixels (no geometry) and one fully empty tile
         coverage[:16, :16] = 0.0
         coverage[20:24, 30:40] = 0.0
+    if diagonal:  # the wall below a diagonal, sky above: tiles partly covered along it
+        x, y = np.meshgrid(np.arange(width), np.arange(height))
+        coverage[x / width + y / height > 1.1] = 0.0
     position = np.concatenate([points, coverage[..., None]], -1)
     normal = np.zeros((height, width, 4))
     normal[..., 0] = -1.0
@@ -62,9 +65,36 @@ def _vpls(count, flux_scale=1e-3):
     return {k: v.astype(np.float32).astype(np.float64) for k, v in vpls.items()}
 
 
-@pytest.mark.parametrize("delta", [1e-3, 1e-2, 0.0])
-def test_tiled_pass_equals_untiled_reference(delta):
-    position, normal, albedo, w2v, proj, v2w, inv_proj = wall_gbuffer(64, 48, hole=True)
+def tile_reference_lists(position, w2v, inv_proj, v2w, volume, pixel_edges=False):
+    """(tiles_y, tiles_x) VPLs the reference lists per tile: the exact test against the frustum over
+    the covered pixels' centres (the pass's), or with ``pixel_edges`` through the tile's pixel edges."""
+    h, w = position.shape[:2]
+    depth = -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
+    counts = np.zeros(((h + 15) // 16, (w + 15) // 16), int)
+    for ty in range(counts.shape[0]):
+        for tx in range(counts.shape[1]):
+            sl = (slice(16 * ty, 16 * ty + 16), slice(16 * tx, 16 * tx + 16))
+            ys, xs = np.nonzero(position[sl][..., 3] > 0.0)
+            if not len(ys):
+                continue
+            d = depth[sl][ys, xs]
+            if pixel_edges:
+                lo = np.array([16 * tx / w, 16 * ty / h]) * 2 - 1
+                hi = np.array([min(16 * tx + 16, w) / w, min(16 * ty + 16, h) / h]) * 2 - 1
+            else:
+                lo, hi = vc.tile_receiver_ndc([16 * tx + xs.min(), 16 * ty + ys.min()],
+                                              [16 * tx + xs.max(), 16 * ty + ys.max()], [w, h])
+            planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, d.min(), d.max())
+            corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, d.min(), d.max())
+            counts[ty, tx] = vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], *volume).sum()
+    return counts
+
+
+@pytest.mark.parametrize("delta, diagonal", [(1e-3, False), (1e-2, False), (0.0, False), (1e-3, True)])
+def test_tiled_pass_equals_untiled_reference(delta, diagonal):
+    """Also on a 72 x 40 image (partial tiles on both axes) with sky above a diagonal."""
+    size = (72, 40) if diagonal else (64, 48)
+    position, normal, albedo, w2v, proj, v2w, inv_proj = wall_gbuffer(*size, hole=True, diagonal=diagonal)
     vpls = _vpls(300)  # more than one chunk of 256
     xi = vc.vpl_xi(np.arange(300), 3, 0)
     image, counts, lists = run_pass(position, normal, albedo, vpls, w2v, proj, delta)
@@ -73,12 +103,12 @@ def test_tiled_pass_equals_untiled_reference(delta):
     assert reference.max() > 0.0
     err = np.abs(image[..., :3] - reference)
     assert np.all(err <= 2e-3 * reference + 1e-6 * reference.max()), f"worst {np.max(err / (reference + 1e-30)):.3g}"
-    assert counts.shape == (3, 4)
+    tiles = ((size[1] + 15) // 16, (size[0] + 15) // 16)
+    assert counts.shape == tiles
     assert counts[0, 0] == 0  # the empty tile lists nothing
     # Every VPL a pixel of the tile accepts is listed.
-    h, w = position.shape[:2]
-    for ty in range(3):
-        for tx in range(4):
+    for ty in range(tiles[0]):
+        for tx in range(tiles[1]):
             sl = (slice(16 * ty, 16 * ty + 16), slice(16 * tx, 16 * tx + 16))
             cov = position[sl][..., 3].reshape(-1) > 0.0
             if not cov.any():
@@ -90,7 +120,7 @@ def test_tiled_pass_equals_untiled_reference(delta):
                 vpls["flux"][None], vpls["rs"][None])
             needed = np.flatnonzero(np.any(vc.acceptance_probability(intensity, l2, delta) > xi[None], axis=0)
                                     if delta > 0 else np.ones(300, bool))
-            listed = set(lists[ty * 4 + tx, :counts[ty, tx]].tolist())
+            listed = set(lists[ty * tiles[1] + tx, :counts[ty, tx]].tolist())
             assert set(needed.tolist()) <= listed
     if delta == 0.0:
         assert np.all(counts[counts > 0] == 300)
@@ -103,24 +133,39 @@ def test_tile_counts_match_reference_lists():
     xi = vc.vpl_xi(np.arange(200), 3, 0)
     _, counts, _ = run_pass(position, normal, albedo, vpls, w2v, proj, delta)
     centre, axes, rotation = vc.glossy_bounding_volumes(vpls, delta, xi)
+    ref = tile_reference_lists(position, w2v, inv_proj, v2w, (centre, axes, rotation))
     # View depth of the wall's pixels.
     depth = -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
-    ref = np.zeros((4, 4), int)
     plane_only = np.zeros((4, 4), int)
     for ty in range(4):
         for tx in range(4):
             sl = (slice(16 * ty, 16 * ty + 16), slice(16 * tx, 16 * tx + 16))
-            lo = np.array([tx, ty]) * 16 / 64 * 2 - 1
-            hi = np.array([tx + 1, ty + 1]) * 16 / 64 * 2 - 1
+            lo, hi = vc.tile_receiver_ndc([16 * tx, 16 * ty], [16 * tx + 15, 16 * ty + 15], [64, 64])
             planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, depth[sl].min(), depth[sl].max())
-            corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, depth[sl].min(), depth[sl].max())
-            ref[ty, tx] = vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], centre, axes, rotation).sum()
             plane_only[ty, tx] = vc.ellipsoid_frustum_overlap(planes[None], centre, axes, rotation).sum()
     assert ref.sum() > 0
     # The exact test lists fewer than the plane test here, so the counts tell the two apart.
     assert ref.sum() < plane_only.sum()
     # Equal up to spheroids that touch a tile within float32 rounding (the GPU's slack keeps them).
     assert np.all(counts >= ref) and np.all(counts - ref <= np.maximum(2, 0.02 * ref))
+
+
+def test_tile_frustum_spans_only_the_covered_pixel_centres():
+    """On a 72 x 40 image (partial tiles) with sky above a diagonal, each tile lists what the
+    reference's frustum over its covered pixels' centres lists, clearly fewer than a frustum through
+    the tile's pixel edges would (which the receivers, at the pixel centres, never reach)."""
+    position, normal, albedo, w2v, proj, v2w, inv_proj = wall_gbuffer(72, 40, diagonal=True)
+    vpls = _vpls(300)
+    delta = 1e-2
+    xi = vc.vpl_xi(np.arange(300), 3, 0)
+    _, counts, _ = run_pass(position, normal, albedo, vpls, w2v, proj, delta)
+    volume = vc.glossy_bounding_volumes(vpls, delta, xi)
+    ref = tile_reference_lists(position, w2v, inv_proj, v2w, volume)
+    edges = tile_reference_lists(position, w2v, inv_proj, v2w, volume, pixel_edges=True)
+    assert ref.sum() > 0 and np.all(edges >= ref)
+    tolerance = np.maximum(2, 0.02 * ref)
+    assert np.sum(edges - ref > tolerance) >= 3, (edges - ref)
+    assert np.all(counts >= ref) and np.all(counts - ref <= tolerance), (counts - ref)
 
 
 def test_no_vpls_and_single_vpl():

@@ -4,12 +4,17 @@
 // Tiled stochastic light culling and shading of glossy VPLs (004 section 5; twin:
 // reference/vpl_culling.py shade_glossy_vpls with the tile lists of ellipsoid_frustum_overlap).
 // One work group per 16x16-pixel tile:
-// 1. the tile's view depth range over its covered pixels (shared atomicMin/Max on the float bits of
-//    the non-negative depth, whose uint order is the float order);
-// 2. the tile frustum: four side planes through the tile's corner rays and two depth planes,
-//    made in view space and taken to world space as covectors (p_w = W2V^T p_v; the stretched-plane
-//    distance is invariant to the planes' scale), so the spheroid is tested where it was built
-//    (Eq. 16; Eq. 17's rotation keeping the depth planes perpendicular is implicit in view space);
+// 1. the tile's view depth range and the bounding box of its covered pixels (shared atomicMin/Max;
+//    on the float bits of the non-negative depth, whose uint order is the float order);
+// 2. the tile frustum over those receivers (reference tile_receiver_ndc): its side planes through
+//    the outermost covered pixels' centre rays, where the receivers lie, widened by PIXEL_MARGIN
+//    pixels, not through the tile's pixel edges (a spheroid that passes beside the tile's outermost
+//    centres, between its sky pixels or beyond a partial tile's last row lights no receiver), and
+//    two depth planes; made in view space from the projection's rows (the clip-space plane
+//    P_0 - X P_3 of x_ndc = X, as precise for a one-pixel frustum as for a whole tile) and taken to
+//    world space as covectors (p_w = W2V^T p_v; the stretched-plane distance is invariant to the
+//    planes' scale), so the spheroid is tested where it was built (Eq. 16; Eq. 17's rotation
+//    keeping the depth planes perpendicular is implicit in view space);
 // 3. the VPLs in chunks of 256: each invocation tests one VPL's spheroid (Eqs. 13-15) against the
 //    frustum, exactly (lib/vpl_culling.glsl ellipsoid_frustum_overlap_exact: Eq. 16's plane test
 //    alone keeps spheroids beyond the frustum's edges and corners, 3x the false positives on
@@ -33,6 +38,8 @@
 
 // Slack of the frustum test: a spheroid touching the tile within float32 rounding stays listed.
 const float VPL_PLANE_SLACK = 1e-4;
+// reference vpl_culling.PIXEL_MARGIN: the frustum's reach beyond the outermost pixel centres, in pixels.
+const float PIXEL_MARGIN = 1.0 / 64.0;
 
 vec4 vpl_record(uint i, int k)
 {
@@ -68,12 +75,19 @@ void main()
   float delta = vpl_params.x;
   vec4 world_to_view[4] = vec4[4](camera_row(0), camera_row(1), camera_row(2), camera_row(3));
   vec4 inverse_projection[4] = vec4[4](camera_row(4), camera_row(5), camera_row(6), camera_row(7));
+  vec4 projection_x = camera_row(8);
+  vec4 projection_y = camera_row(9);
+  vec4 projection_w = camera_row(11);
 
   if (local == 0u) {
     tile_depth_min = 0x7F7FFFFFu;
     tile_depth_max = 0u;
     tile_covered = 0u;
     tile_total = 0u;
+    tile_x_min = 0xFFFFFFFFu;
+    tile_y_min = 0xFFFFFFFFu;
+    tile_x_max = 0u;
+    tile_y_max = 0u;
   }
   barrier();
   bool inside = all(lessThan(pixel, size));
@@ -88,15 +102,24 @@ void main()
     atomicMin(tile_depth_min, floatBitsToUint(depth));
     atomicMax(tile_depth_max, floatBitsToUint(depth));
     atomicOr(tile_covered, 1u);
+    atomicMin(tile_x_min, uint(pixel.x));
+    atomicMin(tile_y_min, uint(pixel.y));
+    atomicMax(tile_x_max, uint(pixel.x));
+    atomicMax(tile_y_max, uint(pixel.y));
   }
   barrier();
   bool tile_used = tile_covered != 0u;
   float depth_min = uintBitsToFloat(tile_depth_min);
   float depth_max = uintBitsToFloat(tile_depth_max);
 
-  // Tile frustum in view space, then world space.
-  vec2 ndc_min = vec2(tile * 16) / vec2(size) * 2.0 - 1.0;
-  vec2 ndc_max = vec2(min((tile + 1) * 16, size)) / vec2(size) * 2.0 - 1.0;
+  // Tile frustum over the covered pixels' centres. An empty tile tests no VPL (its chunks are
+  // skipped below); its box is inverted, so it gets a point to keep the arithmetic finite.
+  vec2 ndc_min = (vec2(uvec2(tile_x_min, tile_y_min)) + 0.5 - PIXEL_MARGIN) / vec2(size) * 2.0 - 1.0;
+  vec2 ndc_max = (vec2(uvec2(tile_x_max, tile_y_max)) + 0.5 + PIXEL_MARGIN) / vec2(size) * 2.0 - 1.0;
+  if (!tile_used) {
+    ndc_min = vec2(tile * 16) / vec2(size) * 2.0 - 1.0;
+    ndc_max = ndc_min;
+  }
   vec2 corner_ndc[4] = vec2[4](ndc_min, vec2(ndc_max.x, ndc_min.y), ndc_max, vec2(ndc_min.x, ndc_max.y));
   vec3 near_[4];
   vec3 far_[4];
@@ -104,20 +127,12 @@ void main()
     near_[k] = unproject(inverse_projection, corner_ndc[k], -1.0);
     far_[k] = unproject(inverse_projection, corner_ndc[k], 1.0);
   }
-  // A point inside: the centre ray at the middle depth (orients every plane).
-  vec3 centre_near = unproject(inverse_projection, 0.5 * (ndc_min + ndc_max), -1.0);
-  vec3 centre_far = unproject(inverse_projection, 0.5 * (ndc_min + ndc_max), 1.0);
-  float mid = 0.5 * (depth_min + depth_max);
-  float t = (mid + centre_near.z) / (centre_near.z - centre_far.z);
-  vec3 inner = mix(centre_near, centre_far, t);
+  // Side plane k holds corners k and k + 1; inside where the clip w (> 0 in front) scales the bound.
   vec4 planes[6];
-  for (int k = 0; k < 4; k++) {
-    vec3 a = near_[k];
-    vec3 b = near_[(k + 1) % 4];
-    vec3 n = cross(b - a, far_[k] - a);
-    vec4 plane = vec4(n, -dot(n, a));
-    planes[k] = dot(plane, vec4(inner, 1.0)) >= 0.0 ? plane : -plane;
-  }
+  planes[0] = projection_y - ndc_min.y * projection_w;
+  planes[1] = ndc_max.x * projection_w - projection_x;
+  planes[2] = ndc_max.y * projection_w - projection_y;
+  planes[3] = projection_x - ndc_min.x * projection_w;
   planes[4] = vec4(0.0, 0.0, -1.0, -depth_min);
   planes[5] = vec4(0.0, 0.0, 1.0, depth_max);
   for (int k = 0; k < 6; k++) {

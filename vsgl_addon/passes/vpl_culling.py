@@ -55,7 +55,9 @@ def _interface(visibility: bool = False) -> ShaderInterface:
         + ([("RGBA32F", "FLOAT_2D", "vpl_map_origins")] if visibility else []),
         local_group_size=(TILE, TILE, 1),
         shared="shared uint tile_depth_min; shared uint tile_depth_max; shared uint tile_covered; "
-               "shared uint tile_total; shared uint chunk_count; shared uint chunk_list[256];",
+               "shared uint tile_total; shared uint tile_x_min; shared uint tile_y_min; "
+               "shared uint tile_x_max; shared uint tile_y_max; "
+               "shared uint chunk_count; shared uint chunk_list[256];",
     )
 
 
@@ -536,9 +538,12 @@ def run(position, normal, albedo, vpls, world_to_view, projection, delta: float,
     width, height = position.width, position.height
     tiles = (math.ceil(width / TILE), math.ceil(height / TILE))
     vpl_set = vpls if isinstance(vpls, VPLSet) else upload_vpls(vpls)
-    camera = np.zeros((8, 1, 4), np.float32)
+    # Rows: world-to-view, inverse projection (the tile frustum's corners), projection (its side
+    # planes, reference.vpl_culling.tile_frustum_planes).
+    camera = np.zeros((12, 1, 4), np.float32)
     camera[:4, 0] = np.asarray(world_to_view, np.float64)
-    camera[4:, 0] = np.linalg.inv(np.asarray(projection, np.float64))
+    camera[4:8, 0] = np.linalg.inv(np.asarray(projection, np.float64))
+    camera[8:, 0] = np.asarray(projection, np.float64)
     table = vpl_set.table
     camera_texture = texture_from_array(camera)
     radiance = gpu.types.GPUTexture((width, height), format="RGBA32F")

@@ -372,39 +372,50 @@ def glossy_bounding_volumes(vpls, delta, xi, fmax=1.0):
                         scalar_flux, delta, xi, fmax)
 
 
+#: How far a tile frustum reaches beyond its outermost receivers' pixel centres, in pixels. The
+#: receivers lie on their pixels' centre rays (the G-buffer is rasterised there: within 4e-5 px in
+#: float32 on caustic_panel), so the frustum need not reach the tile's pixel edges; the margin keeps
+#: them inside the side planes against the float32 rounding of the GPU's planes (about 1e-6 of the
+#: view distance, the plane coefficients' relative rounding), and keeps a one-pixel-wide frustum
+#: from having coincident side planes.
+PIXEL_MARGIN = 1.0 / 64.0
+
+
+def tile_receiver_ndc(pixel_min, pixel_max, size):
+    """NDC rectangle (ndc_min, ndc_max) of a tile frustum over the receivers of the pixels (x, y)
+    from ``pixel_min`` to ``pixel_max`` inclusive (the bounding box of the tile's covered pixels) of
+    a ``size`` = (W, H) image: through their outermost pixel centres, widened by PIXEL_MARGIN.
+    Pixel (x, y) has its centre at NDC (2 (x + 1/2) / W - 1, 2 (y + 1/2) / H - 1). The frustum
+    culls only for these receivers, so it need not cover the tile's pixels' full area nor its
+    uncovered (sky) pixels or the pixels beyond the image of a partial tile."""
+    size = f64(size)
+    ndc_min = (f64(pixel_min) + 0.5 - PIXEL_MARGIN) / size * 2.0 - 1.0
+    ndc_max = (f64(pixel_max) + 0.5 + PIXEL_MARGIN) / size * 2.0 - 1.0
+    return ndc_min, ndc_max
+
+
 def tile_frustum_planes(inverse_projection, view_to_world, tile_ndc_min, tile_ndc_max, depth_min, depth_max):
     """World-space planes (n, d) of a tile frustum, inside n.x + d >= 0 (the GPU stage's planes).
 
     The tile spans NDC [min, max] in x and y and view-space depth [depth_min, depth_max] (positive
-    distances along -z). Each side plane holds a tile edge's near and far corner points
-    (perspective or orthographic); the two depth planes are perpendicular to the view axis (004
-    Eq. 17 rotates the spheroid so this stays true per tile). Planes are made in view space and
-    taken to world space as covectors, p_w = W2V^T p_v (the stretched-plane test does not depend
-    on their scale)."""
-    inv = f64(inverse_projection)
-    v2w = f64(view_to_world)
-    w2v = np.linalg.inv(v2w)
-
-    def unproject(x, y, z):
-        p = inv @ np.array([x, y, z, 1.0])
-        return p[:3] / p[3]
-
+    distances along -z). The side plane x_ndc = X is the clip-space plane P_0 - X P_3 (P the
+    projection's rows, clip w = P_3 . v > 0 in front of the camera; likewise y with P_1), which
+    holds the tile edge's corner rays for a perspective or orthographic camera and, unlike a cross
+    product of nearby corner points, keeps its float32 precision however narrow the tile. Plane k
+    holds corners k and k + 1 (mod 4) of :func:`tile_frustum_corners`. The two depth planes are
+    perpendicular to the view axis (004 Eq. 17 rotates the spheroid so this stays true per tile).
+    Planes are made in view space and taken to world space as covectors, p_w = W2V^T p_v (the
+    stretched-plane test does not depend on their scale)."""
+    projection = np.linalg.inv(f64(inverse_projection))
+    w2v = np.linalg.inv(f64(view_to_world))
     (x0, y0), (x1, y1) = tile_ndc_min, tile_ndc_max
-    ndc = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
-    near = [unproject(x, y, -1.0) for x, y in ndc]
-    far = [unproject(x, y, 1.0) for x, y in ndc]
-    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
-    centre_near, centre_far = unproject(cx, cy, -1.0), unproject(cx, cy, 1.0)
-    t = (0.5 * (depth_min + depth_max) + centre_near[2]) / (centre_near[2] - centre_far[2])
-    inner = np.append(centre_near + t * (centre_far - centre_near), 1.0)
-    planes = []
-    for k in range(4):
-        a, b = near[k], near[(k + 1) % 4]
-        n = np.cross(b - a, far[k] - a)
-        plane = np.append(n, -n @ a)
-        planes.append(plane if plane @ inner >= 0.0 else -plane)
-    planes.append(np.array([0.0, 0.0, -1.0, -depth_min]))  # -z >= depth_min
-    planes.append(np.array([0.0, 0.0, 1.0, depth_max]))   # -z <= depth_max
+    row_x, row_y, row_w = projection[0], projection[1], projection[3]
+    planes = [row_y - y0 * row_w,  # y_ndc >= y0: corners 0, 1
+              x1 * row_w - row_x,  # x_ndc <= x1: corners 1, 2
+              y1 * row_w - row_y,  # y_ndc <= y1: corners 2, 3
+              row_x - x0 * row_w,  # x_ndc >= x0: corners 3, 0
+              np.array([0.0, 0.0, -1.0, -depth_min]),  # -z >= depth_min
+              np.array([0.0, 0.0, 1.0, depth_max])]    # -z <= depth_max
     return np.array(planes) @ w2v
 
 
