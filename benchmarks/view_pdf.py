@@ -2,7 +2,7 @@
 """The view-dependent PDF (000 §5, reference/brsm.py) against the light PDF, per suite scene (not a test).
 
     .venv/bin/python benchmarks/view_pdf.py [--only NAME ...] [--results-dir DIR]
-        [--flicker-frames F] [--flicker-seeds S] [--skip-flicker]
+        [--flicker-frames F] [--flicker-seeds S] [--skip-flicker] [--defensive B ...]
 
 Per scene of benchmarks/validation_suite.py (its cached Cycles truths, 240x180, each scene's saved
 settings: N = 256, visibility on), one frame with ``pdf = light`` and one with ``pdf = view``, after
@@ -23,7 +23,9 @@ pixels covered in every frame and RGB, relative to the mean, per kernel, and its
 original. Both motions put the lighting's real change in that measure (for the camera: the
 image's own motion), which both kernels share; with S > 0 seeds each frame is also rendered with
 lattice seeds 1..S and the ratio of flicker proper (the change of I − Ī, Ī the seed average) is
-reported as well. Writes ``view_pdf.{md,json}`` and prints the markdown.
+reported as well. ``--defensive B ...``: each scene's view-PDF frame again at each defensive share β of
+the mixture (reference/brsm.py), against the same run's light-PDF frame: the sweep that chooses the one
+global default. Writes ``view_pdf.{md,json}`` and prints the markdown.
 """
 
 from __future__ import annotations
@@ -154,8 +156,9 @@ def flicker(name: str, path: Path, frames: int, seeds: int) -> dict:
     return out
 
 
-def measure(name: str, path: Path) -> dict:
+def measure(name: str, path: Path, defensive=()) -> dict:
 
+    from vsgl_addon.reference import brsm
     from vsgl_addon.renderer import FrameRenderer
 
     settings, truth, description = scene_with_truth(name, path, WIDTH, HEIGHT)
@@ -169,6 +172,16 @@ def measure(name: str, path: Path) -> dict:
             row[pdf] = {"mean_ratio": errors["mean_ratio"], "rel": errors["rel"],
                         "frame_seconds": float(sum(frame.timings.values())),
                         "view_pdf": frame.plan.decisions["view_pdf"].reason}
+        default = brsm.DEFENSIVE_SHARE
+        try:
+            for share in defensive:  # the same frame with another β of the mixture, same run
+                brsm.DEFENSIVE_SHARE = float(share)
+                frame = renderer.render(description, settings.overridden(pdf="view"), WIDTH, HEIGHT)
+                errors = Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
+                row.setdefault("defensive", {})[f"{share:g}"] = {"rel": errors["rel"],
+                                                                   "rel_change": errors["rel"] / row["light"]["rel"] - 1.0}
+        finally:
+            brsm.DEFENSIVE_SHARE = default
     finally:
         renderer.free()
     row["rel_change"] = row["view"]["rel"] / row["light"]["rel"] - 1.0
@@ -201,6 +214,19 @@ def markdown(rows, flicker_result=None, command="") -> str:
     worst = max(rows, key=lambda r: r["rel_change"])
     lines += [f"Worst scene: {worst['scene']} {100 * worst['rel_change']:+.1f} % (target ≤ +5 %: "
               f"{'met' if worst['rel_change'] <= 0.05 else 'missed'})."]
+    shares = list(rows[0].get("defensive", {})) if rows else []
+    if shares:
+        from vsgl_addon.reference.brsm import DEFENSIVE_SHARE
+
+        lines += ["", "## Defensive share β of the mixture", "",
+                  f"The view PDF's relative RMSE change against the light PDF (the table's light column, same run) at "
+                  f"each β (the light PDF's share; the default is {DEFENSIVE_SHARE:g}), every scene.", "",
+                  "| scene | " + " | ".join(f"β = {b}" for b in shares) + " |", "|---|" + "---|" * len(shares)]
+        for r in rows:
+            lines.append(f"| {r['scene']} | " + " | ".join(f"{100 * r['defensive'][b]['rel_change']:+.1f} %"
+                                                          for b in shares) + " |")
+        lines.append("| worst | " + " | ".join(f"{100 * max(r['defensive'][b]['rel_change'] for r in rows):+.1f} %"
+                                                 for b in shares) + " |")
     if flicker_result:
         f = flicker_result
         lines += ["", f"## Flicker with the view PDF, modified / original kernel", "",
@@ -229,6 +255,8 @@ def main(argv=None) -> int:
     parser.add_argument("--flicker-frames", type=int, default=8)
     parser.add_argument("--flicker-seeds", type=int, default=0)
     parser.add_argument("--skip-flicker", action="store_true")
+    parser.add_argument("--defensive", type=float, nargs="+", default=[],
+                        help="also the view PDF at each of these defensive shares β (a sweep, same run)")
     args = parser.parse_args(argv)
     from vsgl_addon import register
     from vsgl_addon.gpu_context import ensure_gpu_context
@@ -236,7 +264,7 @@ def main(argv=None) -> int:
     register()
     ensure_gpu_context()
     scenes = [(name, path) for name, path, _ in suite() if not args.only or name in args.only]
-    rows = [measure(name, path) for name, path in scenes]
+    rows = [measure(name, path, args.defensive) for name, path in scenes]
     flicker_result = None
     if not args.skip_flicker:
         flicker_result = next((flicker(name, path, args.flicker_frames, args.flicker_seeds)

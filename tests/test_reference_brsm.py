@@ -10,6 +10,8 @@ import math
 import numpy as np
 import pytest
 
+from vsgl_addon.scene_description import SceneDescription
+
 from vsgl_addon.reference import brsm
 
 
@@ -108,3 +110,41 @@ def test_generation_with_the_view_pdf_keeps_the_rsm_total():
     # The floor corner in view is lit by the wall above it, not by the floor around it: the view PDF
     # moves the kernels to the texels that light what the camera sees.
     assert centres["view"] > 1.5 * centres["light"]
+
+
+def test_only_the_sets_that_light_diffuse_lobes_follow_the_view_pdf():
+    """renderer.SceneLights.build: the first set lights the diffuse lobes (and the specular ones no
+    other set takes); "glossy", and "all" as the third set, light specular lobes only."""
+    from vsgl_addon.pipeline import view_pdf_serves
+
+    assert view_pdf_serves("all", ("all",))
+    assert view_pdf_serves("diffuse", ("diffuse", "glossy"))
+    assert not view_pdf_serves("glossy", ("diffuse", "glossy"))
+    assert view_pdf_serves("diffuse", ("diffuse", "glossy", "all"))
+    assert not view_pdf_serves("glossy", ("diffuse", "glossy", "all"))
+    assert not view_pdf_serves("all", ("diffuse", "glossy", "all"))
+
+
+@pytest.mark.gpu
+def test_receivers_weigh_their_diffuse_reflectance_and_a_metal_none():
+    from test_planner import _camera
+    from test_proxies import grid, material, point_light, scene_of
+    from vsgl_addon.passes.rsm import SceneGPU
+    from vsgl_addon.pipeline import view_receivers
+
+    floor = grid(2, 2, 8.0, 8.0, origin=(-4, -4, 0))
+    wall = grid(2, 2, 8.0, 4.0, origin=(-4, 3, 0), u=(1, 0, 0), v=(0, 0, 1))
+    mats = (material("Metal floor", 0.2, metallic=1.0, color=(0.9, 0.9, 0.9)),
+            material("Wall", 0.7, metallic=0.0, color=(0.8, 0.2, 0.1)))
+    scene = scene_of([(floor, 1, 0), (wall, 2, 1)], mats, [point_light((0.0, 0.0, 3.0), power=500.0)])
+    camera = _camera()
+    scene_gpu = SceneGPU(SceneDescription(scene.geometry, scene.materials, scene.lights, camera, scene.object_names))
+    try:
+        receivers = view_receivers(scene_gpu, camera.view_matrix(), camera.projection_matrix())
+    finally:
+        scene_gpu.free()
+    on_floor = receivers["position"][:, 2] < 1e-3
+    assert on_floor.any() and (~on_floor).any()
+    assert np.all(receivers["weight"][on_floor] == 0.0)
+    lum = np.array([0.2126, 0.7152, 0.0722]) @ [0.8, 0.2, 0.1]
+    np.testing.assert_allclose(receivers["weight"][~on_floor], lum, rtol=1e-5)

@@ -164,8 +164,10 @@ VIEW_PDF_RADIUS = 0.02
 
 
 def view_receivers(scene_gpu: SceneGPU, view_matrix, projection_matrix) -> dict:
-    """The view PDF's receivers: positions, normals and reflectances (lum of the base colour) of at
-    most VIEW_PDF_RECEIVERS covered pixels of a small G-buffer of the view, and the pole radius."""
+    """The view PDF's receivers: positions, normals and diffuse reflectances (lum of base colour ×
+    (1 − metallic), shading_inputs' Rd without its view-dependent albedo: a metal has no diffuse
+    lobe) of at most VIEW_PDF_RECEIVERS covered pixels of a small G-buffer of the view, and the pole
+    radius."""
     from .passes import gbuffer as gbuffer_pass
 
     gbuffer = gbuffer_pass.PASS.run(scene_gpu, view_matrix, projection_matrix,
@@ -182,8 +184,17 @@ def view_receivers(scene_gpu: SceneGPU, view_matrix, projection_matrix) -> dict:
     lo, hi = scene_gpu.bounds if scene_gpu.bounds is not None else (np.zeros(3), np.ones(3))
     return {"position": arrays["position"].reshape(-1, 4)[index, :3].astype(np.float64),
             "normal": arrays["normal"].reshape(-1, 4)[index, :3].astype(np.float64),
-            "weight": np.clip(base[:, :3], 0.0, 1.0).astype(np.float64) @ LUMINANCE_WEIGHTS,
+            "weight": (np.clip(base[:, :3], 0.0, 1.0).astype(np.float64) @ LUMINANCE_WEIGHTS)
+            * (1.0 - np.clip(base[:, 3], 0.0, 1.0).astype(np.float64)),
             "radius": VIEW_PDF_RADIUS * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))}
+
+
+def view_pdf_serves(receiver_set: str, receiver_sets) -> bool:
+    """Whether VSGL set ``receiver_set`` of a frame with ``receiver_sets`` (FramePlan.receiver_sets)
+    lights some receiver's diffuse lobe, so its kernels follow the view PDF (reference/brsm.py; the
+    others keep the light PDF). renderer.SceneLights.build: the "glossy" set lights specular lobes,
+    and so does the whole ("all") set when it is the third; the first set lights the diffuse lobes."""
+    return receiver_set != "glossy" and not (receiver_set == "all" and len(receiver_sets) > 2)
 
 
 def _view_pdf_texture(view, receivers):
@@ -240,7 +251,8 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
                 generation = VSGLGeneration()
                 pending.append((light_index, view_index, generation))
                 pdf = (_view_pdf_texture(view, receivers)
-                       if receivers is not None and plan.runs("view_pdf") else None)
+                       if receivers is not None and plan.runs("view_pdf")
+                       and view_pdf_serves(receiver_lobe, plan.receiver_sets) else None)
                 generation.build_mip_atlas(view.rsm_textures(), pdf)
         view_counts = {index: len(views) for index, views in result.views_by_light.items()}
         if plan.allocation_reads_powers(view_counts):
@@ -271,7 +283,8 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             generation.generate(count, settings.k, settings.kernel,
                                 _rotation(settings.seed, light_index, view_index),
                                 settings.positional_distribution)
-        result.merge(normalize=receivers is not None and plan.runs("view_pdf"))
+        result.merge(normalize=receivers is not None and plan.runs("view_pdf")
+                     and view_pdf_serves(receiver_lobe, plan.receiver_sets))
     except BaseException:
         for _, _, generation in pending:
             generation.free()

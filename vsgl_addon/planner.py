@@ -572,8 +572,9 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
     elif not has_vsgls:
         decisions["view_pdf"] = Decision(False, "no VSGL to place")
     else:
-        decisions["view_pdf"] = Decision(True, "texels weighted by their form factor with G-buffer samples, mixed with "
-                                               "the light PDF (000 §5)")
+        decisions["view_pdf"] = Decision(True, "texels weighted by their form factor with G-buffer samples' diffuse "
+                                               "lobes, mixed with the light PDF (000 §5); VSGL sets that light only "
+                                               "specular lobes keep the light PDF")
     return FramePlan(settings.vsgl_count, settings.kernel, lights, decisions, proxies)
 
 
