@@ -4,7 +4,8 @@ VPLs from the GPU's RSM, their SG lobes, the VSGL clusters, and the VSGLs' visib
 and relative RMSE against Cycles on one pixel subset.
 
     .venv/bin/python benchmarks/visibility_decomposition.py [--only NAME ...] [--stride S] [--samples K]
-        [--skip-vpls [NAME ...]] [--k K] [--vsgl-count N] [--ism-points P] [--origin-sigmas S]
+        [--skip-vpls [NAME ...]] [--k K] [--vsgl-count N] [--ism-points P] [--ism-size S] [--rsm-size S]
+        [--origin-sigmas S]
         [--map-origin-sigmas S] [--max-slope T] [--filter-radius R] [--append] [--results-dir DIR]
 
 On every S-th pixel (both ways) of the suite's 240x180 camera G-buffer, per pixel, the luminance of:
@@ -29,8 +30,9 @@ truth's two seeds) over the subset, for all its pixels and per material. Knobs o
 lookups (the GPU's maps themselves stay as built): ``--origin-sigmas`` moves the exact rows' shadow
 origin, ``--max-slope`` caps the maps' slope-scaled bias, ``--filter-radius`` the maps' filter;
 ``--map-origin-sigmas`` builds the maps themselves (and centres every row's lookups) that many σv
-off the mean (passes/ism.py set_shadow_origin_sigmas); ``--k``, ``--vsgl-count`` and
-``--ism-points`` change the scene's settings. The sampled visibility's
+off the mean (passes/ism.py set_shadow_origin_sigmas); ``--k``, ``--vsgl-count``, ``--ism-points``,
+``--ism-size`` and ``--rsm-size`` change the scene's settings (the RSM side the frame planner scales
+per light: planner.rsm_size_for_share). The sampled visibility's
 own noise (K rays per pixel) is charged to the VPL rows: their rel RMSE carries it (printed: the
 standard error of the visible share, relative to the mean). Writes
 ``benchmarks/results/visibility_decomposition.md``.
@@ -189,6 +191,9 @@ def main(argv=None):
     parser.add_argument("--vsgl-count", type=int, default=None, help="N instead of the scene's")
     parser.add_argument("--k", type=float, default=None, help="the kernel size K instead of the scene's (000 Eq. 3)")
     parser.add_argument("--ism-points", type=int, default=None, help="points per shadow map instead of the scene's")
+    parser.add_argument("--ism-size", type=int, default=None, help="shadow map side instead of the scene's")
+    parser.add_argument("--rsm-size", type=int, default=None,
+                        help="the settings' RSM side instead of the scene's (the frame planner scales each light's)")
     parser.add_argument("--skip-vpls", nargs="*", default=None, metavar="NAME",
                         help="only the VSGL rows for these scenes (all without a name; the VPL rows take "
                              "minutes per light with many lights)")
@@ -212,7 +217,8 @@ def main(argv=None):
 
     ensure_gpu_context()
     overrides = {key: value for key, value in (("vsgl_count", args.vsgl_count), ("k", args.k),
-                                                                  ("ism_points", args.ism_points)) if value is not None}
+                                                                  ("ism_points", args.ism_points), ("ism_size", args.ism_size),
+                                                                  ("rsm_size", args.rsm_size)) if value is not None}
     knobs = {key: value for key, value in (("origin_sigmas", args.origin_sigmas), ("max_slope", args.max_slope),
                                            ("filter_radius", args.filter_radius)) if value is not None}
     if args.map_origin_sigmas is not None:
