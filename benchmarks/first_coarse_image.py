@@ -27,38 +27,21 @@ import sys
 import tempfile
 from pathlib import Path
 
-from checkout_ab import alternate, extract_commit, run_child
-
-REPO = Path(__file__).resolve().parents[1]
-RESULTS = REPO / "benchmarks" / "results"
+from checkout_ab import REPO, alternate, extract_commit, open_scene, run_child, write_results
 REGION = (1311, 786)
 SCALE = 0.25
 CONVERGE_REGION = (164, 98)
 CONVERGE_SAMPLES = 2
 
 
-def _scene_path(name: str) -> Path:
-    return REPO / "demo.blend" if name == "demo" else REPO / "benchmarks" / "scenes" / f"{name}.blend"
-
-
 def measure(repo: Path, scene: str, repeats: int, preview: bool | None) -> dict:
     """The steps in this process, the add-on imported from ``repo``; ``preview`` None: the
     checkout's ViewPipeline as it is (a baseline without the option)."""
-    sys.path.insert(0, str(repo))
-    import bpy
+    bpy, settings, light = open_scene(repo, scene)
     import numpy as np
 
-    from vsgl_addon import register
-    from vsgl_addon.gpu_context import ensure_gpu_context
     from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
     from vsgl_addon.view_pipeline import ViewPipeline
-
-    ensure_gpu_context()
-    register()
-    bpy.ops.wm.open_mainfile(filepath=str(_scene_path(scene)), load_ui=False)
-    settings = VSGLSettings.from_properties(bpy.context.scene.vsgl)
-    light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
 
     def describe():
         return extract_scene(bpy.context.evaluated_depsgraph_get())
@@ -179,8 +162,6 @@ def main(argv=None) -> int:
     if arguments.no_write:
         return 0
     reference = arguments.baseline or "no preview"
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "first_coarse_image.json").write_text(json.dumps(rows, indent=2))
     lines = ["# Change → first coarse image, without the window\n",
              f"{arguments.scene}, its saved settings, a light moved, {REGION[0]}×{REGION[1]} at scale {SCALE}; "
              f"median of {arguments.rounds} processes × {arguments.repeats} steps per variant, alternating "
@@ -199,7 +180,7 @@ def main(argv=None) -> int:
                      f"{max(c['largest_difference'] for c in checks):.1e}). The coarse image's relative RMSE "
                      f"against that converged image: with the preview {statistics.median(c['coarse_rmse_preview'] for c in checks):.3f}, "
                      f"without {statistics.median(c['coarse_rmse_full'] for c in checks):.3f}.")
-    (RESULTS / "first_coarse_image.md").write_text("\n".join(lines) + "\n")
+    write_results("first_coarse_image", rows, "\n".join(lines) + "\n")
     return 0
 
 

@@ -28,17 +28,11 @@ from __future__ import annotations
 
 import argparse
 import collections
-import json
 import statistics
-import sys
-import tempfile
 import time
 from pathlib import Path
 
-from checkout_ab import alternate, extract_commit, image_difference, run_child
-
-REPO = Path(__file__).resolve().parents[1]
-RESULTS = REPO / "benchmarks" / "results"
+import checkout_ab
 SCENES = ("demo", "occluder", "cornell_box", "caustic_panel")
 IMAGE_SIZE = (160, 90)
 # The window of benchmarks/interactive.py (its 1600 × 900 screen's 3D viewport), its preview scale, samples.
@@ -49,31 +43,17 @@ IMAGES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_spe
           "indirect_glossy_reflectors", "indirect_caustics")
 
 
-def _path(repo: Path, name: str) -> Path:
-    return REPO / "demo.blend" if name == "demo" else REPO / "benchmarks" / "scenes" / f"{name}.blend"
-
-
 def measure(repo: Path, name: str, repeats: int, image_path: Path | None) -> dict:
     """One scene's builds in this process, with the add-on imported from ``repo``."""
-    sys.path.insert(0, str(repo))
-    import bpy
+    bpy, settings, light = checkout_ab.open_scene(repo, name)
     import gpu
     import numpy as np
 
     import vsgl_addon.renderer as renderer
-    from vsgl_addon import register
-    from vsgl_addon.gpu_context import ensure_gpu_context
     from vsgl_addon.passes import contract
     from vsgl_addon.passes.gpu_util import finish
     from vsgl_addon.passes.scene_gpu import PointTextureCache
     from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
-
-    ensure_gpu_context()
-    register()
-    bpy.ops.wm.open_mainfile(filepath=str(_path(repo, name)), load_ui=False)
-    settings = VSGLSettings.from_properties(bpy.context.scene.vsgl)
-    light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
 
     stages: dict[str, float] = collections.defaultdict(float)
     shaders: dict[str, float] = collections.defaultdict(float)
@@ -205,11 +185,6 @@ def _medians(children: list[dict]) -> dict:
             "cold_build": statistics.median(child["cold_build"] for child in children), **median}
 
 
-def _child(repo: Path, name: str, repeats: int, image: Path, python: str) -> dict:
-    return run_child(Path(__file__).resolve(), ["--child", name, "--repo", str(repo), "--repeats", str(repeats),
-                                                "--image", str(image)], python, timeout=3600)
-
-
 def _ms(value) -> str:
     return f"{1000 * value:.0f}"
 
@@ -247,56 +222,24 @@ def _table(rows: list[dict], baseline: bool) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scenes", nargs="*", default=list(SCENES))
-    parser.add_argument("--repeats", type=int, default=5, help="builds per process after the warm-up")
-    parser.add_argument("--rounds", type=int, default=2, help="processes per checkout and scene")
-    parser.add_argument("--baseline", default=None, help="a commit to measure in the same run")
-    parser.add_argument("--no-write", action="store_true")
-    parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
-    parser.add_argument("--repo", type=Path, default=REPO, help=argparse.SUPPRESS)
-    parser.add_argument("--image", type=Path, default=None, help=argparse.SUPPRESS)
+    checkout_ab.add_scene_arguments(parser, SCENES, 5, "builds per process after the warm-up")
     arguments = parser.parse_args(argv)
-    if arguments.child is not None:
-        print(json.dumps(measure(arguments.repo, arguments.child, arguments.repeats, arguments.image)))
+    if checkout_ab.run_as_child(arguments, measure):
         return 0
-
-    import numpy as np
-
-    rows = []
-    with tempfile.TemporaryDirectory() as temporary:
-        temporary = Path(temporary)
-        base = extract_commit(arguments.baseline, temporary / "baseline") if arguments.baseline is not None else None
-        for name in arguments.scenes:
-            row = {"scene": name}
-            # The checkouts alternate round by round (ABBA...), which spreads the machine's varying
-            # load over both; each round is a fresh process (its first build compiles the shaders).
-            variants = [("baseline", base), ("current", REPO)] if base is not None else [("current", REPO)]
-            children = alternate(variants, arguments.rounds, lambda label, repo: _child(
-                repo, name, arguments.repeats, temporary / f"{label}_{name}.npz", sys.executable))
-            for label, _ in variants:
-                row[label] = _medians(children[label])
-            if base is not None:
-                old, new = (np.load(temporary / f"{label}_{name}.npz") for label in ("baseline", "current"))
-                row["image_difference"] = image_difference(old, new, IMAGES)
-            rows.append(row)
-            print(json.dumps({"scene": name, **{label: row[label]["stages"].get("build") for label, _ in variants},
-                              **({"image_difference": row["image_difference"]} if base is not None else {})}),
-                  flush=True)
+    rows = checkout_ab.compare_scenes(Path(__file__).resolve(), arguments, _medians,
+                                      lambda medians: medians["stages"].get("build"), lambda old, new: IMAGES,
+                                      timeout=3600)
     if arguments.no_write:
         return 0
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "light_build_profile.json").write_text(json.dumps(rows, indent=2))
     header = ("# One light build, stage by stage\n\n"
               "As the Rendered viewport builds the light passes after a light moved (renderer.SceneLights.build, "
               "no view, the viewport's point-set cache), each scene's saved settings, llvmpipe on a shared 2-core "
               f"machine; median of {arguments.rounds} processes × {arguments.repeats} builds, each process's warm-up build "
               "apart (\"cold\"), GPU finished, ms. "
               "`timings.*` are SceneLights' own; `shader pass.key` the compute dispatches' summed time "
-              "(llvmpipe runs them synchronously).")
-    if arguments.baseline is not None:
-        header += (f" Before: commit {arguments.baseline}; after: this checkout; measured in the same run, "
-                   "process by process in alternation.")
-    (RESULTS / "light_build_profile.md").write_text(header + "\n" + _table(rows, arguments.baseline is not None))
+              "(llvmpipe runs them synchronously)." + checkout_ab.baseline_sentence(arguments.baseline))
+    checkout_ab.write_results("light_build_profile", rows,
+                              header + "\n" + _table(rows, arguments.baseline is not None))
     return 0
 
 

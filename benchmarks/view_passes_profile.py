@@ -29,17 +29,11 @@ Writes benchmarks/results/view_passes_profile.{md,json} unless --no-write.
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
-import sys
-import tempfile
 import time
 from pathlib import Path
 
-from checkout_ab import alternate, extract_commit, image_difference, run_child
-
-REPO = Path(__file__).resolve().parents[1]
-RESULTS = REPO / "benchmarks" / "results"
+import checkout_ab
 #: The demo's coarse image in light_build_profile.md's committed run (1311 × 786 at scale 0.25,
 #: coarse factor 0.25).
 COARSE_SIZE = (82, 49)
@@ -50,32 +44,18 @@ IMAGES = ("direct_diffuse", "direct_specular", "indirect_diffuse", "indirect_spe
           "indirect_glossy_reflectors", "indirect_caustics")
 
 
-def _path(name: str) -> Path:
-    return REPO / "demo.blend" if name == "demo" else REPO / "benchmarks" / "scenes" / f"{name}.blend"
-
-
 def measure(repo: Path, name: str, repeats: int, image_path: Path) -> dict:
     """One scene's view passes in this process, with the add-on imported from ``repo``."""
-    sys.path.insert(0, str(repo))
-    import bpy
+    bpy, settings, light = checkout_ab.open_scene(repo, name)
     import numpy as np
 
-    from vsgl_addon import register
     from vsgl_addon import view_gpu
-    from vsgl_addon.gpu_context import ensure_gpu_context
     from vsgl_addon.passes.gpu_util import finish, read_texture
     from vsgl_addon.reference.vpl_culling import preview_stride
     from vsgl_addon.scene import extract_scene
-    from vsgl_addon.settings import VSGLSettings
-    from vsgl_addon.views import camera_vector
 
     from light_build_profile import viewport_steps
 
-    ensure_gpu_context()
-    register()
-    bpy.ops.wm.open_mainfile(filepath=str(_path(name)), load_ui=False)
-    settings = VSGLSettings.from_properties(bpy.context.scene.vsgl)
-    light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
     description = extract_scene(bpy.context.evaluated_depsgraph_get())
     camera = description.camera
     view, projection = camera.view_matrix(), camera.projection_matrix()
@@ -160,11 +140,6 @@ def _pair_ratios(before: list[dict], after: list[dict]) -> dict:
     return {label: {key: statistics.median(values) for key, values in part.items()} for label, part in ratios.items()}
 
 
-def _child(repo: Path, name: str, repeats: int, image: Path, python: str) -> dict:
-    return run_child(Path(__file__).resolve(), ["--child", name, "--repo", str(repo), "--repeats", str(repeats),
-                                                "--image", str(image)], python, timeout=1800, nice=5)
-
-
 def _table(rows: list[dict], baseline: str | None) -> str:
     lines = []
     for row in rows:
@@ -196,45 +171,17 @@ def _table(rows: list[dict], baseline: str | None) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scenes", nargs="*", default=["demo"])
-    parser.add_argument("--repeats", type=int, default=4, help="measurements per process after the warm-up")
-    parser.add_argument("--rounds", type=int, default=2, help="processes per checkout and scene")
-    parser.add_argument("--baseline", default=None, help="a commit to measure in the same run")
-    parser.add_argument("--no-write", action="store_true")
-    parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
-    parser.add_argument("--repo", type=Path, default=REPO, help=argparse.SUPPRESS)
-    parser.add_argument("--image", type=Path, default=None, help=argparse.SUPPRESS)
+    checkout_ab.add_scene_arguments(parser, ["demo"], 4, "measurements per process after the warm-up")
     arguments = parser.parse_args(argv)
-    if arguments.child is not None:
-        print(json.dumps(measure(arguments.repo, arguments.child, arguments.repeats, arguments.image)))
+    if checkout_ab.run_as_child(arguments, measure):
         return 0
-
-    import numpy as np
-
-    rows = []
-    with tempfile.TemporaryDirectory() as temporary:
-        temporary = Path(temporary)
-        base = extract_commit(arguments.baseline, temporary / "baseline") if arguments.baseline is not None else None
-        for name in arguments.scenes:
-            row = {"scene": name}
-            variants = [("baseline", base), ("current", REPO)] if base is not None else [("current", REPO)]
-            children = alternate(variants, arguments.rounds, lambda label, repo: _child(
-                repo, name, arguments.repeats, temporary / f"{label}_{name}.npz", sys.executable))
-            for label, _ in variants:
-                row[label] = _medians(children[label])
-            if base is not None:
-                row["pair_ratios"] = _pair_ratios(children["baseline"], children["current"])
-                old, new = (np.load(temporary / f"{label}_{name}.npz") for label in ("baseline", "current"))
-                row["image_difference"] = image_difference(old, new, [key for key in old.files if key in new.files])
-            rows.append(row)
-            print(json.dumps({"scene": name, **{label: row[label]["first step"] for label, _ in variants},
-                              **({"image_difference": row["image_difference"]} if base is not None else {})}),
-                  flush=True)
+    rows = checkout_ab.compare_scenes(
+        Path(__file__).resolve(), arguments, _medians, lambda medians: medians["first step"],
+        lambda old, new: [key for key in old.files if key in new.files], timeout=1800, nice=5,
+        pair_ratios=_pair_ratios)
     print(_table(rows, arguments.baseline))
     if arguments.no_write:
         return 0
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "view_passes_profile.json").write_text(json.dumps(rows, indent=2))
     header = ("# The view passes, pass by pass\n\n"
               "The Rendered viewport's view passes (renderer.FrameRenderer.render_view_textures, each pass "
               f"finished) through the camera at the coarse size {COARSE_SIZE[0]}×{COARSE_SIZE[1]} (preview VPL "
@@ -243,11 +190,8 @@ def main(argv=None) -> int:
               "(light_build_profile.viewport_steps); each scene's saved settings, llvmpipe on a shared 2-core "
               f"machine; median of {arguments.rounds} processes × {arguments.repeats} measurements, each process's "
               "warm-up apart, ms; \"per round\" is the median over rounds of after / before of each round's two "
-              "processes, run back to back.")
-    if arguments.baseline is not None:
-        header += (f" Before: commit {arguments.baseline}; after: this checkout; measured in the same run, "
-                   "process by process in alternation.")
-    (RESULTS / "view_passes_profile.md").write_text(header + "\n" + _table(rows, arguments.baseline))
+              "processes, run back to back." + checkout_ab.baseline_sentence(arguments.baseline))
+    checkout_ab.write_results("view_passes_profile", rows, header + "\n" + _table(rows, arguments.baseline))
     return 0
 
 
