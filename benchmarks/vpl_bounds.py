@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -89,47 +90,79 @@ def culling_inputs(args):
     return position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--delta", type=float, nargs="+", default=[1e-3])
+def add_arguments(parser: argparse.ArgumentParser, deltas: str | int = "+") -> None:
+    """What culling_inputs reads (shared with vpl_bounds_diag.py and vpl_bounds_frusta.py)."""
+    parser.add_argument("--delta", type=float, nargs=deltas, default=[1e-3])
     parser.add_argument("--size", type=int, nargs=2, default=[WIDTH, HEIGHT], metavar=("W", "H"))
     parser.add_argument("--vpl-stride", type=int, default=1)
+
+
+def view_depth(position, w2v):
+    """Each pixel's view-space depth (distance along the camera's forward axis)."""
+    return -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
+
+
+class Tile(NamedTuple):
+    """One TILE x TILE tile with covered pixels: its first pixel (tx, ty), its covered mask, their
+    rows and columns in it, view depths, positions and normals, the pass's receiver NDC rectangle
+    over them (tile_receiver_ndc: through the covered pixels' outermost centres), and every VPL's
+    glossy intensity and squared distance at them (reference.vpl_culling.glossy_vpl_radiance)."""
+    tx: int
+    ty: int
+    covered: np.ndarray
+    ys: np.ndarray
+    xs: np.ndarray
+    depth: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    ndc: tuple
+    intensity: np.ndarray
+    l2: np.ndarray
+
+
+def covered_tiles(position, normal, vpls, depth, width: int, height: int, vc):
+    """The image's tiles with covered pixels, row by row (shared with vpl_bounds_diag.py and
+    vpl_bounds_frusta.py)."""
+    for ty in range(0, height, TILE):
+        for tx in range(0, width, TILE):
+            sl = (slice(ty, min(ty + TILE, height)), slice(tx, min(tx + TILE, width)))
+            covered = position[sl][..., 3] > 0.0
+            if not covered.any():
+                continue
+            ys, xs = np.nonzero(covered)
+            pts = position[sl][..., :3][ys, xs]
+            nrm = normal[sl][ys, xs]
+            ndc = vc.tile_receiver_ndc([tx + xs.min(), ty + ys.min()], [tx + xs.max(), ty + ys.max()], [width, height])
+            _, intensity, l2 = vc.glossy_vpl_radiance(
+                pts[:, None], nrm[:, None], np.ones((len(pts), 1, 3)), vpls["position"][None], vpls["normal"][None],
+                vpls["incoming"][None], vpls["roughness"][None], vpls["flux"][None], vpls["rs"][None])
+            yield Tile(tx, ty, covered, ys, xs, depth[sl][ys, xs], pts, nrm, ndc, intensity, l2)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_arguments(parser)
     args = parser.parse_args(argv)
     width, height = args.size
     position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc = culling_inputs(args)
     false_pos = {delta: {(name, test): 0 for name in VOLUMES for test in TESTS} for delta in args.delta}
     accepted_total = dict.fromkeys(args.delta, 0)
     pixels = 0
-    depth = -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
-    for ty in range(0, height, TILE):
-        for tx in range(0, width, TILE):
-            sl = (slice(ty, min(ty + TILE, height)), slice(tx, min(tx + TILE, width)))
-            cov = position[sl][..., 3].reshape(-1) > 0.0
-            if not cov.any():
-                continue
-            # The pass's frustum: through the covered pixels' outermost centres (tile_receiver_ndc).
-            ys, xs = np.nonzero(position[sl][..., 3] > 0.0)
-            lo, hi = vc.tile_receiver_ndc([tx + xs.min(), ty + ys.min()], [tx + xs.max(), ty + ys.max()],
-                                          [width, height])
-            d = depth[sl].reshape(-1)[cov]
-            planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, d.min(), d.max())
-            corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, d.min(), d.max())
-            pts = position[sl][..., :3].reshape(-1, 3)[cov]
-            nrm = normal[sl].reshape(-1, 3)[cov]
-            _, intensity, l2 = vc.glossy_vpl_radiance(
-                pts[:, None], nrm[:, None], np.ones((len(pts), 1, 3)), vpls["position"][None], vpls["normal"][None],
-                vpls["incoming"][None], vpls["roughness"][None], vpls["flux"][None], vpls["rs"][None])
-            pixels += len(pts)
-            for delta in args.delta:
-                accepted = vc.acceptance_probability(intensity, l2, delta) > xi[None]
-                accepted_total[delta] += int(accepted.sum())
-                for name, volume in volumes[delta].items():
-                    for test in TESTS:
-                        listed = (vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], *volume)
-                                  if test == "exact" else vc.ellipsoid_frustum_overlap(planes[None], *volume))
-                        if np.any(accepted & ~listed[None]):
-                            raise AssertionError(f"{name} ({test} test) culled an accepted VPL at delta {delta:g}")
-                        false_pos[delta][name, test] += int(np.sum(listed[None] & ~accepted))
+    for tile in covered_tiles(position, normal, vpls, view_depth(position, w2v), width, height, vc):
+        d, intensity, l2 = tile.depth, tile.intensity, tile.l2
+        planes = vc.tile_frustum_planes(inv_proj, v2w, *tile.ndc, d.min(), d.max())
+        corners = vc.tile_frustum_corners(inv_proj, v2w, *tile.ndc, d.min(), d.max())
+        pixels += len(tile.points)
+        for delta in args.delta:
+            accepted = vc.acceptance_probability(intensity, l2, delta) > xi[None]
+            accepted_total[delta] += int(accepted.sum())
+            for name, volume in volumes[delta].items():
+                for test in TESTS:
+                    listed = (vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], *volume)
+                              if test == "exact" else vc.ellipsoid_frustum_overlap(planes[None], *volume))
+                    if np.any(accepted & ~listed[None]):
+                        raise AssertionError(f"{name} ({test} test) culled an accepted VPL at delta {delta:g}")
+                    false_pos[delta][name, test] += int(np.sum(listed[None] & ~accepted))
     scale = max(args.vpl_stride, 1)
     print(f"caustic_panel {width}x{height}, {generated} VPLs ({count} counted, every {scale}th; counts "
           f"below are scaled to all), tiles {TILE}x{TILE}")

@@ -25,15 +25,12 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from vpl_bounds import TILE, culling_inputs  # noqa: E402
-from vpl_caustics import HEIGHT, WIDTH  # noqa: E402
+from vpl_bounds import add_arguments, covered_tiles, culling_inputs, view_depth  # noqa: E402
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--delta", type=float, nargs="+", default=[1e-3])
-    parser.add_argument("--size", type=int, nargs=2, default=[WIDTH, HEIGHT], metavar=("W", "H"))
-    parser.add_argument("--vpl-stride", type=int, default=1)
+    add_arguments(parser)
     args = parser.parse_args(argv)
     width, height = args.size
     position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc = culling_inputs(args)
@@ -41,59 +38,45 @@ def main(argv=None) -> int:
     fp = {d: 0 for d in args.delta}; fp25 = {d: 0 for d in args.delta}; fppt = {d: 0 for d in args.delta}; fpany = {d: 0 for d in args.delta}; fpsph = {d: 0 for d in args.delta}; fpvol = {d: 0 for d in args.delta}; acc = {d: 0 for d in args.delta}
     spans = []; tile_px = []
     pixels = 0
-    depth = -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
-    for ty in range(0, height, TILE):
-        for tx in range(0, width, TILE):
-            sl = (slice(ty, min(ty + TILE, height)), slice(tx, min(tx + TILE, width)))
-            cov = position[sl][..., 3].reshape(-1) > 0.0
-            if not cov.any():
-                continue
-            # The pass's frustum: through the covered pixels' outermost centres (tile_receiver_ndc).
-            ys, xs = np.nonzero(position[sl][..., 3] > 0.0)
-            lo, hi = vc.tile_receiver_ndc([tx + xs.min(), ty + ys.min()], [tx + xs.max(), ty + ys.max()],
-                                          [width, height])
-            d = depth[sl].reshape(-1)[cov]
-            spans.append(d.max() - d.min()); tile_px.append(len(d))
-            planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, d.min(), d.max())
-            edges = np.linspace(d.min(), d.max(), BINS + 1)
-            b = np.clip(np.searchsorted(edges, d, side="right") - 1, 0, BINS - 1)
-            sub = {}
-            for k in np.unique(b):
-                dk = d[b == k]
-                sub[k] = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, dk.min(), dk.max())
-            pts = position[sl][..., :3].reshape(-1, 3)[cov]
-            nrm = normal[sl].reshape(-1, 3)[cov]
-            _, intensity, l2 = vc.glossy_vpl_radiance(
-                pts[:, None], nrm[:, None], np.ones((len(pts), 1, 3)), vpls["position"][None], vpls["normal"][None],
-                vpls["incoming"][None], vpls["roughness"][None], vpls["flux"][None], vpls["rs"][None])
-            pixels += len(pts)
-            for delta in args.delta:
-                accepted = vc.acceptance_probability(intensity, l2, delta) > xi[None]
-                acc[delta] += int(accepted.sum())
-                vol = volumes[delta]["spheroid"]
-                listed = vc.ellipsoid_frustum_overlap(planes[None], *vol)
-                fp[delta] += int(np.sum(listed[None] & ~accepted))
-                c, a, R = vol
-                u = np.einsum("vij,pvj->pvi", R, pts[:, None, :] - c[None])
-                inside = np.sum((u / a[None]) ** 2, axis=-1) <= 1.0
-                fppt[delta] += int(np.sum(inside & ~accepted))
-                fpany[delta] += int(np.sum(inside.any(axis=0)[None] & ~accepted))
-                cam = v2w[:3, 3]
-                ts = np.linspace(d.min(), d.max(), 16)
-                samp = (cam + (pts - cam)[:, None, :] * (ts[None, :, None] / d[:, None, None])).reshape(-1, 3)
-                hit = np.zeros(len(c), bool)
-                for s0 in range(0, len(samp), 512):
-                    uu = np.einsum("vij,pvj->pvi", R, samp[s0:s0+512, None, :] - c[None])
-                    hit |= (np.sum((uu / a[None]) ** 2, axis=-1) <= 1.0).any(axis=0)
-                fpvol[delta] += int(np.sum(hit[None] & ~accepted))
-                cs, as_, _ = volumes[delta]["vpl_sphere"]
-                insph = np.sum((pts[:, None, :] - cs[None]) ** 2, axis=-1) <= as_[None, :, 0] ** 2
-                fpsph[delta] += int(np.sum(insph & ~accepted))
-                for k, pl in sub.items():
-                    lk = vc.ellipsoid_frustum_overlap(pl[None], *vol)
-                    m = b == k
-                    assert not np.any(accepted[m] & ~lk[None])
-                    fp25[delta] += int(np.sum(lk[None] & ~accepted[m]))
+    depth = view_depth(position, w2v)
+    for tile in covered_tiles(position, normal, vpls, depth, width, height, vc):
+        d, pts, intensity, l2 = tile.depth, tile.points, tile.intensity, tile.l2
+        spans.append(d.max() - d.min()); tile_px.append(len(d))
+        planes = vc.tile_frustum_planes(inv_proj, v2w, *tile.ndc, d.min(), d.max())
+        edges = np.linspace(d.min(), d.max(), BINS + 1)
+        b = np.clip(np.searchsorted(edges, d, side="right") - 1, 0, BINS - 1)
+        sub = {}
+        for k in np.unique(b):
+            dk = d[b == k]
+            sub[k] = vc.tile_frustum_planes(inv_proj, v2w, *tile.ndc, dk.min(), dk.max())
+        pixels += len(pts)
+        for delta in args.delta:
+            accepted = vc.acceptance_probability(intensity, l2, delta) > xi[None]
+            acc[delta] += int(accepted.sum())
+            vol = volumes[delta]["spheroid"]
+            listed = vc.ellipsoid_frustum_overlap(planes[None], *vol)
+            fp[delta] += int(np.sum(listed[None] & ~accepted))
+            c, a, R = vol
+            u = np.einsum("vij,pvj->pvi", R, pts[:, None, :] - c[None])
+            inside = np.sum((u / a[None]) ** 2, axis=-1) <= 1.0
+            fppt[delta] += int(np.sum(inside & ~accepted))
+            fpany[delta] += int(np.sum(inside.any(axis=0)[None] & ~accepted))
+            cam = v2w[:3, 3]
+            ts = np.linspace(d.min(), d.max(), 16)
+            samp = (cam + (pts - cam)[:, None, :] * (ts[None, :, None] / d[:, None, None])).reshape(-1, 3)
+            hit = np.zeros(len(c), bool)
+            for s0 in range(0, len(samp), 512):
+                uu = np.einsum("vij,pvj->pvi", R, samp[s0:s0+512, None, :] - c[None])
+                hit |= (np.sum((uu / a[None]) ** 2, axis=-1) <= 1.0).any(axis=0)
+            fpvol[delta] += int(np.sum(hit[None] & ~accepted))
+            cs, as_, _ = volumes[delta]["vpl_sphere"]
+            insph = np.sum((pts[:, None, :] - cs[None]) ** 2, axis=-1) <= as_[None, :, 0] ** 2
+            fpsph[delta] += int(np.sum(insph & ~accepted))
+            for k, pl in sub.items():
+                lk = vc.ellipsoid_frustum_overlap(pl[None], *vol)
+                m = b == k
+                assert not np.any(accepted[m] & ~lk[None])
+                fp25[delta] += int(np.sum(lk[None] & ~accepted[m]))
     scale = max(args.vpl_stride, 1)
     spans = np.array(spans); tile_px = np.array(tile_px)
     print(f"{width}x{height} stride {scale}: {len(spans)} covered tiles; depth span median {np.median(spans):.3f} m, "

@@ -28,68 +28,52 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from vpl_bounds import TILE, VOLUMES, culling_inputs  # noqa: E402
-from vpl_caustics import HEIGHT, WIDTH  # noqa: E402
+from vpl_bounds import TILE, VOLUMES, add_arguments, covered_tiles, culling_inputs, view_depth  # noqa: E402
 
 FRUSTA = ("pixel edges", "unclipped", "tile centres", "covered centres")
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--delta", type=float, nargs=1, default=[1e-3])
-    parser.add_argument("--size", type=int, nargs=2, default=[WIDTH, HEIGHT], metavar=("W", "H"))
-    parser.add_argument("--vpl-stride", type=int, default=1)
+    add_arguments(parser, 1)
     args = parser.parse_args(argv)
     width, height = args.size
     size = np.array([width, height])
     position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc = culling_inputs(args)
     delta = args.delta[0]
     projection = np.linalg.inv(inv_proj)
-    depth = -(position[..., :3] @ w2v[2, :3] + w2v[2, 3])
     groups: dict[str, dict] = {}
     off_centre = 0.0
-    for ty in range(0, height, TILE):
-        for tx in range(0, width, TILE):
-            sl = (slice(ty, min(ty + TILE, height)), slice(tx, min(tx + TILE, width)))
-            covered = position[sl][..., 3] > 0.0
-            if not covered.any():
-                continue
-            whole = covered.shape == (TILE, TILE)
-            group = {(True, True): "full", (True, False): "sky", (False, True): "edge",
-                     (False, False): "edge + sky"}[whole, bool(covered.all())]
-            ys, xs = np.nonzero(covered)
-            d = depth[sl][ys, xs]
-            pts = position[sl][..., :3][ys, xs].astype(np.float64)
-            nrm = normal[sl][ys, xs]
-            clip = (np.c_[pts, np.ones(len(pts))] @ w2v.T) @ projection.T
-            pixel = (clip[:, :2] / clip[:, 3:] + 1.0) / 2.0 * size - np.c_[tx + xs, ty + ys] - 0.5
-            off_centre = max(off_centre, float(np.abs(pixel).max()))
-            _, intensity, l2 = vc.glossy_vpl_radiance(
-                pts[:, None], nrm[:, None], np.ones((len(pts), 1, 3)), vpls["position"][None], vpls["normal"][None],
-                vpls["incoming"][None], vpls["roughness"][None], vpls["flux"][None], vpls["rs"][None])
-            accepted = vc.acceptance_probability(intensity, l2, delta) > xi[None]
-            tally = groups.setdefault(group, {"tiles": 0, "pixels": 0})
-            tally["tiles"] += 1
-            tally["pixels"] += len(pts)
-            rects = {"pixel edges": (np.array([tx, ty]) / size * 2 - 1,
-                                     np.minimum([tx + TILE, ty + TILE], size) / size * 2 - 1),
-                     "unclipped": (np.array([tx, ty]) / size * 2 - 1, np.array([tx + TILE, ty + TILE]) / size * 2 - 1),
-                     "tile centres": vc.tile_receiver_ndc([tx, ty], np.minimum([tx + TILE, ty + TILE], size) - 1, size),
-                     "covered centres": vc.tile_receiver_ndc([tx + xs.min(), ty + ys.min()],
-                                                             [tx + xs.max(), ty + ys.max()], size)}
-            for frustum, (lo, hi) in rects.items():
-                planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, d.min(), d.max())
-                corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, d.min(), d.max())
-                for name in VOLUMES:
-                    listed = vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], *volumes[delta][name])
-                    if np.any(accepted & ~listed[None]):
-                        raise AssertionError(f"{name} ({frustum}) culled an accepted VPL")
-                    key = (name, frustum)
-                    tally[key] = tally.get(key, 0) + int(np.sum(listed[None] & ~accepted))
-            c, a, rotation = volumes[delta]["spheroid"]
-            local = np.einsum("vij,pvj->pvi", rotation, pts[:, None, :] - c[None]) / a[None]
-            inside = (np.sum(local ** 2, axis=-1) <= 1.0).any(axis=0)
-            tally["any receiver inside"] = tally.get("any receiver inside", 0) + int(np.sum(inside[None] & ~accepted))
+    for tile in covered_tiles(position, normal, vpls, view_depth(position, w2v), width, height, vc):
+        tx, ty, covered, ys, xs, d, pts = tile.tx, tile.ty, tile.covered, tile.ys, tile.xs, tile.depth, tile.points
+        whole = covered.shape == (TILE, TILE)
+        group = {(True, True): "full", (True, False): "sky", (False, True): "edge",
+                 (False, False): "edge + sky"}[whole, bool(covered.all())]
+        clip = (np.c_[pts, np.ones(len(pts))] @ w2v.T) @ projection.T
+        pixel = (clip[:, :2] / clip[:, 3:] + 1.0) / 2.0 * size - np.c_[tx + xs, ty + ys] - 0.5
+        off_centre = max(off_centre, float(np.abs(pixel).max()))
+        accepted = vc.acceptance_probability(tile.intensity, tile.l2, delta) > xi[None]
+        tally = groups.setdefault(group, {"tiles": 0, "pixels": 0})
+        tally["tiles"] += 1
+        tally["pixels"] += len(pts)
+        rects = {"pixel edges": (np.array([tx, ty]) / size * 2 - 1,
+                                 np.minimum([tx + TILE, ty + TILE], size) / size * 2 - 1),
+                 "unclipped": (np.array([tx, ty]) / size * 2 - 1, np.array([tx + TILE, ty + TILE]) / size * 2 - 1),
+                 "tile centres": vc.tile_receiver_ndc([tx, ty], np.minimum([tx + TILE, ty + TILE], size) - 1, size),
+                 "covered centres": tile.ndc}
+        for frustum, (lo, hi) in rects.items():
+            planes = vc.tile_frustum_planes(inv_proj, v2w, lo, hi, d.min(), d.max())
+            corners = vc.tile_frustum_corners(inv_proj, v2w, lo, hi, d.min(), d.max())
+            for name in VOLUMES:
+                listed = vc.ellipsoid_frustum_overlap_exact(planes[None], corners[None], *volumes[delta][name])
+                if np.any(accepted & ~listed[None]):
+                    raise AssertionError(f"{name} ({frustum}) culled an accepted VPL")
+                key = (name, frustum)
+                tally[key] = tally.get(key, 0) + int(np.sum(listed[None] & ~accepted))
+        c, a, rotation = volumes[delta]["spheroid"]
+        local = np.einsum("vij,pvj->pvi", rotation, pts[:, None, :] - c[None]) / a[None]
+        inside = (np.sum(local ** 2, axis=-1) <= 1.0).any(axis=0)
+        tally["any receiver inside"] = tally.get("any receiver inside", 0) + int(np.sum(inside[None] & ~accepted))
     scale = max(args.vpl_stride, 1)
     total = {"tiles": 0, "pixels": 0}
     for tally in groups.values():
