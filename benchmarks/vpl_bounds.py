@@ -90,11 +90,14 @@ def culling_inputs(args):
     return position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc
 
 
-def add_arguments(parser: argparse.ArgumentParser, deltas: str | int = "+") -> None:
-    """What culling_inputs reads (shared with vpl_bounds_diag.py and vpl_bounds_frusta.py)."""
+def parse_arguments(argv, description: str, deltas: str | int = "+") -> argparse.Namespace:
+    """--delta, --size and --vpl-stride, what culling_inputs reads (shared with vpl_bounds_diag.py and
+    vpl_bounds_frusta.py)."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--delta", type=float, nargs=deltas, default=[1e-3])
     parser.add_argument("--size", type=int, nargs=2, default=[WIDTH, HEIGHT], metavar=("W", "H"))
     parser.add_argument("--vpl-stride", type=int, default=1)
+    return parser.parse_args(argv)
 
 
 def view_depth(position, w2v):
@@ -140,9 +143,7 @@ def covered_tiles(position, normal, vpls, depth, width: int, height: int, vc):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_arguments(parser)
-    args = parser.parse_args(argv)
+    args = parse_arguments(argv, __doc__.splitlines()[0])
     width, height = args.size
     position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc = culling_inputs(args)
     false_pos = {delta: {(name, test): 0 for name in VOLUMES for test in TESTS} for delta in args.delta}

@@ -15,7 +15,6 @@ lower bound on what an exact ellipsoid-frustum test would list.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -25,13 +24,11 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from vpl_bounds import add_arguments, covered_tiles, culling_inputs, view_depth  # noqa: E402
+from vpl_bounds import covered_tiles, culling_inputs, parse_arguments, view_depth  # noqa: E402
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_arguments(parser)
-    args = parser.parse_args(argv)
+    args = parse_arguments(argv, __doc__.splitlines()[0])
     width, height = args.size
     position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc = culling_inputs(args)
     BINS = 8  # depth sub-ranges per tile for the 2.5D variant

@@ -18,7 +18,6 @@ pixels (the frustum through the centres relies on it being small against PIXEL_M
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -28,15 +27,13 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from vpl_bounds import TILE, VOLUMES, add_arguments, covered_tiles, culling_inputs, view_depth  # noqa: E402
+from vpl_bounds import TILE, VOLUMES, covered_tiles, culling_inputs, parse_arguments, view_depth  # noqa: E402
 
 FRUSTA = ("pixel edges", "unclipped", "tile centres", "covered centres")
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_arguments(parser, 1)
-    args = parser.parse_args(argv)
+    args = parse_arguments(argv, __doc__.splitlines()[0], 1)
     width, height = args.size
     size = np.array([width, height])
     position, normal, vpls, xi, generated, count, inv_proj, v2w, w2v, volumes, vc = culling_inputs(args)
