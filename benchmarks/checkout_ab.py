@@ -118,7 +118,8 @@ def compare_scenes(script: Path, arguments, medians: Callable, summary: Callable
             variants = [("baseline", base), ("current", REPO)] if base is not None else [("current", REPO)]
             children = alternate(variants, arguments.rounds, lambda label, repo: run_child(
                 script, ["--child", name, "--repo", str(repo), "--repeats", str(arguments.repeats),
-                         "--image", str(temporary / f"{label}_{name}.npz")], sys.executable, timeout=timeout, nice=nice))
+                         "--image", str(temporary / f"{label}_{name}.npz")],
+                sys.executable, timeout=timeout, nice=nice))
             for label, _ in variants:
                 row[label] = medians(children[label])
             if base is not None:
