@@ -170,6 +170,9 @@ class FramePlan:
     # Budget mode (budget.BudgetChoice): the settings the target frame time gave, predicted and
     # measured time; None in Manual mode.
     budget: object = None
+    # Auto mode: pass -> (its cell's share of the bounce, predicted seconds it adds, predicted frame
+    # seconds it adds them to) for the optional passes it weighed (weigh_passes).
+    weighed: dict = field(default_factory=dict)
 
     def runs(self, name: str) -> bool:
         return self.decisions[name].run
@@ -270,6 +273,8 @@ class FramePlan:
                          "alpha": float(proxy.alpha), "lit_by": [int(i) for i in np.flatnonzero(mask)]}
                         for proxy, mask in self.proxies],
             "budget": None if self.budget is None else self.budget.to_dict(),
+            "auto_weighed": {name: {"share": share, "added_ms": added * 1e3, "frame_ms": base * 1e3}
+                             for name, (share, added, base) in self.weighed.items()},
             "summary": self.summary_lines(),
         }
 
@@ -554,7 +559,7 @@ def cell_powers(scene, settings: VSGLSettings, lights: list, reaches: list, prox
     return powers
 
 
-def weigh_passes(shares: dict, frame_seconds, threshold: float = AUTO_SHARE_PER_COST) -> tuple[frozenset, dict]:
+def weigh_passes(shares: dict, frame_seconds, threshold: float | None = None) -> tuple[frozenset, dict]:
     """Which optional passes Auto runs: from none, the pass with the largest share per fraction of
     frame time added, while that is at least ``threshold``; the fraction is the one it adds to the
     passes taken before it (a pass that needs the VSGL sets another one already split costs less).
@@ -562,7 +567,8 @@ def weigh_passes(shares: dict, frame_seconds, threshold: float = AUTO_SHARE_PER_
     ``shares``: pass -> its cell's share of the frame's bounce; ``frame_seconds(passes)``: the
     predicted frame time with the passes in that frozenset running. Returns (the passes run, pass ->
     (share, seconds it adds, frame seconds it adds them to): where it was taken, or the last step
-    it was weighed at)."""
+    it was weighed at). ``threshold``: AUTO_SHARE_PER_COST by default."""
+    threshold = AUTO_SHARE_PER_COST if threshold is None else threshold
     chosen = frozenset()
     figures = {}
     remaining = set(shares)
@@ -649,18 +655,19 @@ def _pass_decisions(scene, settings: VSGLSettings, has_vsgls: bool, proxy_cache:
 
 
 def _auto_passes(scene, settings: VSGLSettings, lights: list, reaches: list, decisions: dict, proxies: list,
-                 proxy_cache: ProxyCache, view_projection, cost_model) -> tuple[dict, list]:
+                 proxy_cache: ProxyCache, view_projection, cost_model) -> tuple[dict, list, dict]:
     """Auto quality mode: ``decisions`` (and the proxies kept) with the optional passes weigh_passes
-    leaves out switched off, each optional pass's reason saying what it carries and costs."""
+    leaves out switched off, each optional pass's reason saying what it carries and costs; and
+    weigh_passes' figures."""
     from .budget import CostModel, frame_features
 
     optional = [name for name in AUTO_OPTIONAL if decisions[name].run]
     if not optional:
-        return decisions, proxies
+        return decisions, proxies, {}
     total = sum(light.bounce_estimate for light in lights if light.gets_rsm)
     if not total > 0.0:
         return {name: Decision(d.run, d.reason + ("; Auto: no bounce estimate to weigh it by" if name in optional
-                                                  else "")) for name, d in decisions.items()}, proxies
+                                                  else "")) for name, d in decisions.items()}, proxies, {}
     powers = cell_powers(scene, settings, lights, reaches, proxies)
     shares = {name: powers[name] / total for name in optional}
     model = CostModel.fallback() if cost_model is None else cost_model
@@ -687,14 +694,16 @@ def _auto_passes(scene, settings: VSGLSettings, lights: list, reaches: list, dec
     final = dict(final)
     for name in optional:
         share, added, base = figures[name]
+        fraction = added / base if base > 0.0 else math.inf
+        value = share / fraction if fraction > 0.0 else math.inf
         weighed = (f"Auto: its cell carries {100.0 * share:.3g} % of the bounce (CPU estimate) for "
-                   f"+{100.0 * added / base:.0f} % predicted frame time (+{added * 1e3:.0f} ms)")
+                   f"+{100.0 * fraction:.0f} % predicted frame time (+{added * 1e3:.0f} ms), {value:.3g} of the "
+                   "bounce per frame time added")
         if name in chosen:
-            final[name] = Decision(True, f"{decisions[name].reason}; {weighed}")
+            final[name] = Decision(True, f"{decisions[name].reason}; {weighed} ≥ {AUTO_SHARE_PER_COST:g}")
         else:
-            final[name] = Decision(False, f"{weighed}, under {AUTO_SHARE_PER_COST:g} × that: its light stays "
-                                          "with VSGLs")
-    return final, kept
+            final[name] = Decision(False, f"{weighed} < {AUTO_SHARE_PER_COST:g}: its light stays with VSGLs")
+    return final, kept, figures
 
 
 # --- The plan -------------------------------------------------------------------------------------
@@ -748,10 +757,11 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
     cache = PROXY_CACHE if proxy_cache is None else proxy_cache
     rest, proxies = _pass_decisions(scene, settings, has_vsgls, cache, view_projection)
     decisions.update(rest)
+    weighed = {}
     if settings.quality_mode == "auto" and has_vsgls:
-        decisions, proxies = _auto_passes(scene, settings, lights, reaches, decisions, proxies, cache,
-                                          view_projection, cost_model)
-    return FramePlan(settings.vsgl_count, settings.kernel, lights, decisions, proxies)
+        decisions, proxies, weighed = _auto_passes(scene, settings, lights, reaches, decisions, proxies, cache,
+                                                   view_projection, cost_model)
+    return FramePlan(settings.vsgl_count, settings.kernel, lights, decisions, proxies, weighed=weighed)
 
 
 #: The proxies of the last scene geometry (rebuilt only when it changes, not when a light or the view
