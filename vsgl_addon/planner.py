@@ -68,8 +68,8 @@ RECEIVER_ALPHA_RANGE = (0.0, 0.35)
 #: cell carries (cell_powers / the lights' bounce estimates) is at least this times the fraction f of
 #: the frame time it adds (the built-in cost model: its own steps and the VSGL sets it splits off).
 #: s / f on the suite's scenes (each at its saved resolution): below it glossy_floor_object's MRP-ASG
-#: 0.056 and VPL pass 0.026, sun_courtyard's 0.005 and 0.003, closed_room's VPL pass 0.0001 (each of
-#: these bought at most 6 % of the relative RMSE for 2-9x the frame time,
+#: 0.056 and VPL pass 0.026, sun_courtyard's 0.005 and 0.003, closed_room's VPL pass 0.0001 (a
+#: scene's passes together took at most 8.5 % off its relative RMSE for 2-9x the frame time,
 #: benchmarks/results/tradeoff_suite.md); above it the VPL pass and MRP-ASG of caustic_panel,
 #: polished_metal_floor and occluded_reflector (0.59-0.80), the demo's VPL pass 0.42 and, once that
 #: runs, the demo's MRP-ASG 0.117 (4.2 % of the bounce for a third VSGL set, +36 %; it bought 28 %).
