@@ -378,6 +378,28 @@ def test_mrp_asg_skipped_where_no_receiver_needs_it_changes_no_pixel(monkeypatch
     np.testing.assert_allclose(skipped.indirect_specular, forced.indirect_specular, rtol=1e-4, atol=1e-7)
 
 
+@pytest.mark.gpu
+def test_a_pass_auto_leaves_out_renders_the_frame_of_that_pass_switched_off():
+    """The dielectric sharp floor: Auto leaves out the VPL pass and MRP-ASG; its frame is the one of
+    caustics and glossy reflectors off (their cells go to the VSGLs), which Manual's differs from."""
+    from vsgl_addon.renderer import FrameRenderer
+
+    scene = _room([point_light((0.0, -1.0, 2.5), power=800.0)], floor_roughness=0.1, wall_roughness=0.5)
+    settings = VSGLSettings(vsgl_count=32, rsm_size=64, visibility=False)
+    renderer = FrameRenderer()
+    try:
+        auto = renderer.render(scene, settings.overridden(quality_mode="auto"), 48, 36)
+        off = renderer.render(scene, settings.overridden(caustics=False, glossy_reflectors=False), 48, 36)
+        manual = renderer.render(scene, settings, 48, 36)
+    finally:
+        renderer.free()
+    assert not auto.plan.runs("vpl_pass") and not auto.plan.runs("mrp_asg") and manual.plan.runs("vpl_pass")
+    assert auto.indirect.max() > 0.0
+    np.testing.assert_allclose(auto.indirect_diffuse, off.indirect_diffuse, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(auto.indirect_specular, off.indirect_specular, rtol=1e-6, atol=1e-9)
+    assert not np.allclose(manual.indirect, auto.indirect, rtol=1e-3, atol=1e-6)
+
+
 def test_the_pdf_setting_and_its_command_line_flag():
     from vsgl_addon.cli import build_parser
     from vsgl_addon.settings import SettingsError
