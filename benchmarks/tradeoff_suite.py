@@ -253,7 +253,8 @@ def _s(seconds) -> str:
 def markdown(results: list[dict], renderer: str, quick: bool, run_seconds: float, eevee: bool,
              command: str | None = None) -> str:
     command = command or f"benchmarks/tradeoff_suite.py{' --quick' if quick else ''}"
-    lines = [f"# Speed against accuracy across techniques, per scene ({'quick run' if quick else 'full run'})", "",
+    kind = "quick run" if quick else ("full run" if len(results) == len(suite()) else f"{len(results)} scenes")
+    lines = [f"# Speed against accuracy across techniques, per scene ({kind})", "",
              f"`{command}`, {time.strftime('%Y-%m-%d %H:%M')}, GPU "
              f"`{renderer}`, {os.cpu_count()} CPUs (load average {os.getloadavg()[0]:.1f}), {RESOLUTION[0]}x"
              f"{RESOLUTION[1]}; run time {run_seconds / 60:.1f} min. Error: noise-corrected relative RMSE of the "
