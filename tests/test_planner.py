@@ -296,6 +296,17 @@ def test_auto_leaves_out_a_pass_whose_cell_carries_little_light_for_its_cost_and
         assert (plan.runs("vpl_pass") or plan.runs("mrp_asg")) is runs
 
 
+def test_auto_keeps_manual_s_passes_without_a_finite_bounce_estimate():
+    light = point_light((0.0, 0.0, 2.0), power=500.0)
+    scene = _room([light], floor_roughness=0.1, wall_roughness=0.5)
+    unbounded = _room([type(light)(**{**light.__dict__, "power": np.inf})], floor_roughness=0.1, wall_roughness=0.5)
+    manual = P.plan_frame(unbounded, VSGLSettings(), ProxyCache())
+    auto = P.plan_frame(unbounded, VSGLSettings(quality_mode="auto"), ProxyCache())
+    assert {k: d.run for k, d in auto.decisions.items()} == {k: d.run for k, d in manual.decisions.items()}
+    assert auto.weighed == {} and "no finite bounce estimate" in auto.decisions["mrp_asg"].reason
+    assert P.plan_frame(scene, VSGLSettings(quality_mode="auto"), ProxyCache()).weighed  # the same room, weighed
+
+
 def test_auto_weighs_nothing_where_no_optional_pass_has_a_cell():
     light = point_light((0.0, 0.0, 2.0), power=500.0)
     rough = _room([light])

@@ -665,11 +665,13 @@ def _auto_passes(scene, settings: VSGLSettings, lights: list, reaches: list, dec
     if not optional:
         return decisions, proxies, {}
     total = sum(light.bounce_estimate for light in lights if light.gets_rsm)
-    if not total > 0.0:
-        return {name: Decision(d.run, d.reason + ("; Auto: no bounce estimate to weigh it by" if name in optional
-                                                  else "")) for name, d in decisions.items()}, proxies, {}
-    powers = cell_powers(scene, settings, lights, reaches, proxies)
-    shares = {name: powers[name] / total for name in optional}
+    powers = cell_powers(scene, settings, lights, reaches, proxies) if math.isfinite(total) and total > 0.0 else {}
+    shares = {name: powers[name] / total for name in optional} if powers else {}
+    if not shares or not all(math.isfinite(share) for share in shares.values()):
+        # No finite estimate to weigh by (a light of unbounded power, nothing reflective in reach): Manual's.
+        return {name: Decision(d.run, d.reason + ("; Auto: no finite bounce estimate to weigh it by"
+                                                  if name in optional else "")) for name, d in decisions.items()
+                }, proxies, {}
     model = CostModel.fallback() if cost_model is None else cost_model
     size = tuple(scene.camera.resolution) if scene.camera is not None else AUTO_FRAME_SIZE
     triangles = int(scene.geometry.triangle_count)
