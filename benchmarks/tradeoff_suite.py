@@ -14,8 +14,10 @@ noise-corrected relative RMSE of the indirect light over the covered pixels of t
   (its cell is empty: no sharp reflector, no proxy) is not rendered again; the table says so.
   Their points make the measured Pareto front: front(t) = the lowest error of a manual setting
   measured at most t.
-* **Auto**: the scene's saved settings (the add-on's defaults; the planner decides the passes),
-  measured first and again last (its time: the median of both visits' frames).
+* **Auto**: the scene's saved settings (the add-on's defaults) in Auto quality mode: the planner
+  decides the passes, and leaves out the VPL pass or MRP-ASG where its cell's share of the bounce is
+  small for its predicted cost (planner.AUTO_SHARE_PER_COST); measured first and again last (its
+  time: the median of both visits' frames). The manual rows and Budget keep the saved quality mode.
 * **Budget** (vsgl_addon/budget.py) at targets of F × Auto's measured time (default F = 0.5, 1, 2):
   this machine's cost model, from a cache of the benchmark's own (``--cache``, a fresh temporary
   directory by default: the first scene calibrates it, as a first use does), one budgeted frame of the
@@ -144,7 +146,8 @@ def measure_scene(name, path, counts, budgets, repeats, eevee, gpu, cache):
     from vsgl_addon.renderer import FrameRenderer
 
     width, height = RESOLUTION
-    auto_settings, truth, description = scene_with_truth(name, path, width, height)
+    saved, truth, description = scene_with_truth(name, path, width, height)
+    auto_settings = saved.overridden(quality_mode="auto") if saved.quality_mode == "manual" else saved
     camera = description.camera
     view_projection = camera.projection_matrix() @ camera.view_matrix()
     renderer = FrameRenderer()
@@ -159,7 +162,7 @@ def measure_scene(name, path, counts, budgets, repeats, eevee, gpu, cache):
         manual, skipped = [], []
         previous = None
         for label, values in COMBINATIONS:
-            base = auto_settings.overridden(**values)
+            base = saved.overridden(**values)
             passes = {k: d.run for k, d in plan_frame(description, base, None, view_projection).decisions.items()}
             if passes == previous:
                 skipped.append(label)
@@ -173,10 +176,10 @@ def measure_scene(name, path, counts, budgets, repeats, eevee, gpu, cache):
                 log(f"{name}: {label}, N = {count}: {seconds * 1e3:.0f} ms, rel RMSE {manual[-1]['rel']:.3f}")
         budget_rows = []
         os.environ["XDG_CACHE_HOME"] = str(cache)
-        model = model_for(renderer, description, auto_settings, width, height, gpu, log=log)
+        model = model_for(renderer, description, saved, width, height, gpu, log=log)
         for factor in budgets:
             target = factor * auto_seconds * 1e3
-            settings = auto_settings.overridden(quality_mode="budget", time_budget_ms=min(max(target, 1.0), 6e5))
+            settings = saved.overridden(quality_mode="budget", time_budget_ms=min(max(target, 1.0), 6e5))
             images, choice, model = render_budgeted(renderer, description, settings, width, height, model)
             first = {"predicted_ms": choice.predicted_seconds * 1e3, "measured_ms": choice.measured_seconds * 1e3}
             times, predicted = [], []
@@ -247,9 +250,12 @@ def _s(seconds) -> str:
     return "—" if not math.isfinite(seconds) else f"{seconds:.1f}"
 
 
-def markdown(results: list[dict], renderer: str, quick: bool, run_seconds: float, eevee: bool) -> str:
-    lines = [f"# Speed against accuracy across techniques, per scene ({'quick run' if quick else 'full run'})", "",
-             f"`benchmarks/tradeoff_suite.py{' --quick' if quick else ''}`, {time.strftime('%Y-%m-%d %H:%M')}, GPU "
+def markdown(results: list[dict], renderer: str, quick: bool, run_seconds: float, eevee: bool,
+             command: str | None = None) -> str:
+    command = command or f"benchmarks/tradeoff_suite.py{' --quick' if quick else ''}"
+    kind = "quick run" if quick else ("full run" if len(results) == len(suite()) else f"{len(results)} scenes")
+    lines = [f"# Speed against accuracy across techniques, per scene ({kind})", "",
+             f"`{command}`, {time.strftime('%Y-%m-%d %H:%M')}, GPU "
              f"`{renderer}`, {os.cpu_count()} CPUs (load average {os.getloadavg()[0]:.1f}), {RESOLUTION[0]}x"
              f"{RESOLUTION[1]}; run time {run_seconds / 60:.1f} min. Error: noise-corrected relative RMSE of the "
              "indirect light against the scene's Cycles one-bounce truth (validation_suite.py's). Time: the frame's "
@@ -381,6 +387,7 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int)
     parser.add_argument("--eevee", action="store_true")
     parser.add_argument("--cache", type=Path, help="the cost model's cache directory (default: a fresh one)")
+    parser.add_argument("--name", help="the results files' name (default: tradeoff_suite, _quick with --quick)")
     args = parser.parse_args(argv)
     started = time.perf_counter()
     from vsgl_addon import register
@@ -397,14 +404,15 @@ def main(argv=None) -> int:
         cache = args.cache or Path(fresh)
         results = [measure_scene(name, path, counts, budgets, repeats, args.eevee, gpu, cache)
                    for name, path, _ in scenes]
-    suffix = "_quick" if args.quick else ""
+    stem = args.name or ("tradeoff_suite_quick" if args.quick else "tradeoff_suite")
     out = args.results_dir
     out.mkdir(parents=True, exist_ok=True)
-    text = markdown(results, gpu, args.quick, time.perf_counter() - started, args.eevee)
-    plot(results, out / f"tradeoff_suite{suffix}.png")
-    text += f"Plot (a panel per scene): `tradeoff_suite{suffix}.png`.\n"
-    (out / f"tradeoff_suite{suffix}.md").write_text(text)
-    (out / f"tradeoff_suite{suffix}.json").write_text(json.dumps(_finite(
+    command = " ".join([".venv/bin/python", "benchmarks/tradeoff_suite.py", *(argv if argv is not None else sys.argv[1:])])
+    text = markdown(results, gpu, args.quick, time.perf_counter() - started, args.eevee, command)
+    plot(results, out / f"{stem}.png")
+    text += f"Plot (a panel per scene): `{stem}.png`.\n"
+    (out / f"{stem}.md").write_text(text)
+    (out / f"{stem}.json").write_text(json.dumps(_finite(
         {"renderer": gpu, "quick": args.quick, "resolution": list(RESOLUTION), "counts": list(counts),
          "budgets": list(budgets), "repeats": repeats, "scenes": results}), indent=1, default=str))
     print(text)

@@ -244,7 +244,7 @@ def test_quality_settings_are_validated():
     assert VSGLSettings().quality_mode == "manual"
     assert VSGLSettings(quality_mode="budget", time_budget_ms=1.0).time_budget_ms == 1.0
     with pytest.raises(SettingsError, match="quality mode"):
-        VSGLSettings(quality_mode="auto")
+        VSGLSettings(quality_mode="ultra")
     for bad in (0.5, 1e9, float("nan")):
         with pytest.raises(SettingsError, match="time budget"):
             VSGLSettings(time_budget_ms=bad)

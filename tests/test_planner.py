@@ -6,6 +6,7 @@ VSGL power equal to its RSM total and that skipping MRP-ASG where it serves no r
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -81,11 +82,11 @@ def _camera(position=(0.0, -6.0, 2.0), looking=(0.0, 1.0, -0.3)):
     return Camera("Camera", matrix, "PERSP", 30.0, 36.0, 24.0, "AUTO", 6.0, 0.0, 0.0, 0.1, 100.0, (64, 48), (1.0, 1.0))
 
 
-def _room(lights, floor_roughness=0.7, wall_roughness=0.7, receivers=None):
+def _room(lights, floor_roughness=0.7, wall_roughness=0.7, receivers=None, floor_metallic=0.0):
     """A floor and a back wall (materials 1, 2), the camera in front."""
     floor = grid(2, 2, 8.0, 8.0, origin=(-4, -4, 0))
     wall = grid(2, 2, 8.0, 4.0, origin=(-4, 3, 0), u=(1, 0, 0), v=(0, 0, 1))
-    mats = (material("Floor", floor_roughness, metallic=0.0, color=(0.6, 0.6, 0.6)),
+    mats = (material("Floor", floor_roughness, metallic=floor_metallic, color=(0.6, 0.6, 0.6)),
             material("Wall", wall_roughness, metallic=0.0, color=(0.8, 0.2, 0.1)))
     scene = scene_of([(floor, 1, 0), (wall, 2, 1)], mats, lights)
     return SceneDescription(scene.geometry, scene.materials, scene.lights, _camera(), scene.object_names)
@@ -199,6 +200,124 @@ def test_each_decision_has_a_reason_and_follows_the_cells_the_scene_fills():
     assert seen.runs("mrp_asg")  # the floor (α 0.01) is a glossy receiver in the scene camera's view
 
 
+# --- Auto quality mode: a pass worth its cost ------------------------------------------------------
+
+
+def test_weigh_passes_runs_a_pass_from_the_threshold_up_and_counts_what_it_adds_to_the_passes_taken():
+    """share / added fraction of the frame time against the threshold, both sides; a pass that needs
+    the VSGL set another pass already split off costs only its own steps."""
+    def frame(passes):  # 1 s without either; each alone doubles it; together 2.25 s (they share a set)
+        return {0: 1.0, 1: 2.0, 2: 2.25}[len(passes)]
+
+    for share, runs in ((0.099, False), (0.1, True), (0.101, True)):
+        chosen, figures = P.weigh_passes({"vpl_pass": share}, frame, threshold=0.1)
+        assert ("vpl_pass" in chosen) is runs
+        assert figures["vpl_pass"] == pytest.approx((share, 1.0, 1.0))
+    # The second pass alone: 0.05 of the bounce for +100 %, under 0.1; after the first, +12.5 %: 0.4.
+    chosen, figures = P.weigh_passes({"vpl_pass": 0.5, "mrp_asg": 0.05}, frame, threshold=0.1)
+    assert chosen == {"vpl_pass", "mrp_asg"}
+    assert figures["mrp_asg"] == pytest.approx((0.05, 0.25, 2.0))
+    chosen, figures = P.weigh_passes({"vpl_pass": 0.09, "mrp_asg": 0.05}, frame, threshold=0.1)
+    assert chosen == frozenset() and figures["mrp_asg"] == pytest.approx((0.05, 1.0, 1.0))
+    # A pass that adds nothing runs if its cell carries light, not if it carries none.
+    assert P.weigh_passes({"mrp_asg": 0.01}, lambda passes: 1.0, threshold=0.1)[0] == {"mrp_asg"}
+    assert P.weigh_passes({"mrp_asg": 0.0}, lambda passes: 1.0, threshold=0.1)[0] == frozenset()
+
+
+def test_cell_powers_are_the_specular_part_of_the_bounce_on_the_sharp_reflectors_and_proxies():
+    light = point_light((0.0, 0.0, 2.0), power=500.0)
+    for metallic in (0.0, 1.0):
+        scene = _room([light], floor_roughness=0.1, wall_roughness=0.5, floor_metallic=metallic)
+        plan = P.plan_frame(scene, VSGLSettings(), ProxyCache())
+        (proxy, _), = plan.proxies
+        floor = scene.geometry.material_index == 1
+        assert P.proxy_triangles(scene, proxy).tolist() == floor.tolist()
+        _, reached = P.light_reach(scene, light)
+        powers = P.cell_powers(scene, VSGLSettings(), plan.lights, [reached], plan.proxies)
+        # The floor is the one sharp reflector (α 0.01; the wall's 0.25 is not) and the one proxy.
+        f0 = float(np.clip(P.material_f0(scene.materials[1]), 0, 1) @ P.LUMINANCE_WEIGHTS)
+        albedo = P._material_albedo(scene.materials[1])
+        floor_bounce = P.bounce_estimate(scene, light, reached & floor)
+        assert powers["vpl_pass"] == pytest.approx(floor_bounce * f0 / albedo, rel=1e-9)
+        assert powers["mrp_asg"] == pytest.approx(powers["vpl_pass"], rel=1e-9)
+        assert 0.0 < powers["vpl_pass"] < plan.lights[0].bounce_estimate
+    # A light with no glossy factor puts nothing in the specular cells.
+    dark = type(light)(**{**light.__dict__, "specular_factor": 0.0})
+    scene = _room([dark], floor_roughness=0.1, wall_roughness=0.5, floor_metallic=1.0)
+    plan = P.plan_frame(scene, VSGLSettings(), ProxyCache())
+    _, reached = P.light_reach(scene, dark)
+    assert P.cell_powers(scene, VSGLSettings(), plan.lights, [reached], plan.proxies) == {"vpl_pass": 0.0,
+                                                                                         "mrp_asg": 0.0}
+
+
+def test_auto_leaves_out_a_pass_whose_cell_carries_little_light_for_its_cost_and_manual_keeps_it():
+    """A sharp dielectric floor (F0 0.04: its specular lobe is a few per cent of the bounce) under a
+    point light, glossy wall receivers: Manual runs the VPL pass and MRP-ASG wherever their cells
+    exist; Auto leaves both out (one VSGL set) and says why. A metal floor (its bounce is all specular)
+    keeps both in Auto. Either side of the threshold on the same plan flips the decision."""
+    light = point_light((0.0, 0.0, 2.0), power=500.0)
+    dielectric = _room([light], floor_roughness=0.1, wall_roughness=0.5)
+    manual = P.plan_frame(dielectric, VSGLSettings(), ProxyCache())
+    assert manual.runs("vpl_pass") and manual.runs("mrp_asg") and manual.weighed == {}
+    assert manual.receiver_sets == ("diffuse", "glossy", "all")
+    assert "Auto" not in " ".join(manual.summary_lines())
+    auto = P.plan_frame(dielectric, VSGLSettings(quality_mode="auto"), ProxyCache())
+    assert not auto.runs("vpl_pass") and not auto.runs("mrp_asg") and auto.receiver_sets == ("all",)
+    assert auto.proxies == []
+    for name in P.AUTO_OPTIONAL:
+        share, added, base = auto.weighed[name]
+        assert 0.0 < share < 0.1 and added > 0.0
+        assert share / (added / base) < P.AUTO_SHARE_PER_COST
+        reason = auto.decisions[name].reason
+        assert reason.startswith("Auto: its cell carries") and f"{100.0 * share:.3g} % of the bounce" in reason
+        assert "its light stays with VSGLs" in reason
+    # The other decisions are the ones of those passes switched off.
+    off = P.plan_frame(dielectric, VSGLSettings(caustics=False, glossy_reflectors=False), ProxyCache())
+    assert {k: d.run for k, d in auto.decisions.items()} == {k: d.run for k, d in off.decisions.items()}
+    report = json.loads(json.dumps(auto.to_dict()))
+    assert set(report["auto_weighed"]) == set(P.AUTO_OPTIONAL)
+
+    metal = _room([light], floor_roughness=0.1, wall_roughness=0.5, floor_metallic=1.0)
+    kept = P.plan_frame(metal, VSGLSettings(quality_mode="auto"), ProxyCache())
+    assert kept.runs("vpl_pass") and kept.runs("mrp_asg") and kept.receiver_sets == ("diffuse", "glossy", "all")
+    assert "; Auto: its cell carries" in kept.decisions["vpl_pass"].reason
+    assert {k: d.run for k, d in kept.decisions.items()} == {
+        k: d.run for k, d in P.plan_frame(metal, VSGLSettings(), ProxyCache()).decisions.items()}
+
+    # Both sides of the threshold on the dielectric floor's figures: the pass Auto weighs first.
+    value = max(share / (added / base) for share, added, base in auto.weighed.values())
+    for factor, runs in ((0.99, True), (1.01, False)):
+        original = P.AUTO_SHARE_PER_COST
+        P.AUTO_SHARE_PER_COST = factor * value
+        try:
+            plan = P.plan_frame(dielectric, VSGLSettings(quality_mode="auto"), ProxyCache())
+        finally:
+            P.AUTO_SHARE_PER_COST = original
+        assert (plan.runs("vpl_pass") or plan.runs("mrp_asg")) is runs
+
+
+def test_auto_keeps_manual_s_passes_without_a_finite_bounce_estimate():
+    light = point_light((0.0, 0.0, 2.0), power=500.0)
+    scene = _room([light], floor_roughness=0.1, wall_roughness=0.5)
+    unbounded = _room([type(light)(**{**light.__dict__, "power": np.inf})], floor_roughness=0.1, wall_roughness=0.5)
+    manual = P.plan_frame(unbounded, VSGLSettings(), ProxyCache())
+    auto = P.plan_frame(unbounded, VSGLSettings(quality_mode="auto"), ProxyCache())
+    assert {k: d.run for k, d in auto.decisions.items()} == {k: d.run for k, d in manual.decisions.items()}
+    assert auto.weighed == {} and "no finite bounce estimate" in auto.decisions["mrp_asg"].reason
+    assert P.plan_frame(scene, VSGLSettings(quality_mode="auto"), ProxyCache()).weighed  # the same room, weighed
+
+
+def test_auto_weighs_nothing_where_no_optional_pass_has_a_cell():
+    light = point_light((0.0, 0.0, 2.0), power=500.0)
+    rough = _room([light])
+    auto = P.plan_frame(rough, VSGLSettings(quality_mode="auto"), ProxyCache())
+    manual = P.plan_frame(rough, VSGLSettings(), ProxyCache())
+    assert auto.weighed == {} and auto.summary_lines() == manual.summary_lines()
+    properties = SimpleNamespace(vsgl_count=256, k=1.0, kernel="MODIFIED", rsm_size=128, seed=0,
+                                 positional_distribution="PER_LOBE", quality_mode="AUTO")
+    assert VSGLSettings.from_properties(properties).quality_mode == "auto"
+
+
 def test_summary_and_report_say_what_ran():
     lights = [point_light((x, 0.0, 2.0), power=100.0 * (1 + i)) for i, x in enumerate((-2.0, 0.0, 2.0))]
     plan = P.plan_frame(_room(lights), VSGLSettings(vsgl_count=32), ProxyCache())
@@ -268,6 +387,28 @@ def test_mrp_asg_skipped_where_no_receiver_needs_it_changes_no_pixel(monkeypatch
     assert skipped.indirect.max() > 0.0
     np.testing.assert_allclose(skipped.indirect_diffuse, forced.indirect_diffuse, rtol=1e-5, atol=1e-8)
     np.testing.assert_allclose(skipped.indirect_specular, forced.indirect_specular, rtol=1e-4, atol=1e-7)
+
+
+@pytest.mark.gpu
+def test_a_pass_auto_leaves_out_renders_the_frame_of_that_pass_switched_off():
+    """The dielectric sharp floor: Auto leaves out the VPL pass and MRP-ASG; its frame is the one of
+    caustics and glossy reflectors off (their cells go to the VSGLs), which Manual's differs from."""
+    from vsgl_addon.renderer import FrameRenderer
+
+    scene = _room([point_light((0.0, -1.0, 2.5), power=800.0)], floor_roughness=0.1, wall_roughness=0.5)
+    settings = VSGLSettings(vsgl_count=32, rsm_size=64, visibility=False)
+    renderer = FrameRenderer()
+    try:
+        auto = renderer.render(scene, settings.overridden(quality_mode="auto"), 48, 36)
+        off = renderer.render(scene, settings.overridden(caustics=False, glossy_reflectors=False), 48, 36)
+        manual = renderer.render(scene, settings, 48, 36)
+    finally:
+        renderer.free()
+    assert not auto.plan.runs("vpl_pass") and not auto.plan.runs("mrp_asg") and manual.plan.runs("vpl_pass")
+    assert auto.indirect.max() > 0.0
+    np.testing.assert_allclose(auto.indirect_diffuse, off.indirect_diffuse, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(auto.indirect_specular, off.indirect_specular, rtol=1e-6, atol=1e-9)
+    assert not np.allclose(manual.indirect, auto.indirect, rtol=1e-3, atol=1e-6)
 
 
 def test_the_pdf_setting_and_its_command_line_flag():

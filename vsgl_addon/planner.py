@@ -19,7 +19,12 @@ bpy-free and GPU-free: from a SceneDescription and VSGLSettings, :func:`plan_fra
   VSGL, and the plan reports the fraction dropped;
 * which passes run, from the cells of ../shared/reference/light-paths.md the scene fills: VSGL
   visibility (000 §5), MRP-ASG (001: a lit rectangle proxy and a glossy receiver it can serve),
-  the glossy receivers' second VSGL set, the VPL caustics pass (004: a lit sharp reflector).
+  the glossy receivers' second VSGL set, the VPL caustics pass (004: a lit sharp reflector). In
+  Auto quality mode the VPL pass and MRP-ASG must also be worth their cost: each runs when the
+  share of the bounce its cell carries (CPU estimate, :func:`cell_powers`) is at least
+  AUTO_SHARE_PER_COST times the fraction of the frame time the built-in cost model (budget.py)
+  predicts it adds, the extra VSGL sets it needs included (:func:`weigh_passes`); a pass left out
+  hands its cell to the VSGLs, as switching it off does.
 
 Each decision carries a one-line reason; :meth:`FramePlan.summary_lines` are what the statistics
 panel and the command line print, :meth:`FramePlan.to_dict` what the JSON report holds.
@@ -58,6 +63,24 @@ MIN_RSM_SIZE = 32
 #: doubled the specular error, benchmarks/results/mrp_asg_suite.md). No lower bound: the table's
 #: sharp receiver (α 0.05) is worse, but the suite's mirror-like floors (α 0.02) gain the most.
 RECEIVER_ALPHA_RANGE = (0.0, 0.35)
+
+#: Auto quality mode: the VPL pass or MRP-ASG runs when the share s of the frame's bounce power its
+#: cell carries (cell_powers / the lights' bounce estimates) is at least this times the fraction f of
+#: the frame time it adds (the built-in cost model: its own steps and the VSGL sets it splits off).
+#: s / f on the suite's scenes (each at its saved resolution): below it glossy_floor_object's MRP-ASG
+#: 0.056 and VPL pass 0.026, sun_courtyard's 0.005 and 0.003, closed_room's VPL pass 0.0001 (a
+#: scene's passes together took at most 8.5 % off its relative RMSE for 2-9x the frame time,
+#: benchmarks/results/tradeoff_suite.md); above it the VPL pass and MRP-ASG of caustic_panel,
+#: polished_metal_floor and occluded_reflector (0.59-0.80), the demo's VPL pass 0.42 and, once that
+#: runs, the demo's MRP-ASG 0.117 (4.2 % of the bounce for a third VSGL set, +36 %; it bought 28 %).
+#: 0.08 is the geometric mean of the closest pair (0.056, 0.117). What the cell's receivers make of
+#: its light is not weighed: the demo's MRP-ASG is worth more than its 4 % suggests.
+AUTO_SHARE_PER_COST = 0.08
+#: The frame size Auto predicts its costs at when the scene has no camera (the ratios it weighs
+#: hardly depend on it: the passes' costs are nearly all per pixel).
+AUTO_FRAME_SIZE = (480, 270)
+#: The passes Auto weighs (the others cost little or carry every path).
+AUTO_OPTIONAL = ("vpl_pass", "mrp_asg")
 
 #: The plan's decisions, in the order the summary prints them: key -> label.
 DECISIONS = {
@@ -147,6 +170,9 @@ class FramePlan:
     # Budget mode (budget.BudgetChoice): the settings the target frame time gave, predicted and
     # measured time; None in Manual mode.
     budget: object = None
+    # Auto mode: pass -> (its cell's share of the bounce, predicted seconds it adds, predicted frame
+    # seconds it adds them to) for the optional passes it weighed (weigh_passes).
+    weighed: dict = field(default_factory=dict)
 
     def runs(self, name: str) -> bool:
         return self.decisions[name].run
@@ -247,6 +273,8 @@ class FramePlan:
                          "alpha": float(proxy.alpha), "lit_by": [int(i) for i in np.flatnonzero(mask)]}
                         for proxy, mask in self.proxies],
             "budget": None if self.budget is None else self.budget.to_dict(),
+            "auto_weighed": {name: {"share": share, "added_ms": added * 1e3, "frame_ms": base * 1e3}
+                             for name, (share, added, base) in self.weighed.items()},
             "summary": self.summary_lines(),
         }
 
@@ -380,14 +408,17 @@ def _material_albedo(material) -> float:
     return float(np.clip(rgb, 0.0, 1.0) @ LUMINANCE_WEIGHTS)
 
 
-def bounce_estimate(scene, light, reached: np.ndarray) -> float:
+def bounce_estimate(scene, light, reached: np.ndarray, reflectance=None) -> float:
     """lum W of the light's flux times reflectance on the ``reached`` triangles (sampled at four
     points each, two-sided, no occlusion): the order of magnitude of the RSM total before it is
-    rendered. A sun: its irradiance over the reached triangles' projected area."""
+    rendered. A sun: its irradiance over the reached triangles' projected area. ``reflectance``:
+    (M,) lum reflectance per material instead of _material_albedo's (a part of it: one lobe's)."""
     positions = np.asarray(scene.geometry.positions, np.float64)[reached]
     if len(positions) == 0:
         return 0.0
-    albedo = np.array([_material_albedo(m) for m in scene.materials])[scene.geometry.material_index[reached]]
+    if reflectance is None:
+        reflectance = [_material_albedo(m) for m in scene.materials]
+    albedo = np.asarray(reflectance, np.float64)[scene.geometry.material_index[reached]]
     edge1, edge2 = positions[:, 1] - positions[:, 0], positions[:, 2] - positions[:, 0]
     cross = np.cross(edge1, edge2)
     area = 0.5 * np.linalg.norm(cross, axis=1)
@@ -473,51 +504,96 @@ def kept_proxies(scene, settings: VSGLSettings, proxy_cache: ProxyCache, overrid
     return kept
 
 
-# --- The plan -------------------------------------------------------------------------------------
+def _specular_reflectance(scene) -> np.ndarray:
+    """(M,) lum of each material's Schlick F0 (within [0, 1]): the part of _material_albedo its
+    specular lobe carries, the RSM's Φ Rs at normal incidence."""
+    return np.array([float(np.clip(material_f0(m), 0.0, 1.0) @ LUMINANCE_WEIGHTS) for m in scene.materials])
 
 
-def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
-               view_projection=None) -> FramePlan:
-    """The plan of one frame of ``scene`` (a SceneDescription) with ``settings``.
+def proxy_triangles(scene, proxy) -> np.ndarray:
+    """(T,) bool: the triangles of ``proxy``'s object and material whose centroid lies on its
+    rectangle (within a thousandth of its size): the planar region it stands for."""
+    geometry = scene.geometry
+    positions = np.asarray(geometry.positions, np.float64)
+    mine = (geometry.object_index == proxy.object_index) & (geometry.material_index == proxy.material_index)
+    if not mine.any():
+        return mine
+    offset = positions[mine].mean(axis=1) - np.asarray(proxy.center, np.float64)
+    tolerance = 1e-3 * max(proxy.half_u, proxy.half_v) + 1e-6
+    inside = ((np.abs(offset @ np.asarray(proxy.normal, np.float64)) <= tolerance)
+              & (np.abs(offset @ np.asarray(proxy.axis_u, np.float64)) <= proxy.half_u + tolerance)
+              & (np.abs(offset @ np.asarray(proxy.axis_v, np.float64)) <= proxy.half_v + tolerance))
+    mine[np.flatnonzero(mine)[~inside]] = False
+    return mine
 
-    ``view_projection``: the (4, 4) world -> clip matrix of the one view the frame is rendered from
-    (F12); None when the light passes serve any view (the viewport), so "in view" means "in the
-    scene"."""
-    bounds = scene_bounds(scene)
-    lights = []
-    for index, light in enumerate(scene.lights):
-        specs = []
-        views, mask = light_reach(scene, light, bounds, specs)
-        estimate = bounce_estimate(scene, light, mask)
-        if views == 0:
-            reason = "its views see no triangle"
-        elif not mask.any():
-            views, reason = 0, "lights no object that receives it (light linking)"
-        elif estimate <= 0.0:
-            reason = "RSM for the direct light's shadows; no reflectance in reach, no bounce expected"
-        else:
-            reason = f"bounce ≈ {estimate:.3g} W (CPU estimate, no occlusion)"
-        lights.append(LightPlan(index, light.name, views, settings.rsm_size, estimate, reason,
-                                view_specs=specs if views else []))
-    if settings.kernel != "two-vsgl":
-        total = sum(light.bounce_estimate for light in lights if light.gets_rsm)
-        for light in lights:
-            if light.gets_rsm and total > 0.0:
-                share = light.bounce_estimate / total
-                light.rsm_size = rsm_size_for_share(settings.rsm_size, share)
-                light.size_reason = (f"RSM side √({100.0 * share:.3g} % expected share of N) × {settings.rsm_size}"
-                                     f" → {light.rsm_size} (a power of two, at least "
-                                     f"{min(MIN_RSM_SIZE, settings.rsm_size)})")
-    rsm_lights = sum(light.gets_rsm for light in lights)
+
+def cell_powers(scene, settings: VSGLSettings, lights: list, reaches: list, proxies: list) -> dict:
+    """lum W (bounce_estimate's CPU estimate: no occlusion, reflectance at normal incidence) of the
+    bounce the optional passes' cells carry (light-paths.md), summed over the lights with RSMs
+    (``lights``: LightPlans, ``reaches``: each one's reached triangles, light_reach's):
+
+    * "vpl_pass": the specular lobes (Φ Rs) of the sharp reflectors (GGX α < α_c, a specular lobe,
+      seen by diffuse rays: light_paths' test) of the lights with a glossy factor;
+    * "mrp_asg": the specular lobes of the kept ``proxies``' triangles (proxy_triangles), of the
+      lights in each proxy's lit-by mask.
+
+    What the cell's receivers make of it (a diffuse floor, a mirror-like sphere) is not weighed."""
+    from .light_paths import _sharp_materials
+
+    geometry = scene.geometry
+    specular = _specular_reflectance(scene)
+    sharp = _sharp_materials(scene, settings.caustic_roughness)[geometry.material_index]
+    sharp &= scene.visibility()[geometry.object_index, 0]
+    on_proxy = [(proxy_triangles(scene, proxy), mask) for proxy, mask in proxies]
+    powers = {"vpl_pass": 0.0, "mrp_asg": 0.0}
+    for light, reached in zip(lights, reaches):
+        source = scene.lights[light.index]
+        if not light.gets_rsm or not source.specular_factor > 0.0:
+            continue
+        powers["vpl_pass"] += bounce_estimate(scene, source, reached & sharp, specular)
+        region = np.zeros(len(reached), bool)
+        for triangles, mask in on_proxy:
+            if mask[light.index]:
+                region |= triangles
+        powers["mrp_asg"] += bounce_estimate(scene, source, reached & region, specular)
+    return powers
+
+
+def weigh_passes(shares: dict, frame_seconds, threshold: float | None = None) -> tuple[frozenset, dict]:
+    """Which optional passes Auto runs: from none, the pass with the largest share per fraction of
+    frame time added, while that is at least ``threshold``; the fraction is the one it adds to the
+    passes taken before it (a pass that needs the VSGL sets another one already split costs less).
+
+    ``shares``: pass -> its cell's share of the frame's bounce; ``frame_seconds(passes)``: the
+    predicted frame time with the passes in that frozenset running. Returns (the passes run, pass ->
+    (share, seconds it adds, frame seconds it adds them to): where it was taken, or the last step
+    it was weighed at). ``threshold``: AUTO_SHARE_PER_COST by default."""
+    threshold = AUTO_SHARE_PER_COST if threshold is None else threshold
+    chosen = frozenset()
+    figures = {}
+    remaining = set(shares)
+    while remaining:
+        base = float(frame_seconds(chosen))
+        best = None
+        for name in sorted(remaining):
+            added = max(float(frame_seconds(chosen | {name})) - base, 0.0)
+            share = max(float(shares[name]), 0.0)
+            fraction = added / base if base > 0.0 else math.inf
+            value = share / fraction if fraction > 0.0 else (math.inf if share > 0.0 else 0.0)
+            figures[name] = (share, added, base)
+            if best is None or value > best[0]:
+                best = (value, name)
+        if not best[0] >= threshold:
+            break
+        chosen |= {best[1]}
+        remaining.discard(best[1])
+    return chosen, figures
+
+
+def _pass_decisions(scene, settings: VSGLSettings, has_vsgls: bool, proxy_cache: ProxyCache,
+                    view_projection) -> tuple[dict, list]:
+    """(decisions of every pass after "vsgls", in DECISIONS' order; the proxies MRP-ASG keeps)."""
     decisions = {}
-    if settings.kernel == "two-vsgl":
-        decisions["vsgls"] = Decision(rsm_lights > 0, f"two per RSM view (003); N unused, {rsm_lights} lights with RSMs")
-    elif rsm_lights:
-        decisions["vsgls"] = Decision(True, f"N = {settings.vsgl_count} for the frame, shared by the RSM views of "
-                                            f"{rsm_lights} lights in proportion to their bounce power")
-    else:
-        decisions["vsgls"] = Decision(False, "no light reaches a reflector")
-    has_vsgls = decisions["vsgls"].run
     if not settings.visibility:
         decisions["visibility"] = Decision(False, "off in the settings")
     elif not has_vsgls:
@@ -531,7 +607,7 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
     elif not has_vsgls:
         decisions["mrp_asg"] = Decision(False, "no light reaches a reflector")
     else:
-        proxies = kept_proxies(scene, settings, PROXY_CACHE if proxy_cache is None else proxy_cache)
+        proxies = kept_proxies(scene, settings, proxy_cache)
         receivers = glossy_receivers_in_view(scene, view_projection,
                                              RECEIVER_ALPHA_RANGE if not lobe_split else (0.0, 1.0))
         where = "in view" if view_projection is not None else "in the scene"
@@ -575,7 +651,119 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
         decisions["view_pdf"] = Decision(True, "texels weighted by their form factor with G-buffer samples' diffuse "
                                                "lobes, mixed with the light PDF (000 §5); VSGL sets that light only "
                                                "specular lobes keep the light PDF")
-    return FramePlan(settings.vsgl_count, settings.kernel, lights, decisions, proxies)
+    return decisions, proxies
+
+
+def _auto_passes(scene, settings: VSGLSettings, lights: list, reaches: list, decisions: dict, proxies: list,
+                 proxy_cache: ProxyCache, view_projection, cost_model) -> tuple[dict, list, dict]:
+    """Auto quality mode: ``decisions`` (and the proxies kept) with the optional passes weigh_passes
+    leaves out switched off, each optional pass's reason saying what it carries and costs; and
+    weigh_passes' figures."""
+    from .budget import CostModel, frame_features
+
+    optional = [name for name in AUTO_OPTIONAL if decisions[name].run]
+    if not optional:
+        return decisions, proxies, {}
+    total = sum(light.bounce_estimate for light in lights if light.gets_rsm)
+    powers = cell_powers(scene, settings, lights, reaches, proxies) if math.isfinite(total) and total > 0.0 else {}
+    shares = {name: powers[name] / total for name in optional} if powers else {}
+    if not shares or not all(math.isfinite(share) for share in shares.values()):
+        # No finite estimate to weigh by (a light of unbounded power, nothing reflective in reach): Manual's.
+        return {name: Decision(d.run, d.reason + ("; Auto: no finite bounce estimate to weigh it by"
+                                                  if name in optional else "")) for name, d in decisions.items()
+                }, proxies, {}
+    model = CostModel.fallback() if cost_model is None else cost_model
+    size = tuple(scene.camera.resolution) if scene.camera is not None else AUTO_FRAME_SIZE
+    triangles = int(scene.geometry.triangle_count)
+    variants = {}
+
+    def variant(passes):
+        if passes not in variants:
+            chosen = settings.overridden(
+                caustics="vpl_pass" in passes if "vpl_pass" in optional else settings.caustics,
+                glossy_reflectors="mrp_asg" in passes if "mrp_asg" in optional else settings.glossy_reflectors)
+            rest, kept = _pass_decisions(scene, chosen, True, proxy_cache, view_projection)
+            variants[passes] = ({"vsgls": decisions["vsgls"], **rest}, kept)
+        return variants[passes]
+
+    def frame_seconds(passes):
+        ran, kept = variant(frozenset(passes))
+        plan = FramePlan(settings.vsgl_count, settings.kernel, lights, ran, kept)
+        return model.predict(frame_features(plan, settings, size, size, triangles))
+
+    chosen, figures = weigh_passes(shares, frame_seconds)
+    final, kept = variant(chosen)
+    final = dict(final)
+    for name in optional:
+        share, added, base = figures[name]
+        fraction = added / base if base > 0.0 else math.inf
+        value = share / fraction if fraction > 0.0 else math.inf
+        weighed = (f"Auto: its cell carries {100.0 * share:.3g} % of the bounce (CPU estimate) for "
+                   f"+{100.0 * fraction:.0f} % predicted frame time (+{added * 1e3:.0f} ms), {value:.3g} of the "
+                   "bounce per frame time added")
+        if name in chosen:
+            final[name] = Decision(True, f"{decisions[name].reason}; {weighed} ≥ {AUTO_SHARE_PER_COST:g}")
+        else:
+            final[name] = Decision(False, f"{weighed} < {AUTO_SHARE_PER_COST:g}: its light stays with VSGLs")
+    return final, kept, figures
+
+
+# --- The plan -------------------------------------------------------------------------------------
+
+
+def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
+               view_projection=None, cost_model=None) -> FramePlan:
+    """The plan of one frame of ``scene`` (a SceneDescription) with ``settings``.
+
+    ``view_projection``: the (4, 4) world -> clip matrix of the one view the frame is rendered from
+    (F12); None when the light passes serve any view (the viewport), so "in view" means "in the
+    scene". ``cost_model``: the budget.CostModel Auto quality mode weighs the passes' costs with
+    (the built-in one by default)."""
+    bounds = scene_bounds(scene)
+    lights = []
+    reaches = []
+    for index, light in enumerate(scene.lights):
+        specs = []
+        views, mask = light_reach(scene, light, bounds, specs)
+        estimate = bounce_estimate(scene, light, mask)
+        if views == 0:
+            reason = "its views see no triangle"
+        elif not mask.any():
+            views, reason = 0, "lights no object that receives it (light linking)"
+        elif estimate <= 0.0:
+            reason = "RSM for the direct light's shadows; no reflectance in reach, no bounce expected"
+        else:
+            reason = f"bounce ≈ {estimate:.3g} W (CPU estimate, no occlusion)"
+        lights.append(LightPlan(index, light.name, views, settings.rsm_size, estimate, reason,
+                                view_specs=specs if views else []))
+        reaches.append(mask)
+    if settings.kernel != "two-vsgl":
+        total = sum(light.bounce_estimate for light in lights if light.gets_rsm)
+        for light in lights:
+            if light.gets_rsm and total > 0.0:
+                share = light.bounce_estimate / total
+                light.rsm_size = rsm_size_for_share(settings.rsm_size, share)
+                light.size_reason = (f"RSM side √({100.0 * share:.3g} % expected share of N) × {settings.rsm_size}"
+                                     f" → {light.rsm_size} (a power of two, at least "
+                                     f"{min(MIN_RSM_SIZE, settings.rsm_size)})")
+    rsm_lights = sum(light.gets_rsm for light in lights)
+    decisions = {}
+    if settings.kernel == "two-vsgl":
+        decisions["vsgls"] = Decision(rsm_lights > 0, f"two per RSM view (003); N unused, {rsm_lights} lights with RSMs")
+    elif rsm_lights:
+        decisions["vsgls"] = Decision(True, f"N = {settings.vsgl_count} for the frame, shared by the RSM views of "
+                                            f"{rsm_lights} lights in proportion to their bounce power")
+    else:
+        decisions["vsgls"] = Decision(False, "no light reaches a reflector")
+    has_vsgls = decisions["vsgls"].run
+    cache = PROXY_CACHE if proxy_cache is None else proxy_cache
+    rest, proxies = _pass_decisions(scene, settings, has_vsgls, cache, view_projection)
+    decisions.update(rest)
+    weighed = {}
+    if settings.quality_mode == "auto" and has_vsgls:
+        decisions, proxies, weighed = _auto_passes(scene, settings, lights, reaches, decisions, proxies, cache,
+                                                   view_projection, cost_model)
+    return FramePlan(settings.vsgl_count, settings.kernel, lights, decisions, proxies, weighed=weighed)
 
 
 #: The proxies of the last scene geometry (rebuilt only when it changes, not when a light or the view

@@ -44,7 +44,8 @@ class VSGLSceneSettings(PropertyGroup):
     quality_mode: EnumProperty(
         name="Quality",
         description="Set the frame's quality by hand, or ask for a frame time and let a cost model of this "
-                    "machine choose VSGL count, RSM resolution, delta, VPL interleave and resolution",
+                    "machine choose VSGL count, RSM resolution, delta, VPL interleave and resolution, or let the "
+                    "planner leave out the VPL pass or MRP-ASG where it costs much for little of the light (Auto)",
         items=enum_items(QUALITY_MODES),
         default="MANUAL",
     )

@@ -206,6 +206,10 @@ QUALITY_MODES = Choices(
            "chosen from a cost model of this machine (calibrated at first use, a few frames; kept in the "
            "user's cache), the rest as set below. The statistics show the predicted and measured time",
            ignores=("vsgl_count", "rsm_size", "delta_log10", "vpl_interleave")),
+    Choice("auto", "AUTO", "Auto",
+           "The settings below, but the frame planner leaves out the VPL pass or MRP-ASG where the share of "
+           "the bounce its light path carries is small for the frame time the built-in cost model predicts "
+           "it adds (the plan's reason says so); their light then comes from the VSGLs"),
 )
 
 KERNEL_MODES = KERNELS.names
