@@ -97,8 +97,8 @@ PDFS = Choices(
            "Kernel centres follow the bounce power times each texel's importance to what the camera sees "
            "(its unshadowed form factor with a few hundred G-buffer samples), mixed with the light PDF "
            "(a quarter) so no lit texel is left out. For a light whose footprint is much larger than the "
-           "view (a sun over a large ground); costs a small G-buffer and a CPU sum per RSM view, and "
-           "needs the frame's camera (the viewport keeps the light PDF)"),
+           "view (a sun over a large ground); costs a small G-buffer per frame and a GPU sum over "
+           "texels × receivers per RSM view, and needs the frame's camera (the viewport keeps the light PDF)"),
 )
 
 #: Where each VSGL's two lobes sit (reference.vsgl explains both): each lobe's own power
