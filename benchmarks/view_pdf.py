@@ -2,12 +2,14 @@
 """The view-dependent PDF (000 §5, reference/brsm.py) against the light PDF, per suite scene (not a test).
 
     .venv/bin/python benchmarks/view_pdf.py [--only NAME ...] [--results-dir DIR]
-        [--flicker-frames F] [--flicker-seeds S] [--skip-flicker] [--defensive B ...]
+        [--flicker-frames F] [--flicker-seeds S] [--skip-flicker] [--defensive B ...] [--repeats R]
 
 Per scene of benchmarks/validation_suite.py (its cached Cycles truths, 240x180, each scene's saved
 settings: N = 256, visibility on), one frame with ``pdf = light`` and one with ``pdf = view``, after
-a warm-up frame: mean indirect ours / Cycles and the noise-corrected relative RMSE, and the frame
-time (informative). Each scene's footprint ratio: the surface area of the lights' RSM texels
+a warm-up frame of each: mean indirect ours / Cycles and the noise-corrected relative RMSE, and the
+median over ``--repeats`` frames of each PDF (alternating) of the frame time, the light passes' time
+(RSMs, view PDF, VSGL generation) and the process's CPU time: the view PDF's cost against the light
+PDF's in the same run. Each scene's footprint ratio: the surface area of the lights' RSM texels
 (settings' RSM size, texels with flux; a sun's texel is its area on the sun's plane over cos θ,
 another light's its solid angle times d² over cos θ) over the part of it the camera sees (texels
 whose position is the camera G-buffer's at their pixel, within two texel footprints).
@@ -32,7 +34,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -156,8 +160,9 @@ def flicker(name: str, path: Path, frames: int, seeds: int) -> dict:
     return out
 
 
-def measure(name: str, path: Path, defensive=()) -> dict:
+def measure(name: str, path: Path, defensive=(), repeats: int = 3) -> dict:
 
+    from vsgl_addon.passes.contract import LIGHT_PASSES
     from vsgl_addon.reference import brsm
     from vsgl_addon.renderer import FrameRenderer
 
@@ -165,13 +170,22 @@ def measure(name: str, path: Path, defensive=()) -> dict:
     renderer = FrameRenderer()
     row = {"scene": name, "footprint": footprint_ratio(description, settings)}
     try:
-        renderer.render(description, settings, WIDTH, HEIGHT)  # warm-up
-        for pdf in ("light", "view"):
-            frame = renderer.render(description, settings.overridden(pdf=pdf), WIDTH, HEIGHT)
-            errors = Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
-            row[pdf] = {"mean_ratio": errors["mean_ratio"], "rel": errors["rel"],
-                        "frame_seconds": float(sum(frame.timings.values())),
-                        "view_pdf": frame.plan.decisions["view_pdf"].reason}
+        for pdf in ("light", "view"):  # warm-up: every shader of both compiled
+            renderer.render(description, settings.overridden(pdf=pdf), WIDTH, HEIGHT)
+        times = {"light": [], "view": []}
+        for index in range(max(int(repeats), 1)):
+            for pdf in ("light", "view") if index % 2 == 0 else ("view", "light"):
+                cpu = time.process_time()
+                frame = renderer.render(description, settings.overridden(pdf=pdf), WIDTH, HEIGHT)
+                cpu = time.process_time() - cpu
+                times[pdf].append((float(sum(frame.timings.values())), float(frame.timings[LIGHT_PASSES.name]), cpu))
+                if index == 0:  # the frames of a seed are the same image
+                    errors = Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
+                    row[pdf] = {"mean_ratio": errors["mean_ratio"], "rel": errors["rel"],
+                                "view_pdf": frame.plan.decisions["view_pdf"].reason}
+        for pdf, values in times.items():
+            frame_seconds, light_seconds, cpu_seconds = (statistics.median(v) for v in zip(*values))
+            row[pdf].update(frame_seconds=frame_seconds, light_pass_seconds=light_seconds, cpu_seconds=cpu_seconds)
         default = brsm.DEFENSIVE_SHARE
         try:
             for share in defensive:  # the same frame with another β of the mixture, same run
@@ -198,13 +212,20 @@ def markdown(rows, flicker_result=None, command="") -> str:
              f"footprint is at least {FOOTPRINT_TARGET:g}× the view ({LARGE_FOOTPRINT}) at least 20 % lower with the "
              f"view PDF, no scene worse by more than 5 %, modified / original flicker with the view PDF ≤ "
              f"{FLICKER_TARGET:g}.", "",
+             "Times: the median of the repeats, light and view frames alternating (a shared machine: compare "
+             "within a row); light passes: the RSMs, the view PDF and VSGL generation (the `rsm_and_vsgl_generation` "
+             "timing); CPU: the process's CPU seconds per frame (llvmpipe's threads included), which other "
+             "processes' load does not inflate.", "",
              "| scene | footprint / view | mean light | mean view | rel RMSE light | rel RMSE view | change | "
-             "frame ms light | frame ms view |", "|---|---|---|---|---|---|---|---|---|"]
+             "frame ms light / view | light passes ms light / view | CPU s light / view |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['scene']} | {r['footprint']['ratio']:.1f} | {r['light']['mean_ratio']:.3f} | "
                      f"{r['view']['mean_ratio']:.3f} | {r['light']['rel']:.3f} | {r['view']['rel']:.3f} | "
-                     f"{100 * r['rel_change']:+.1f} % | {r['light']['frame_seconds'] * 1e3:.0f} | "
-                     f"{r['view']['frame_seconds'] * 1e3:.0f} |")
+                     f"{100 * r['rel_change']:+.1f} % | {r['light']['frame_seconds'] * 1e3:.0f} / "
+                     f"{r['view']['frame_seconds'] * 1e3:.0f} | {r['light'].get('light_pass_seconds', 0) * 1e3:.0f} / "
+                     f"{r['view'].get('light_pass_seconds', 0) * 1e3:.0f} | {r['light'].get('cpu_seconds', 0):.2f} / "
+                     f"{r['view'].get('cpu_seconds', 0):.2f} |")
     large = [r for r in rows if r["scene"] == LARGE_FOOTPRINT]
     if large:
         met = large[0]["rel_change"] <= -0.20
@@ -255,6 +276,7 @@ def main(argv=None) -> int:
     parser.add_argument("--flicker-frames", type=int, default=8)
     parser.add_argument("--flicker-seeds", type=int, default=0)
     parser.add_argument("--skip-flicker", action="store_true")
+    parser.add_argument("--repeats", type=int, default=3, help="timed frames per PDF (alternating)")
     parser.add_argument("--defensive", type=float, nargs="+", default=[],
                         help="also the view PDF at each of these defensive shares β (a sweep, same run)")
     args = parser.parse_args(argv)
@@ -264,7 +286,7 @@ def main(argv=None) -> int:
     register()
     ensure_gpu_context()
     scenes = [(name, path) for name, path, _ in suite() if not args.only or name in args.only]
-    rows = [measure(name, path, args.defensive) for name, path in scenes]
+    rows = [measure(name, path, args.defensive, args.repeats) for name, path in scenes]
     flicker_result = None
     if not args.skip_flicker:
         flicker_result = next((flicker(name, path, args.flicker_frames, args.flicker_seeds)

@@ -15,7 +15,7 @@ from vsgl_addon.passes.contract import GPUPass, ShaderSpec, Step
 
 
 def test_every_pass_module_declares_its_pass_once():
-    modules = [passes.rsm, passes.vsgl_generation, passes.ism, passes.mrp_visibility, passes.gbuffer,
+    modules = [passes.rsm, passes.brsm, passes.vsgl_generation, passes.ism, passes.mrp_visibility, passes.gbuffer,
                passes.direct_light, passes.shading_inputs, passes.vsgl_shading, passes.vpl_culling, passes.mrp_asg]
     assert [module.PASS for module in modules] == list(passes.PASSES)
     assert len({gpu_pass.name for gpu_pass in passes.PASSES}) == len(passes.PASSES)

@@ -19,7 +19,7 @@ import numpy as np
 
 from .layouts import VSGL_TABLE
 from .passes.rsm import SceneGPU, render_rsm_views
-from .passes.vsgl_generation import VSGLGeneration, upload_pdf
+from .passes.vsgl_generation import VSGLGeneration
 from .planner import DeferredPowers, plan_frame, share_counts, view_power
 from .reference.vsgl import LUMINANCE_WEIGHTS
 from .scene_points import triangle_areas
@@ -198,14 +198,11 @@ def view_pdf_serves(receiver_set: str, receiver_sets) -> bool:
 
 
 def _view_pdf_texture(view, receivers):
-    """The defensive mixture of the view PDF and the light PDF for one RSM view (reference/brsm.py)."""
-    from .reference.brsm import view_importance, view_pdf
+    """The defensive mixture of the view PDF and the light PDF for one RSM view, on the GPU
+    (passes/brsm.py, twin reference/brsm.py; ``receivers``: brsm.upload_receivers's)."""
+    from .passes import brsm
 
-    arrays = view.to_numpy()
-    weight = (arrays.rsm.flux_diffuse + arrays.rsm.flux_specular) @ LUMINANCE_WEIGHTS
-    importance = view_importance(arrays.rsm.position, arrays.rsm.normal, receivers["position"],
-                                 receivers["normal"], receivers["weight"], receivers["radius"])
-    return upload_pdf(view_pdf(np.where(arrays.coverage, weight, 0.0), importance), view.size)
+    return brsm.PASS.run(view.rsm_textures(), receivers)
 
 
 def _power_reader(result: "SceneVSGLs", light_index: int):
@@ -239,7 +236,13 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
     result = SceneVSGLs({}, [], np.zeros((light_count, 3)), settings.rsm_size)
     two_vsgl = settings.kernel == "two-vsgl"
     pending = []  # (light index, view index, generation) with the view's mip atlas, not yet sampled
+    view_pdf = receivers is not None and plan.runs("view_pdf") and view_pdf_serves(receiver_lobe, plan.receiver_sets)
+    uploaded = None
     try:
+        if view_pdf:
+            from .passes.brsm import upload_receivers
+
+            uploaded = upload_receivers(receivers)
         for light_index in plan.rsm_lights():
             light_plan = plan.lights[light_index]
             # The views the planner culled already (light_reach): not tested a second time per frame.
@@ -250,9 +253,7 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             for view_index, view in enumerate(views):
                 generation = VSGLGeneration()
                 pending.append((light_index, view_index, generation))
-                pdf = (_view_pdf_texture(view, receivers)
-                       if receivers is not None and plan.runs("view_pdf")
-                       and view_pdf_serves(receiver_lobe, plan.receiver_sets) else None)
+                pdf = _view_pdf_texture(view, uploaded) if view_pdf else None
                 generation.build_mip_atlas(view.rsm_textures(), pdf)
         view_counts = {index: len(views) for index, views in result.views_by_light.items()}
         if plan.allocation_reads_powers(view_counts):
@@ -283,13 +284,15 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             generation.generate(count, settings.k, settings.kernel,
                                 _rotation(settings.seed, light_index, view_index),
                                 settings.positional_distribution)
-        result.merge(normalize=receivers is not None and plan.runs("view_pdf")
-                     and view_pdf_serves(receiver_lobe, plan.receiver_sets))
+        result.merge(normalize=view_pdf)
     except BaseException:
         for _, _, generation in pending:
             generation.free()
         result.free()
         raise
+    finally:
+        if uploaded is not None:
+            uploaded.free()
     return result
 
 

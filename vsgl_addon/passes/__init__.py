@@ -3,6 +3,7 @@
 touches ``bpy.context``; its float64 twin lives in ``vsgl_addon.reference``.
 
 * :mod:`.rsm`: reflective shadow maps of every light (000 §4; formulas.md §4).
+* :mod:`.brsm`: the view-dependent PDF of VSGL generation (000 §5, bidirectional RSMs).
 * :mod:`.vsgl_generation`: VSGLs from a reflective shadow map (000 §3-4, app. B and D; 003).
 * :mod:`.ism`: imperfect shadow maps of the VSGLs, for their visibility (000 §5).
 * :mod:`.gbuffer`: the camera G-buffer.
@@ -26,12 +27,12 @@ matrices for uniforms). The texture layouts passes hand each other: :mod:`vsgl_a
 
 import atexit
 
-from . import (direct_light, gbuffer, ism, mrp_asg, mrp_visibility, rsm, shading_inputs, vpl_culling, vsgl_generation,
+from . import (brsm, direct_light, gbuffer, ism, mrp_asg, mrp_visibility, rsm, shading_inputs, vpl_culling, vsgl_generation,
                vsgl_shading)
 from .contract import GPUPass, Step
 
 #: Every GPU pass, in the order a frame runs them.
-PASSES: tuple[GPUPass, ...] = (rsm.PASS, vsgl_generation.PASS, ism.PASS, mrp_visibility.PASS, gbuffer.PASS,
+PASSES: tuple[GPUPass, ...] = (rsm.PASS, brsm.PASS, vsgl_generation.PASS, ism.PASS, mrp_visibility.PASS, gbuffer.PASS,
                                direct_light.PASS, shading_inputs.PASS, vsgl_shading.PASS, vpl_culling.PASS,
                                mrp_asg.PASS)
 

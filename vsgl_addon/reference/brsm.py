@@ -59,7 +59,8 @@ def view_importance(positions, normals, receiver_positions, receiver_normals, re
         inv = 1.0 / np.sqrt(np.maximum(dist2, 1e-30))
         cos_y = np.maximum(np.einsum("bmk,bk->bm", d, n[start:start + _BLOCK]) * inv, 0.0)
         cos_x = np.maximum(-np.einsum("bmk,mk->bm", d, rn) * inv, 0.0)
-        out[start:start + _BLOCK] = (cos_y * cos_x / (dist2 + r2)) @ rw
+        with np.errstate(invalid="ignore", divide="ignore"):  # r = 0 at a receiver on a texel: 0/0, set to 0 below
+            out[start:start + _BLOCK] = (cos_y * cos_x / (dist2 + r2)) @ rw
     return np.where(np.isfinite(out), out, 0.0).reshape(np.shape(positions)[:-1])
 
 
