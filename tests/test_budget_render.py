@@ -39,6 +39,13 @@ def test_the_time_budget_flag_sets_budget_mode_and_is_validated(command):
     for bad in ("0", "nan", "1e9"):
         with pytest.raises(UsageError, match="time budget"):
             _settings(scene, build_parser().parse_args([*base, "--time-budget", bad]))
+    # --quality picks Manual or Auto; with --time-budget it would ask for two modes.
+    for quality in ("auto", "manual"):
+        assert _settings(scene, build_parser().parse_args([*base, "--quality", quality])).quality_mode == quality
+    with pytest.raises(UsageError, match="two quality modes"):
+        _settings(scene, build_parser().parse_args([*base, "--quality", "auto", "--time-budget", "40"]))
+    with pytest.raises(UsageError, match="invalid choice: 'budget'"):
+        build_parser().parse_args([*base, "--quality", "budget"])
 
 
 @pytest.mark.gpu

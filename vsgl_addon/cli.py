@@ -49,7 +49,8 @@ def _command_demo(arguments) -> int:
                                    ism_size=None, ism_points=None, frame=None, glossy_reflectors=None,
                                    disk_radius=None, caustic_roughness=None, reflector_mode=None, caustics=None,
                                    delta=None, vpl_interleave=None, vpl_filter_radius=None, vpl_samples=None,
-                                   vpl_visibility=None, pdf=None, time_budget=None)
+                                   vpl_visibility=None, pdf=None, time_budget=None,
+                                   quality=None)
     print(f"VSGL add-on {addon_version()}: rendering {DEMO_BLEND.name} (one-bounce indirect light from VSGLs)")
     return _command_render(arguments)
 
@@ -99,10 +100,18 @@ def _settings(scene, arguments):
             vpl_visibility=(None if getattr(arguments, "vpl_visibility", None) is None
                             else arguments.vpl_visibility == "on"),
             pdf=getattr(arguments, "pdf", None),
-            quality_mode=None if getattr(arguments, "time_budget", None) is None else "budget",
+            quality_mode=_quality_mode(arguments),
             time_budget_ms=getattr(arguments, "time_budget", None))
     except SettingsError as error:
         raise UsageError(str(error)) from None
+
+
+def _quality_mode(arguments) -> str | None:
+    """The quality mode the flags ask for (None: the scene's): --time-budget is Budget mode."""
+    quality, budget = getattr(arguments, "quality", None), getattr(arguments, "time_budget", None)
+    if budget is not None and quality is not None:
+        raise UsageError(f"--quality {quality} and --time-budget ask for two quality modes: give one")
+    return "budget" if budget is not None else quality
 
 
 def _output_path(text: str, suffix: str) -> Path:
@@ -358,6 +367,10 @@ def _budget_flag(parser) -> None:
                              f"{TIME_BUDGET_RANGE[1]:g}); N, RSM size, delta, VPL interleave and resolution come from "
                              "this machine's cost model (calibrated at first use, kept in the user's cache), "
                              "overriding those flags")
+    parser.add_argument("--quality", choices=("manual", "auto"),
+                        help="manual: every pass whose light path the scene has runs; auto: the frame planner leaves "
+                             "out the VPL pass or MRP-ASG where their light is a small share of the bounce for the "
+                             "frame time they add (default: the scene's Quality; --time-budget is Budget mode)")
 
 
 def build_parser() -> argparse.ArgumentParser:
