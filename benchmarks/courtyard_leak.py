@@ -54,6 +54,8 @@ from visibility_diagnosis import exact_visibility  # noqa: E402
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 #: A cluster whose largest surface holds less than this share of its power straddles surfaces.
 STRADDLE_SHARE = 0.9
+#: Bins (m) of a shadow origin's distance to the nearest object other than its cluster's main one.
+CLEARANCE_BINS = ((0.0, 0.25), (0.25, 0.5), (0.5, 1.0), (1.0, 2.0), (2.0, 4.0), (4.0, math.inf))
 #: A shadow origin within this many σ_v of its cluster's main surface's plane lies "on" it.
 OWN_SURFACE_SIGMAS = 0.75
 
@@ -150,7 +152,7 @@ def object_boxes(triangles, owners):
             for o in np.unique(owners)}
 
 
-def analyse(name, path, stride, vsgl_count, seed=None):
+def analyse(name, path, stride, vsgl_count, seed=None, extra=None, generation="gpu", split_at_jumps=None):
     from vsgl_addon.pipeline import VSGL_OWN_REFLECTOR_SIGMAS, build_visibility
     from vsgl_addon.passes.vsgl_shading import ISM_MAX_RADIUS
     from vsgl_addon.reference.ism import shadow_origin
@@ -159,11 +161,13 @@ def analyse(name, path, stride, vsgl_count, seed=None):
     width, height = RESOLUTION
     saved, truth, description = scene_with_truth(name, path, width, height)
     overrides = {key: value for key, value in (("vsgl_count", vsgl_count), ("seed", seed)) if value is not None}
+    overrides.update(extra or {})
     settings = saved.overridden(visibility=True, **overrides)
     geometry = description.geometry
     triangles = np.asarray(geometry.positions, np.float64)
     owners = np.asarray(geometry.object_index, np.int64)
     object_names = list(description.object_names)
+    original_names = list(object_names)
     bench = Bench(description, width, height)
     try:
         pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride)
@@ -181,10 +185,27 @@ def analyse(name, path, stride, vsgl_count, seed=None):
             atlas = vsgls.isms[0]
             count = len(table["variance"])
             maps = atlas.count // count
+            depths = atlas.read()
+            if generation == "reference":
+                # The same RSM, lattice and settings through the float64 generation, its maps by
+                # the float64 twin of the splat, gap closing and pull-push.
+                from vsgl_addon.pipeline import POINT_SETS, _rotation
+                from vsgl_addon.reference.vsgl import generate_vsgls
+                from vsgl_addon.scene_points import triangle_areas
+                from visibility_diagnosis import reference_maps
+
+                made = generate_vsgls(arrays.rsm, count, k=settings.k, kernel=settings.kernel,
+                                      rotation=_rotation(settings.seed, light_index, view_index),
+                                      positional_distribution=settings.positional_distribution,
+                                      split_at_jumps=split_at_jumps)
+                table = {k: np.asarray(made[k], np.float64) for k in table if k in made}
+                points = bench.scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
+                point_area = float(triangle_areas(description.geometry.positions).sum()) / settings.ism_points
+                depths = reference_maps(atlas, table, maps, 0, points, point_area)
             _, _, terms = shade(table, position, normal, view, rd, f0, alpha,
                                 diffuse_mode=diffuse_mode_for_kernel(settings.kernel), per_term=True)
             weight = terms.sum(axis=3) @ LUMINANCE  # (P, N, 2)
-            v_maps = vsgl_visibility(atlas.read(), maps, table, position, normal, ISM_MAX_RADIUS)
+            v_maps = vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS)
             v_exact = exact_visibility(table, maps, position, triangles, VSGL_OWN_REFLECTOR_SIGMAS)
             vpls = view_vpls(arrays, rsm_view.light)
         finally:
@@ -218,6 +239,22 @@ def analyse(name, path, stride, vsgl_count, seed=None):
 
     # The clusters' surfaces and where their shadow origins lie.
     texel_owner = surface_of(vpls["position"], triangles, owners)
+    # A surface that reaches past the others' bounds (a ground under walls) is two surfaces: its
+    # texels within the bounds of every other object's triangles (in x, y) and those outside.
+    region_names = list(object_names)
+    for o in range(len(object_names)):
+        others = triangles[owners != o].reshape(-1, 3)
+        mine = triangles[owners == o].reshape(-1, 3)
+        if not len(others) or not len(mine):
+            continue
+        low, high = others.min(axis=0), others.max(axis=0)
+        if np.all(mine[:, :2].min(axis=0) < low[:2]) and np.all(mine[:, :2].max(axis=0) > high[:2]):
+            outside = (texel_owner == o) & ~np.all((vpls["position"][:, :2] >= low[:2])
+                                                   & (vpls["position"][:, :2] <= high[:2]), axis=-1)
+            texel_owner = np.where(outside, len(region_names), texel_owner)
+            region_names.append(f"{object_names[o]} (outside the others' bounds)")
+            region_names[o] = f"{object_names[o]} (within the others' bounds)"
+    object_names = region_names
     own = np.zeros((count, len(object_names)))
     for o in range(len(object_names)):
         own[:, o] = c[:, texel_owner == o] @ vpl_power[texel_owner == o]
@@ -239,6 +276,12 @@ def analyse(name, path, stride, vsgl_count, seed=None):
                                          "straddling, origin in free space"),
                                 "one surface"))
 
+    # The origin's distance to the nearest object other than its cluster's main one (their boxes).
+    clearance = np.full(count, np.inf)
+    for o, (low, high) in boxes.items():
+        gap = np.linalg.norm(np.maximum(np.maximum(low - origin, origin - high), 0.0), axis=-1)
+        mine = np.array([region_names[main[i]].split(" (")[0] == original_names[o] for i in range(count)])
+        clearance = np.where(mine, clearance, np.minimum(clearance, gap))
     cycles = truth["indirect"][pick].astype(np.float64) @ LUMINANCE
     subsets = {"all": np.ones(len(cycles), bool)}
     for index in np.unique(material):
@@ -271,6 +314,16 @@ def analyse(name, path, stride, vsgl_count, seed=None):
                 "maps": float(stages["vsgl_maps"][here][:, which].sum()) / truth_sum,
                 "exact": float(stages["vsgl_exact"][here][:, which].sum()) / truth_sum}
         row["main_surface"] = by_main
+        by_clearance = {}
+        for low_edge, high_edge in CLEARANCE_BINS:
+            which = (clearance >= low_edge) & (clearance < high_edge)
+            by_clearance[f"{low_edge:g}-{high_edge:g} m"] = {
+                "vsgls": int(which.sum()),
+                "vpl_vis": float(shadowed[here][:, which].sum()) / truth_sum,
+                "true": float(stages["vsgl_true"][here][:, which].sum()) / truth_sum,
+                "maps": float(stages["vsgl_maps"][here][:, which].sum()) / truth_sum,
+                "exact": float(stages["vsgl_exact"][here][:, which].sum()) / truth_sum}
+        row["clearance"] = by_clearance
         rows[label] = row
     leak = (stages["vsgl_maps"] - stages["vsgl_true"]).sum(axis=0)
     top = np.argsort(-leak)[:8]
@@ -283,6 +336,7 @@ def analyse(name, path, stride, vsgl_count, seed=None):
     kernel_sum = c.sum(axis=0)
     return {"pixels": int(pick.sum()), "vsgl_count": count, "vpls": len(vpls["flux"]), "rows": rows,
             "worst": worst, "median_sigma": float(np.median(sigma)),
+            "mean_level": float(np.mean(table["kernel_level"])),
             "coverage": float((kernel_sum * vpl_power).sum() / vpl_power.sum())}
 
 
@@ -299,7 +353,7 @@ def markdown(results, argv_text, first=True):
               "|---|---|---|---|---|---|---|---|---|"]
     for key, r in results.items():
         for label, row in r["rows"].items():
-            title = f"**{key}** ({r['pixels']} px, {r['vsgl_count']} VSGLs, median σ_v {r['median_sigma']:.2f} m)" \
+            title = f"**{key}** ({r['pixels']} px, {r['vsgl_count']} VSGLs, median σ_v {r['median_sigma']:.2f} m, mean kernel level {r.get('mean_level', math.nan):.2f})" \
                 if label == "all" else f"{key}: {label}"
             lines.append(f"| {title} | {row['vpl_off']:.3f} | {row['vpl_vis']:.3f} | {row['vsgl_off']:.3f} | "
                          f"{row['vsgl_true']:.3f} | {row['vsgl_maps']:.3f} | {row['vsgl_exact']:.3f} | "
@@ -332,6 +386,18 @@ def markdown(results, argv_text, first=True):
                              f"{c['maps'] - c['true']:+.3f} ({c['exact'] - c['true']:+.3f})")
             lines.append(f"| {key} | {surface} | {first_row['vsgls']} ({first_row['straddling']}) | "
                          + " | ".join(cells) + " |")
+    lines += ["", "By the shadow origin's distance to the nearest object other than its cluster's main surface "
+              "(its bounding box): VSGLs, then per receiver subset as above.", ""]
+    lines += ["| scene, N | origin's clearance | VSGLs | " + " | ".join(labels) + " |",
+              "|---|---|---|" + "---|" * len(labels)]
+    for key, r in results.items():
+        for band, first_row in r["rows"]["all"]["clearance"].items():
+            cells = []
+            for label in labels:
+                c = r["rows"].get(label, {}).get("clearance", {}).get(band)
+                cells.append("" if c is None else f"{c['maps'] - c['vpl_vis']:+.3f} = {c['true'] - c['vpl_vis']:+.3f} "
+                             f"{c['maps'] - c['true']:+.3f} ({c['exact'] - c['true']:+.3f})")
+            lines.append(f"| {key} | {band} | {first_row['vsgls']} | " + " | ".join(cells) + " |")
     lines += ["", "The largest leaks (maps − true share over all receivers, share of Cycles' light):", ""]
     for key, r in results.items():
         for w in r["worst"][:5]:
@@ -348,6 +414,12 @@ def main(argv=None):
     parser.add_argument("--counts", nargs="+", type=int, default=[64, 256, 1024])
     parser.add_argument("--stride", type=int, default=10)
     parser.add_argument("--seed", type=int, default=None, help="the lattice seed instead of the scene's")
+    parser.add_argument("--ism-points", type=int, default=None, help="points per shadow map instead of the scene's")
+    parser.add_argument("--ism-size", type=int, default=None, help="shadow map side instead of the scene's")
+    parser.add_argument("--generation", choices=("gpu", "reference"), default="gpu",
+                        help="the VSGLs and maps of the GPU, or of the float64 twins from the GPU's RSM")
+    parser.add_argument("--split-at-jumps", choices=("on", "off"), default=None,
+                        help="with --generation reference: reference/vsgl.py SPLIT_AT_JUMPS instead of its value")
     parser.add_argument("--append", action="store_true")
     parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
     args = parser.parse_args(argv)
@@ -357,15 +429,22 @@ def main(argv=None):
     from vsgl_addon.gpu_context import ensure_gpu_context
 
     ensure_gpu_context()
+    extra = {key: value for key, value in (("ism_points", args.ism_points), ("ism_size", args.ism_size))
+             if value is not None}
     results = {}
     for name, path, _ in suite():
         if name in args.only:
             for count in args.counts:
                 start = time.perf_counter()
-                results[f"{name} N={count}"] = analyse(name, path, args.stride, count, args.seed)
+                results[f"{name} N={count}"] = analyse(name, path, args.stride, count, args.seed, extra,
+                                                       args.generation,
+                                                       None if args.split_at_jumps is None else args.split_at_jumps == "on")
                 log(f"  ({time.perf_counter() - start:.0f} s)")
     argv_text = (f"--only {' '.join(args.only)} --counts {' '.join(map(str, args.counts))} --stride {args.stride}"
-                 + ("" if args.seed is None else f" --seed {args.seed}"))
+                 + ("" if args.seed is None else f" --seed {args.seed}")
+                 + "".join(f" --{key.replace('_', '-')} {value}" for key, value in extra.items())
+                 + ("" if args.generation == "gpu" else f" --generation {args.generation}")
+                 + ("" if args.split_at_jumps is None else f" --split-at-jumps {args.split_at_jumps}"))
     target = args.results_dir / "courtyard_leak.md"
     append = args.append and target.is_file()
     text = markdown(results, argv_text, first=not append)
