@@ -120,7 +120,7 @@ def _vsgl_kernels_interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("INT", "rsm_size"), ("INT", "vsgl_count"), ("INT", "kernel_mode"),
                         ("INT", "positional_distribution"), ("FLOAT", "kernel_k"),
-                        ("IVEC2", "lattice_rotation_fixed")],
+                        ("IVEC2", "lattice_rotation_fixed"), ("INT", "split_at_jumps")],
         samplers=_LEVEL0_SAMPLERS,
         images=[_ATLAS_IMAGE, ("RGBA32F", "FLOAT_2D", "vsgl_table")],
         local_group_size=_KERNEL_GROUP,
@@ -147,6 +147,7 @@ PASS = GPUPass(
     shaders={
         "texel_moments": ShaderSpec(_texel_moments_interface,
                                     {"vertex": _FULLSCREEN, "fragment": "vsgl_generation/texel_moments.frag.glsl"},
+                                    defines=lambda: {"JUMP_TEXELS": float(reference.JUMP_TEXELS)},
                                     code=lambda: {"fragment": RSM.glsl("samplers_load")}),
         "mip_reduce_level1": ShaderSpec(_mip_reduce_level1_interface,
                                         {"vertex": _FULLSCREEN,
@@ -154,6 +155,7 @@ PASS = GPUPass(
         "mip_reduce": ShaderSpec(_mip_reduce_interface, {"compute": "vsgl_generation/mip_reduce.comp.glsl"}),
         "vsgl_kernels": ShaderSpec(_vsgl_kernels_interface,
                                    {"compute": "vsgl_generation/vsgl_kernels.comp.glsl"},
+                                   defines=lambda: {"STRADDLE_SHARE": float(reference.STRADDLE_SHARE)},
                                    code=lambda: {"compute": VSGL_TABLE.glsl("image_store")}),
     },
     reads=(RSM.name,),
@@ -422,6 +424,8 @@ class VSGLGeneration:
                     _POSITIONAL_INDEX[positional_distribution])
         set_uniform(kernels.uniform_float, "kernel_k", k)
         set_uniform(kernels.uniform_int, "lattice_rotation_fixed", rotation_fixed_point(rotation))
+        # reference.SPLIT_AT_JUMPS read at each generation, as the reference reads it per call.
+        set_uniform(kernels.uniform_int, "split_at_jumps", int(bool(reference.SPLIT_AT_JUMPS)))
         self._bind_levels(kernels)
         kernels.image("vsgl_table", self.table)
         gpu.compute.dispatch(kernels, _groups(count, _KERNEL_GROUP[0]), 1, 1)
