@@ -849,24 +849,48 @@ def test_jump_texels_are_the_two_sides_of_a_depth_step():
     assert not vsgl.texel_jumps(_plane_rsm(16, heights)).any()
 
 
+def _facing(rsm, column, normal=(0.0, 1.0, 0.0)):
+    """The RSM with the texels from ``column`` on facing ``normal`` (a wall's face beside the ground)."""
+    normals = rsm.normal.copy()
+    normals[:, column:] = _unit(np.array(normal))
+    return vsgl.RSM(rsm.position, normals, rsm.flux_diffuse, rsm.flux_specular, rsm.specular_axis,
+                    rsm.specular_sharpness)
+
+
+def test_layers_facing_one_way_keep_their_kernels():
+    """A roof over the ground, both facing up: the kernels over the jump hold one normal
+    (NORMAL_AGREEMENT), so none descends; the same step with the roof facing sideways descends."""
+    size = 64
+    heights = np.zeros((size, size))
+    heights[:, 29:] = 3.0
+    rsm = _plane_rsm(size, heights)
+    same = vsgl.generate_vsgls(rsm, 64, seed=2, split_at_jumps=True)
+    whole = vsgl.generate_vsgls(rsm, 64, seed=2, split_at_jumps=False)
+    np.testing.assert_array_equal(same["kernel_level"], whole["kernel_level"])
+    turned = vsgl.generate_vsgls(_facing(rsm, 29), 64, seed=2, split_at_jumps=True)
+    assert np.sum(turned["kernel_level"] < whole["kernel_level"] - 0.5) >= 3
+
+
 def test_no_vsgl_straddles_a_depth_step_after_the_descent():
-    """A ground at z = 0 beside a roof at z = 3 (sun from above, 64² texels of 0.25 m): without the
+    """A ground at z = 0 beside a raised face at z = 3 turned towards +y (sun from above, 64² texels
+    of 0.25 m): without the
     descent some of N = 64 VSGLs have their mean in the air between the two (a cluster of both
-    sides); with it no VSGL's mean lies farther than 5 % of the step from both planes, and the
+    sides); with it no VSGL's mean lies farther than 10 % of the step from both planes (a kernel
+    keeps up to 5 % of the other side, NORMAL_AGREEMENT at 90°), and the
     summed power over 32 lattice rotations stays the RSM total within 2 % (the descended kernels
     no longer tile the RSM near the step)."""
     size, count = 64, 64
     heights = np.zeros((size, size))
     heights[:, 29:] = 3.0
-    rsm = _plane_rsm(size, heights)
+    rsm = _facing(_plane_rsm(size, heights), 29)
     total = rsm.flux_diffuse.reshape(-1, 3).sum(0)
     floating_before, floating_after, sums = 0, 0, []
     for seed in range(32):
         before = vsgl.generate_vsgls(rsm, count, seed=seed, split_at_jumps=False)
         after = vsgl.generate_vsgls(rsm, count, seed=seed, split_at_jumps=True)
         gap = lambda z: np.minimum(np.abs(z), np.abs(z - 3.0))  # noqa: E731
-        floating_before += int((gap(before["mean"][:, 2]) > 0.15).sum())
-        floating_after += int((gap(after["mean"][:, 2]) > 0.15).sum())
+        floating_before += int((gap(before["mean"][:, 2]) > 0.3).sum())
+        floating_after += int((gap(after["mean"][:, 2]) > 0.3).sum())
         assert np.all(after["kernel_level"] <= before["kernel_level"] + 1e-12)
         sums.append(after["power"].sum(0))
     assert floating_before > 32

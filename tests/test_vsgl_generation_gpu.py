@@ -622,13 +622,14 @@ def test_bad_arguments(compiled):
 
 
 def step_rsm(size, texel=0.25, step=3.0, column=29):
-    """A sun's orthographic RSM looking down −z at a ground (z = 0) beside a roof (z = ``step``)
-    from ``column`` on, with a bumpy flux (so kernels differ) and a glossy lobe."""
+    """A sun's orthographic RSM looking down −z at a ground (z = 0) beside a raised face (z =
+    ``step``, turned towards +y) from ``column`` on, with a varied flux and a glossy lobe."""
     v, u = _grid(size)
     x, y = u * size * texel, v * size * texel
     z = np.where(np.arange(size)[None, :] >= column, step, 0.0) + 0.0 * x
     position = np.stack([x, y, z], -1)
     normal = np.broadcast_to(np.array([0.0, 0.0, 1.0]), position.shape).copy()
+    normal[:, column:] = _unit(np.array([0.0, 0.8, 0.6]))  # the raised part faces another way
     flux_d = np.stack([0.5 + u, 0.6 + 0.0 * u, 0.4 + v], -1)
     incoming = _unit(np.stack([0.3 + 0.0 * u, 0.0 * u, np.ones_like(u)], -1))
     axis, lam = _specular(normal, incoming, np.full((size, size), 0.4))

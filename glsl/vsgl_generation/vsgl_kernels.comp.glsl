@@ -104,7 +104,7 @@ vec4 plane_trilinear(int plane, vec2 uv, float level, int top)
 }
 
 // The kernel holds more than STRADDLE_SHARE of its power on texels beside a depth discontinuity
-// (plane 5's second channel): reference `vsgl.straddles`.
+// (plane 5's second channel) and its surfaces face different ways: reference `vsgl.straddles`.
 bool kernel_straddles(vec2 uv, float level, int top)
 {
   vec4 p0 = plane_trilinear(0, uv, level, top);
@@ -112,7 +112,13 @@ bool kernel_straddles(vec2 uv, float level, int top)
   vec4 p2 = plane_trilinear(2, uv, level, top);
   float weight = luminance(p0.xyz + vec3(p1.zw, p2.x));
   float jump = plane_trilinear(PDF_PLANE, uv, level, top).y;
-  return weight > 0.0 && jump > STRADDLE_SHARE * weight;
+  // Only surfaces facing different ways (reference NORMAL_AGREEMENT): the diffuse lobes' Toksvig
+  // mean direction against one surface's, lambda_d / (lambda_d + 1).
+  float diffuse = luminance(p0.xyz);
+  float one_surface = DIFFUSE_SHARPNESS / (DIFFUSE_SHARPNESS + 1.0);
+  bool disagree = NORMAL_AGREEMENT <= 0.0 || !(diffuse > 0.0)
+                  || length(vec3(p0.w, p1.xy)) < NORMAL_AGREEMENT * one_surface * diffuse;
+  return weight > 0.0 && jump > STRADDLE_SHARE * weight && disagree;
 }
 
 float interpolate_levels(float per_level[MIP_ATLAS_MAX_LEVELS], float level, int top)

@@ -390,17 +390,29 @@ JUMP_TEXELS = 4.0
 SPLIT_AT_JUMPS = False
 #: The share of a kernel's power on jump texels it may hold (:func:`straddles`).
 STRADDLE_SHARE = 0.0
+#: A kernel over a jump straddles only where its surfaces face different ways: its diffuse lobes'
+#: Toksvig mean direction |Σ w_d ξ̄_d| / Σ w_d (000 app. B.1) shorter than NORMAL_AGREEMENT times
+#: one surface's, λ_d / (λ_d + 1) (two normals at 90° in shares q, 1 − q: √(1 − 2q(1 − q)) of
+#: it, 0.95 at q = 0.05). Layers facing one way (a table's top over the floor) keep 000's kernels:
+#: their descended, VPL-like VSGLs brought more noise than the floating mean cost
+#: (benchmarks/split_at_jumps.py). 0: every kernel over a jump straddles.
+NORMAL_AGREEMENT = 0.95
 
 
 def straddles(maps: RSMMipmaps, center, level) -> np.ndarray:
     """(N,) True where the kernel at ``center`` (N, 2), ``level`` (N,) holds more than
     STRADDLE_SHARE of its power on texels beside a depth discontinuity (the same trilinear filter
-    of the moments and of the power on jump texels, RSMMipmaps.jump)."""
+    of the moments and of the power on jump texels, RSMMipmaps.jump) and, with NORMAL_AGREEMENT
+    > 0 and diffuse power, its diffuse normals disagree (see NORMAL_AGREEMENT)."""
     level = f64(level)
     filtered = mipmap.trilinear(maps.moments, center, level)
     weight = luminance(filtered[..., CH_DIFFUSE] + filtered[..., CH_SPECULAR])
     jump = mipmap.trilinear(maps.jump, center, level)
-    return (weight > 0.0) & (jump > STRADDLE_SHARE * weight)
+    diffuse = luminance(filtered[..., CH_DIFFUSE])
+    length = norm(filtered[..., CH_DIFFUSE_DIRECTION])
+    one_surface = DIFFUSE_SHARPNESS / (DIFFUSE_SHARPNESS + 1.0)
+    disagree = (NORMAL_AGREEMENT <= 0.0) | ~(diffuse > 0.0) | (length < NORMAL_AGREEMENT * one_surface * diffuse)
+    return (weight > 0.0) & (jump > STRADDLE_SHARE * weight) & disagree
 
 
 def kernel_level_unstraddled(maps: RSMMipmaps, center, texel, level, split=None):
