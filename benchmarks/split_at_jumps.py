@@ -3,7 +3,7 @@
 (not a test).
 
     .venv/bin/python benchmarks/split_at_jumps.py [--only NAME ...] [--seeds K ...] [--counts N ...]
-        [--normal-agreement A] [--output NAME]
+        [--normal-agreement A] [--snap on|off] [--max-descent L] [--output NAME]
 
 000 §4's kernels filter the RSM in its image plane, so a kernel across a depth discontinuity
 clusters two surfaces (benchmarks/courtyard_leak.py measures what that costs the sun courtyard);
@@ -16,7 +16,8 @@ the truth: mean ours / Cycles, noise-corrected and robust relative RMSE
 (validation_suite.frame_errors). ``--seeds``: each figure the mean over these seeds' frames, with
 its range; ``--counts``: the VSGL budget N instead of the scene's (one row per N);
 ``--normal-agreement``: reference.vsgl.NORMAL_AGREEMENT instead of its value (0: every kernel over
-a jump descends, whichever way its surfaces face).
+a jump descends, whichever way its surfaces face); ``--snap``: reference.vsgl.SNAP_TO_TEXEL;
+``--max-descent``: reference.vsgl.MAX_DESCENT.
 
 Writes ``benchmarks/results/split_at_jumps.{md,json}`` (``--output``) and prints the markdown.
 """
@@ -80,14 +81,14 @@ def measure(name: str, path: Path, width: int, height: int, seeds=None, count=No
     return row
 
 
-def markdown(rows, command: str, seconds: float, normal_agreement: float) -> str:
+def markdown(rows, command: str, seconds: float, normal_agreement: float, snap: bool, max_descent: int) -> str:
     several = any(len(r["seeds"]) > 1 for r in rows)
     lines = ["# VSGL kernels off RSM depth discontinuities: the suite before / after", "",
              f"`{command}`; run {seconds:.0f} s. The module documentation of `benchmarks/split_at_jumps.py` "
              "says what is measured. Each cell: mean indirect ours / Cycles, noise-corrected relative RMSE "
              "(robust relative RMSE), visibility on; off: 000's kernels; on: kernels descend off depth "
              "discontinuities (reference.vsgl.SPLIT_AT_JUMPS, NORMAL_AGREEMENT "
-             f"{normal_agreement:g}); change: of the relative RMSE, on / off − 1."
+             f"{normal_agreement:g}, SNAP_TO_TEXEL {snap}, MAX_DESCENT {max_descent}); change: of the relative RMSE, on / off − 1."
              + (" Over seeds " + ", ".join(str(k) for k in rows[0]["seeds"]) + ": each figure their mean, ± half "
                 "its range over them." if several else ""), "",
              "| scene | N | off | on | change of rel RMSE |", "|---|---|---|---|---|"]
@@ -107,6 +108,10 @@ def main(argv=None) -> int:
     parser.add_argument("--counts", nargs="+", type=int, help="VSGL budgets N instead of the scene's")
     parser.add_argument("--normal-agreement", type=float, default=None,
                         help="reference.vsgl.NORMAL_AGREEMENT instead of its value (0: no normal gate)")
+    parser.add_argument("--snap", choices=("on", "off"), default=None,
+                        help="reference.vsgl.SNAP_TO_TEXEL instead of its value")
+    parser.add_argument("--max-descent", type=int, default=None,
+                        help="reference.vsgl.MAX_DESCENT instead of its value")
     parser.add_argument("--output", default="split_at_jumps", help="results file name, without suffix")
     args = parser.parse_args(argv)
     started = time.perf_counter()
@@ -115,12 +120,17 @@ def main(argv=None) -> int:
 
     register()
     ensure_gpu_context()
-    if args.normal_agreement is not None:
+    if args.normal_agreement is not None or args.snap is not None or args.max_descent is not None:
         from vsgl_addon.passes import vsgl_generation
         from vsgl_addon.reference import vsgl
 
-        vsgl.NORMAL_AGREEMENT = args.normal_agreement
-        vsgl_generation.PASS.free_shaders()  # its define is read when the shader compiles
+        if args.normal_agreement is not None:
+            vsgl.NORMAL_AGREEMENT = args.normal_agreement
+        if args.snap is not None:
+            vsgl.SNAP_TO_TEXEL = args.snap == "on"
+        if args.max_descent is not None:
+            vsgl.MAX_DESCENT = args.max_descent
+        vsgl_generation.PASS.free_shaders()  # their defines are read when the shader compiles
     width, height = RESOLUTION
     rows = [measure(name, path, width, height, args.seeds, count)
             for name, path, _ in suite() if not args.only or name in args.only
@@ -129,10 +139,13 @@ def main(argv=None) -> int:
         (["--only"] + args.only if args.only else []) + (["--seeds"] + [str(k) for k in args.seeds] if args.seeds else [])
         + (["--counts"] + [str(n) for n in args.counts] if args.counts else [])
         + ([] if args.normal_agreement is None else ["--normal-agreement", f"{args.normal_agreement:g}"])
+        + ([] if args.snap is None else ["--snap", args.snap])
+        + ([] if args.max_descent is None else ["--max-descent", str(args.max_descent)])
         + ([] if args.output == "split_at_jumps" else ["--output", args.output]))
     from vsgl_addon.reference import vsgl
 
-    text = markdown(rows, command.strip(), time.perf_counter() - started, vsgl.NORMAL_AGREEMENT)
+    text = markdown(rows, command.strip(), time.perf_counter() - started, vsgl.NORMAL_AGREEMENT,
+                    vsgl.SNAP_TO_TEXEL, vsgl.MAX_DESCENT)
     (RESULTS / f"{args.output}.md").write_text(text)
     (RESULTS / f"{args.output}.json").write_text(json.dumps(rows, indent=1, default=str))
     print(text)

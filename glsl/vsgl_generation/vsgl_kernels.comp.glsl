@@ -269,13 +269,13 @@ void main()
     if (split_at_jumps != 0) {
       // Reference `vsgl.kernel_level_unstraddled`: down a level at a time off a depth
       // discontinuity, then onto the centre of its own texel if level 0 still straddles.
-      for (int step = 0; step <= top; step++) {
+      for (int step = 0; step <= top && step < MAX_DESCENT; step++) {
         if (!(level > 0.0) || !kernel_straddles(center, level, top)) {
           break;
         }
         level = max(level - 1.0, 0.0);
       }
-      if (!(level > 0.0) && kernel_straddles(center, level, top)) {
+      if (SNAP_TO_TEXEL != 0 && !(level > 0.0) && kernel_straddles(center, level, top)) {
         center = (vec2(texel) + 0.5) / float(rsm_size);
         for (int l = 0; l <= top; l++) {
           per_level[l] = uniform_pdf ? 1.0 : mip_atlas_bilinear(rsm_size, l, PDF_PLANE, center).x * pdf_scale;

@@ -388,6 +388,11 @@ JUMP_TEXELS = 4.0
 #: texels beside a jump (:func:`texel_jumps`) descends a level (:func:`kernel_level_unstraddled`)
 #: until it holds none (or reaches level 0). True: descend; False: 000's kernels.
 SPLIT_AT_JUMPS = False
+#: The most levels a kernel descends (:func:`kernel_level_unstraddled`).
+MAX_DESCENT = 16
+#: A kernel that still straddles at level 0 moves onto its own texel's centre (a VPL there) when
+#: True, or keeps its level-0 bilinear taps across the jump (:func:`kernel_level_unstraddled`).
+SNAP_TO_TEXEL = True
 #: The share of a kernel's power on jump texels it may hold (:func:`straddles`).
 STRADDLE_SHARE = 0.0
 #: A kernel over a jump straddles only where its surfaces face different ways: its diffuse lobes'
@@ -428,14 +433,14 @@ def kernel_level_unstraddled(maps: RSMMipmaps, center, texel, level, split=None)
     level, center = f64(level).copy(), f64(center).copy()
     if not split or maps.jump is None:
         return level, center
-    for _ in range(maps.top_level + 1):
+    for _ in range(min(maps.top_level + 1, MAX_DESCENT)):
         down = straddles(maps, center, level) & (level > 0.0)
         if not down.any():
             break
         level = np.where(down, np.maximum(level - 1.0, 0.0), level)
     size = maps.pdf[0].shape[0]
     own = (np.asarray(texel)[:, ::-1] + 0.5) / size  # (column, row) → uv
-    snap = straddles(maps, center, level) & (level <= 0.0)
+    snap = straddles(maps, center, level) & (level <= 0.0) & SNAP_TO_TEXEL
     return level, np.where(snap[:, None], own, center)
 
 
