@@ -3,7 +3,7 @@
 (not a test).
 
     .venv/bin/python benchmarks/split_at_jumps.py [--only NAME ...] [--seeds K ...] [--counts N ...]
-        [--normal-agreement A] [--snap on|off] [--max-descent L] [--output NAME]
+        [--normal-agreement A] [--snap on|off] [--max-descent L] [--light-types TYPE ...] [--output NAME]
 
 000 §4's kernels filter the RSM in its image plane, so a kernel across a depth discontinuity
 clusters two surfaces (benchmarks/courtyard_leak.py measures what that costs the sun courtyard);
@@ -17,7 +17,8 @@ the truth: mean ours / Cycles, noise-corrected and robust relative RMSE
 its range; ``--counts``: the VSGL budget N instead of the scene's (one row per N);
 ``--normal-agreement``: reference.vsgl.NORMAL_AGREEMENT instead of its value (0: every kernel over
 a jump descends, whichever way its surfaces face); ``--snap``: reference.vsgl.SNAP_TO_TEXEL;
-``--max-descent``: reference.vsgl.MAX_DESCENT.
+``--max-descent``: reference.vsgl.MAX_DESCENT; ``--light-types``: pipeline.SPLIT_LIGHT_TYPES (the
+light types whose kernels descend; the others keep 000's).
 
 Writes ``benchmarks/results/split_at_jumps.{md,json}`` (``--output``) and prints the markdown.
 """
@@ -82,13 +83,15 @@ def measure(name: str, path: Path, width: int, height: int, seeds=None, count=No
 
 
 def markdown(rows, command: str, seconds: float, normal_agreement: float, snap: bool, max_descent: int) -> str:
+    from vsgl_addon import pipeline
+
     several = any(len(r["seeds"]) > 1 for r in rows)
     lines = ["# VSGL kernels off RSM depth discontinuities: the suite before / after", "",
              f"`{command}`; run {seconds:.0f} s. The module documentation of `benchmarks/split_at_jumps.py` "
              "says what is measured. Each cell: mean indirect ours / Cycles, noise-corrected relative RMSE "
              "(robust relative RMSE), visibility on; off: 000's kernels; on: kernels descend off depth "
              "discontinuities (reference.vsgl.SPLIT_AT_JUMPS, NORMAL_AGREEMENT "
-             f"{normal_agreement:g}, SNAP_TO_TEXEL {snap}, MAX_DESCENT {max_descent}); change: of the relative RMSE, on / off − 1."
+             f"{normal_agreement:g}, SNAP_TO_TEXEL {snap}, MAX_DESCENT {max_descent}; lights {", ".join(pipeline.SPLIT_LIGHT_TYPES)}); change: of the relative RMSE, on / off − 1."
              + (" Over seeds " + ", ".join(str(k) for k in rows[0]["seeds"]) + ": each figure their mean, ± half "
                 "its range over them." if several else ""), "",
              "| scene | N | off | on | change of rel RMSE |", "|---|---|---|---|---|"]
@@ -110,6 +113,8 @@ def main(argv=None) -> int:
                         help="reference.vsgl.NORMAL_AGREEMENT instead of its value (0: no normal gate)")
     parser.add_argument("--snap", choices=("on", "off"), default=None,
                         help="reference.vsgl.SNAP_TO_TEXEL instead of its value")
+    parser.add_argument("--light-types", nargs="+", default=None,
+                        help="pipeline.SPLIT_LIGHT_TYPES instead of its value (e.g. SUN POINT SPOT AREA)")
     parser.add_argument("--max-descent", type=int, default=None,
                         help="reference.vsgl.MAX_DESCENT instead of its value")
     parser.add_argument("--output", default="split_at_jumps", help="results file name, without suffix")
@@ -131,6 +136,10 @@ def main(argv=None) -> int:
         if args.max_descent is not None:
             vsgl.MAX_DESCENT = args.max_descent
         vsgl_generation.PASS.free_shaders()  # their defines are read when the shader compiles
+    from vsgl_addon import pipeline
+
+    if args.light_types is not None:
+        pipeline.SPLIT_LIGHT_TYPES = tuple(args.light_types)
     width, height = RESOLUTION
     rows = [measure(name, path, width, height, args.seeds, count)
             for name, path, _ in suite() if not args.only or name in args.only
@@ -141,6 +150,7 @@ def main(argv=None) -> int:
         + ([] if args.normal_agreement is None else ["--normal-agreement", f"{args.normal_agreement:g}"])
         + ([] if args.snap is None else ["--snap", args.snap])
         + ([] if args.max_descent is None else ["--max-descent", str(args.max_descent)])
+        + ([] if args.light_types is None else ["--light-types"] + args.light_types)
         + ([] if args.output == "split_at_jumps" else ["--output", args.output]))
     from vsgl_addon.reference import vsgl
 

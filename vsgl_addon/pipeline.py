@@ -282,7 +282,8 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             result.generations.append((light_index, view_index, generation))
             generation.generate(count, settings.k, settings.kernel,
                                 _rotation(settings.seed, light_index, view_index),
-                                settings.positional_distribution)
+                                settings.positional_distribution,
+                                split_kernels_at_jumps(scene_gpu.scene.lights[light_index]))
         result.merge(normalize=receivers is not None and plan.runs("view_pdf")
                      and view_pdf_serves(receiver_lobe, plan.receiver_sets))
     except BaseException:
@@ -291,6 +292,21 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
         result.free()
         raise
     return result
+
+
+#: The light types whose VSGL kernels descend off RSM depth discontinuities when
+#: reference.vsgl.SPLIT_AT_JUMPS is on (split_kernels_at_jumps). A sun's one orthographic RSM
+#: spans the whole scene, so its kernels span metres and a wall's top joins the ground beyond it
+#: (the courtyard: relative RMSE 0.653 -> 0.417); in a point light's room the descended kernels'
+#: VPL-like VSGLs lit their neighbours in spikes (0.133 -> 0.196; benchmarks/split_at_jumps.py).
+SPLIT_LIGHT_TYPES = ("SUN",)
+
+
+def split_kernels_at_jumps(light) -> bool:
+    """Whether this light's VSGL kernels descend off depth discontinuities (SPLIT_LIGHT_TYPES)."""
+    from .reference import vsgl
+
+    return bool(vsgl.SPLIT_AT_JUMPS) and light.type in SPLIT_LIGHT_TYPES
 
 
 #: Point sets the imperfect shadow maps draw from: map m splats set m mod POINT_SETS (Ritschel et

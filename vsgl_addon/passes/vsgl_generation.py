@@ -406,8 +406,10 @@ class VSGLGeneration:
         program.image("mip_atlas", self.atlas)
 
     def generate(self, vsgl_count: int, k: float = 1.0, kernel: str = "modified",
-                 rotation=(0.0, 0.0), positional_distribution: str = "per-lobe"):
-        """Stage 3 on the current mip atlas; returns the table texture (see the module doc)."""
+                 rotation=(0.0, 0.0), positional_distribution: str = "per-lobe", split_at_jumps=None):
+        """Stage 3 on the current mip atlas; returns the table texture (see the module doc).
+        ``split_at_jumps``: the kernels descend off depth discontinuities (reference
+        ``kernel_level_unstraddled``); None reads reference.SPLIT_AT_JUMPS."""
         import gpu
 
         if self.atlas is None:
@@ -428,7 +430,8 @@ class VSGLGeneration:
         set_uniform(kernels.uniform_float, "kernel_k", k)
         set_uniform(kernels.uniform_int, "lattice_rotation_fixed", rotation_fixed_point(rotation))
         # reference.SPLIT_AT_JUMPS read at each generation, as the reference reads it per call.
-        set_uniform(kernels.uniform_int, "split_at_jumps", int(bool(reference.SPLIT_AT_JUMPS)))
+        split = reference.SPLIT_AT_JUMPS if split_at_jumps is None else split_at_jumps
+        set_uniform(kernels.uniform_int, "split_at_jumps", int(bool(split)))
         self._bind_levels(kernels)
         kernels.image("vsgl_table", self.table)
         gpu.compute.dispatch(kernels, _groups(count, _KERNEL_GROUP[0]), 1, 1)
