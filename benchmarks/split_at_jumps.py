@@ -91,7 +91,7 @@ def markdown(rows, command: str, seconds: float, normal_agreement: float, snap: 
              "says what is measured. Each cell: mean indirect ours / Cycles, noise-corrected relative RMSE "
              "(robust relative RMSE), visibility on; off: 000's kernels; on: kernels descend off depth "
              "discontinuities (reference.vsgl.SPLIT_AT_JUMPS, NORMAL_AGREEMENT "
-             f"{normal_agreement:g}, SNAP_TO_TEXEL {snap}, MAX_DESCENT {max_descent}; lights {", ".join(pipeline.SPLIT_LIGHT_TYPES)}); change: of the relative RMSE, on / off − 1."
+             f"{normal_agreement:g}, SNAP_TO_TEXEL {snap}, MAX_DESCENT {max_descent}; lights {' '.join(pipeline.SPLIT_LIGHT_TYPES)}); change: of the relative RMSE, on / off − 1."
              + (" Over seeds " + ", ".join(str(k) for k in rows[0]["seeds"]) + ": each figure their mean, ± half "
                 "its range over them." if several else ""), "",
              "| scene | N | off | on | change of rel RMSE |", "|---|---|---|---|---|"]
