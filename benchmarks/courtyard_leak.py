@@ -3,6 +3,7 @@
 test): each VSGL against its own cluster of RSM texels, with and without exact visibility.
 
     .venv/bin/python benchmarks/courtyard_leak.py [--only NAME ...] [--counts N ...] [--stride S]
+        [--seed K] [--ism-points P] [--ism-size S] [--generation gpu|reference] [--split-at-jumps on|off]
         [--append] [--results-dir DIR]
 
 A VSGL of 000 §4 is a kernel on the RSM: trilinear filtering at (x_i, l_i) is linear in the
@@ -26,6 +27,9 @@ object, the texel's nearest), its largest surface's share of the cluster's lumin
 in free space, or within OWN_SURFACE_SIGMAS σ_v of the cluster's largest surface ("on"). Per class
 and receiver material: the excess of the maps and of the exact rows over the true share (the
 visibility's leak, as a share of Cycles' light on those receivers) and the class's VSGL count.
+``--generation reference``: the VSGLs made by the float64 generation from the GPU's RSM (same
+lattice) and their maps by the float64 splat (visibility_diagnosis.reference_maps);
+``--split-at-jumps``: reference.vsgl.SPLIT_AT_JUMPS (kernels off RSM depth discontinuities).
 Writes ``benchmarks/results/courtyard_leak.md`` (+ .json).
 """
 
@@ -419,7 +423,8 @@ def main(argv=None):
     parser.add_argument("--generation", choices=("gpu", "reference"), default="gpu",
                         help="the VSGLs and maps of the GPU, or of the float64 twins from the GPU's RSM")
     parser.add_argument("--split-at-jumps", choices=("on", "off"), default=None,
-                        help="with --generation reference: reference/vsgl.py SPLIT_AT_JUMPS instead of its value")
+                        help="reference/vsgl.py SPLIT_AT_JUMPS instead of its value (the GPU's, for the "
+                             "light types of pipeline.SPLIT_LIGHT_TYPES, and the reference's)")
     parser.add_argument("--append", action="store_true")
     parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
     args = parser.parse_args(argv)
@@ -431,6 +436,10 @@ def main(argv=None):
     ensure_gpu_context()
     extra = {key: value for key, value in (("ism_points", args.ism_points), ("ism_size", args.ism_size))
              if value is not None}
+    if args.split_at_jumps is not None:
+        from vsgl_addon.reference import vsgl
+
+        vsgl.SPLIT_AT_JUMPS = args.split_at_jumps == "on"  # the GPU's generation reads it too
     results = {}
     for name, path, _ in suite():
         if name in args.only:
