@@ -29,7 +29,8 @@ and receiver material: the excess of the maps and of the exact rows over the tru
 visibility's leak, as a share of Cycles' light on those receivers) and the class's VSGL count.
 ``--generation reference``: the VSGLs made by the float64 generation from the GPU's RSM (same
 lattice) and their maps by the float64 splat (visibility_diagnosis.reference_maps);
-``--split-at-jumps``: reference.vsgl.SPLIT_AT_JUMPS (kernels off RSM depth discontinuities).
+``--split-at-jumps``: the kernels' descent off RSM depth discontinuities for every light or none
+(pipeline.SPLIT_LIGHT_TYPES; the reference generation's split_at_jumps).
 Writes ``benchmarks/results/courtyard_leak.md`` (+ .json).
 """
 
@@ -423,8 +424,8 @@ def main(argv=None):
     parser.add_argument("--generation", choices=("gpu", "reference"), default="gpu",
                         help="the VSGLs and maps of the GPU, or of the float64 twins from the GPU's RSM")
     parser.add_argument("--split-at-jumps", choices=("on", "off"), default=None,
-                        help="reference/vsgl.py SPLIT_AT_JUMPS instead of its value (the GPU's, for the "
-                             "light types of pipeline.SPLIT_LIGHT_TYPES, and the reference's)")
+                        help="the kernels' descent off depth discontinuities for every light (on) or none "
+                             "(off) instead of pipeline.SPLIT_LIGHT_TYPES (and in the reference generation)")
     parser.add_argument("--append", action="store_true")
     parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
     args = parser.parse_args(argv)
@@ -437,9 +438,10 @@ def main(argv=None):
     extra = {key: value for key, value in (("ism_points", args.ism_points), ("ism_size", args.ism_size))
              if value is not None}
     if args.split_at_jumps is not None:
-        from vsgl_addon.reference import vsgl
+        from vsgl_addon import pipeline
+        from vsgl_addon.scene_description import LIGHT_TYPES
 
-        vsgl.SPLIT_AT_JUMPS = args.split_at_jumps == "on"  # the GPU's generation reads it too
+        pipeline.SPLIT_LIGHT_TYPES = LIGHT_TYPES if args.split_at_jumps == "on" else ()
     results = {}
     for name, path, _ in suite():
         if name in args.only:

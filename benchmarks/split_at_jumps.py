@@ -7,11 +7,11 @@
 
 000 §4's kernels filter the RSM in its image plane, so a kernel across a depth discontinuity
 clusters two surfaces (benchmarks/courtyard_leak.py measures what that costs the sun courtyard);
-with reference.vsgl.SPLIT_AT_JUMPS such a kernel descends a level at a time until it holds no
+for the lights of pipeline.SPLIT_LIGHT_TYPES such a kernel descends a level at a time until it holds no
 texel beside a jump (reference.vsgl.kernel_level_unstraddled; the GPU's twin in
 glsl/vsgl_generation/vsgl_kernels.comp.glsl). Per scene of benchmarks/validation_suite.py (its
-scenes, settings, 240x180 and cached Cycles truths), with visibility on, 000's kernels ("off")
-and the descending ones ("on") rendered in the same run, the second of two frames each, against
+scenes, settings, 240x180 and cached Cycles truths), with visibility on, 000's kernels ("off":
+SPLIT_LIGHT_TYPES empty) and the descending ones ("on") rendered in the same run, the second of two frames each, against
 the truth: mean ours / Cycles, noise-corrected and robust relative RMSE
 (validation_suite.frame_errors). ``--seeds``: each figure the mean over these seeds' frames, with
 its range; ``--counts``: the VSGL budget N instead of the scene's (one row per N);
@@ -50,14 +50,14 @@ def _over_seeds(figures: list[dict]) -> dict:
 
 
 def measure(name: str, path: Path, width: int, height: int, seeds=None, count=None) -> dict:
-    from vsgl_addon.reference import vsgl
+    from vsgl_addon import pipeline
     from vsgl_addon.renderer import FrameRenderer
 
     settings, truth, description = scene_with_truth(name, path, width, height)
     if count is not None:
         settings = settings.overridden(vsgl_count=count)
     renderer = FrameRenderer()
-    saved = vsgl.SPLIT_AT_JUMPS
+    saved = pipeline.SPLIT_LIGHT_TYPES
     seeds = [settings.seed] if not seeds else list(seeds)
     row = {"scene": name, "vsgl_count": settings.vsgl_count, "settings": str(settings), "seeds": seeds}
 
@@ -72,12 +72,12 @@ def measure(name: str, path: Path, width: int, height: int, seeds=None, count=No
 
     try:
         for split in (False, True):
-            vsgl.SPLIT_AT_JUMPS = split
+            pipeline.SPLIT_LIGHT_TYPES = saved if split else ()
             row["on" if split else "off"] = cell = figures()
             print(f"{name} N = {settings.vsgl_count} split {split}: mean {cell['mean_ratio']:.3f}, "
                   f"rel {cell['rel']:.3f}, robust {cell['rel_robust']:.3f}", flush=True)
     finally:
-        vsgl.SPLIT_AT_JUMPS = saved
+        pipeline.SPLIT_LIGHT_TYPES = saved
         renderer.free()
     return row
 
@@ -90,7 +90,7 @@ def markdown(rows, command: str, seconds: float, normal_agreement: float, snap: 
              f"`{command}`; run {seconds:.0f} s. The module documentation of `benchmarks/split_at_jumps.py` "
              "says what is measured. Each cell: mean indirect ours / Cycles, noise-corrected relative RMSE "
              "(robust relative RMSE), visibility on; off: 000's kernels; on: kernels descend off depth "
-             "discontinuities (reference.vsgl.SPLIT_AT_JUMPS, NORMAL_AGREEMENT "
+             "discontinuities (pipeline.SPLIT_LIGHT_TYPES, NORMAL_AGREEMENT "
              f"{normal_agreement:g}, SNAP_TO_TEXEL {snap}, MAX_DESCENT {max_descent}; lights {' '.join(pipeline.SPLIT_LIGHT_TYPES)}); change: of the relative RMSE, on / off − 1."
              + (" Over seeds " + ", ".join(str(k) for k in rows[0]["seeds"]) + ": each figure their mean, ± half "
                 "its range over them." if several else ""), "",

@@ -294,19 +294,19 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
     return result
 
 
-#: The light types whose VSGL kernels descend off RSM depth discontinuities when
-#: reference.vsgl.SPLIT_AT_JUMPS is on (split_kernels_at_jumps). A sun's one orthographic RSM
-#: spans the whole scene, so its kernels span metres and a wall's top joins the ground beyond it
-#: (the courtyard: relative RMSE 0.653 -> 0.417); in a point light's room the descended kernels'
-#: VPL-like VSGLs lit their neighbours in spikes (0.133 -> 0.196; benchmarks/split_at_jumps.py).
+#: The light types whose VSGL kernels descend off RSM depth discontinuities
+#: (reference.vsgl.kernel_level_unstraddled; split_kernels_at_jumps). A sun's one orthographic RSM
+#: spans the whole scene, so its kernels span metres and a wall's top joins the ground beyond it:
+#: the courtyard's relative RMSE 0.653 -> 0.417 at N = 256, 0.616 -> 0.343 at N = 1024 (0.653 ->
+#: 0.707 at N = 64, robust 0.586 -> 0.404); in the point-lit room the descended kernels' VPL-like
+#: VSGLs light their neighbours in spikes (0.133 -> 0.196), in the 24-light room 0.194 -> 0.218,
+#: so the other types keep 000's kernels (benchmarks/split_at_jumps.py). () : none descends.
 SPLIT_LIGHT_TYPES = ("SUN",)
 
 
 def split_kernels_at_jumps(light) -> bool:
     """Whether this light's VSGL kernels descend off depth discontinuities (SPLIT_LIGHT_TYPES)."""
-    from .reference import vsgl
-
-    return bool(vsgl.SPLIT_AT_JUMPS) and light.type in SPLIT_LIGHT_TYPES
+    return light.type in SPLIT_LIGHT_TYPES
 
 
 #: Point sets the imperfect shadow maps draw from: map m splats set m mod POINT_SETS (Ritschel et

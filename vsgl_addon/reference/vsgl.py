@@ -386,7 +386,8 @@ JUMP_TEXELS = 4.0
 #: clusters of the wall's back and the courtyard's ground bring it 0.25 of Cycles' light too much
 #: at N = 256 and at N = 1024). A kernel whose filter holds more than STRADDLE_SHARE of its power on
 #: texels beside a jump (:func:`texel_jumps`) descends a level (:func:`kernel_level_unstraddled`)
-#: until it holds none (or reaches level 0). True: descend; False: 000's kernels.
+#: until it holds none (or reaches level 0). The generation's default (True: descend; False:
+#: 000's kernels); the renderer asks for the descent per light (pipeline.SPLIT_LIGHT_TYPES).
 SPLIT_AT_JUMPS = False
 #: The most levels a kernel descends (:func:`kernel_level_unstraddled`).
 MAX_DESCENT = 16
