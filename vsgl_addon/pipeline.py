@@ -253,7 +253,8 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
                 pdf = (_view_pdf_texture(view, receivers)
                        if receivers is not None and plan.runs("view_pdf")
                        and view_pdf_serves(receiver_lobe, plan.receiver_sets) else None)
-                generation.build_mip_atlas(view.rsm_textures(), pdf)
+                generation.build_mip_atlas(view.rsm_textures(), pdf,
+                                           split_kernels_at_jumps(scene_gpu.scene.lights[light_index]))
         view_counts = {index: len(views) for index, views in result.views_by_light.items()}
         if plan.allocation_reads_powers(view_counts):
             totals = {index: [] for index in view_counts}

@@ -8,7 +8,7 @@
 //   0: (Phi Rd).rgb, (w_d xi_bar_d).x          1: (w_d xi_bar_d).yz, (Phi Rs).rg
 //   2: (Phi Rs).b, (w_s xi_bar_s).xyz          3: w_d y, w_d |y|^2          4: w_s y, w_s |y|^2
 //   5: PDF weight (lum(Phi (Rd + Rs)) or the custom PDF), lum(Phi (Rd + Rs)) [texel beside a depth
-//      discontinuity] (reference `vsgl.texel_jumps`), 0, 0
+//      discontinuity] (reference `vsgl.texel_jumps`; 0 unless compute_jumps != 0), 0, 0
 // Planes 3 and 4 are the lobes' own position moments; 000 app. B.2's shared ones (w = w_d + w_s)
 // are their sum (reference `combined_position_moments`).
 //
@@ -101,6 +101,6 @@ void main()
   level0_out3 = w_d * vec4(y, y_squared);
   level0_out4 = w_s * vec4(y, y_squared);
   float pdf_weight = use_custom_pdf != 0 ? texelFetch(pdf_image, texel, 0).r : w_d + w_s;
-  float jump = lit ? texel_jump(texel, rsm.position) : 0.0;
+  float jump = lit && compute_jumps != 0 ? texel_jump(texel, rsm.position) : 0.0;
   level0_out5 = vec4(pdf_weight, (w_d + w_s) * jump, 0.0, 0.0);
 }

@@ -89,7 +89,7 @@ _LEVEL0_SAMPLERS = [("FLOAT_2D", f"level0_plane{plane}") for plane in range(ATLA
 
 def _texel_moments_interface() -> ShaderInterface:
     return ShaderInterface(
-        push_constants=[("INT", "rsm_size"), ("INT", "use_custom_pdf")],
+        push_constants=[("INT", "rsm_size"), ("INT", "use_custom_pdf"), ("INT", "compute_jumps")],
         samplers=[("FLOAT_2D", f"rsm_{name}") for name in RSM.slot_names] + [("FLOAT_2D", "pdf_image")],
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
@@ -335,8 +335,11 @@ class VSGLGeneration:
         self.table_width = 0
         self.vsgl_count = 0
 
-    def build_mip_atlas(self, rsm_textures: RSMTextures, pdf_texture=None) -> None:
-        """Stages 1, 2 and 2b: level 0 from the RSM, then the mip levels of every plane."""
+    def build_mip_atlas(self, rsm_textures: RSMTextures, pdf_texture=None, jumps=None) -> None:
+        """Stages 1, 2 and 2b: level 0 from the RSM, then the mip levels of every plane. ``jumps``:
+        plane 5's power on texels beside a depth discontinuity (what :meth:`generate`'s
+        ``split_at_jumps`` reads; four neighbour loads per texel), or zero; None reads
+        reference.SPLIT_AT_JUMPS."""
         import gpu
 
         size = int(rsm_textures.size)
@@ -365,6 +368,8 @@ class VSGLGeneration:
                 moments.bind()
                 set_uniform(moments.uniform_int, "rsm_size", size)
                 set_uniform(moments.uniform_int, "use_custom_pdf", 0 if pdf_texture is None else 1)
+                jumps = reference.SPLIT_AT_JUMPS if jumps is None else jumps
+                set_uniform(moments.uniform_int, "compute_jumps", int(bool(jumps)))
                 for name in RSM.slot_names:
                     moments.uniform_sampler(f"rsm_{name}", getattr(rsm_textures, name))
                 set_uniform(moments.uniform_sampler, "pdf_image",
