@@ -4,6 +4,7 @@ test): each VSGL against its own cluster of RSM texels, with and without exact v
 
     .venv/bin/python benchmarks/courtyard_leak.py [--only NAME ...] [--counts N ...] [--stride S]
         [--seed K] [--ism-points P] [--ism-size S] [--generation gpu|reference] [--split-at-jumps on|off]
+        [--max-slope T]
         [--append] [--results-dir DIR]
 
 A VSGL of 000 §4 is a kernel on the RSM: trilinear filtering at (x_i, l_i) is linear in the
@@ -30,7 +31,8 @@ visibility's leak, as a share of Cycles' light on those receivers) and the class
 ``--generation reference``: the VSGLs made by the float64 generation from the GPU's RSM (same
 lattice) and their maps by the float64 splat (visibility_diagnosis.reference_maps);
 ``--split-at-jumps``: the kernels' descent off RSM depth discontinuities for every light or none
-(pipeline.SPLIT_LIGHT_TYPES; the reference generation's split_at_jumps).
+(pipeline.SPLIT_LIGHT_TYPES; the reference generation's split_at_jumps); ``--max-slope``: the
+maps' lookup with the slope-scaled bias capped at tan θ = T (reference.ism.ISM_MAX_SLOPE).
 Writes ``benchmarks/results/courtyard_leak.md`` (+ .json).
 """
 
@@ -157,7 +159,7 @@ def object_boxes(triangles, owners):
             for o in np.unique(owners)}
 
 
-def analyse(name, path, stride, vsgl_count, seed=None, extra=None, generation="gpu", split_at_jumps=None):
+def analyse(name, path, stride, vsgl_count, seed=None, extra=None, generation="gpu", split_at_jumps=None, max_slope=None):
     from vsgl_addon.pipeline import VSGL_OWN_REFLECTOR_SIGMAS, build_visibility
     from vsgl_addon.passes.vsgl_shading import ISM_MAX_RADIUS
     from vsgl_addon.reference.ism import shadow_origin
@@ -210,7 +212,14 @@ def analyse(name, path, stride, vsgl_count, seed=None, extra=None, generation="g
             _, _, terms = shade(table, position, normal, view, rd, f0, alpha,
                                 diffuse_mode=diffuse_mode_for_kernel(settings.kernel), per_term=True)
             weight = terms.sum(axis=3) @ LUMINANCE  # (P, N, 2)
-            v_maps = vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS)
+            from vsgl_addon.reference import ism
+
+            saved_slope = ism.ISM_MAX_SLOPE
+            try:
+                ism.ISM_MAX_SLOPE = saved_slope if max_slope is None else max_slope
+                v_maps = vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS)
+            finally:
+                ism.ISM_MAX_SLOPE = saved_slope
             v_exact = exact_visibility(table, maps, position, triangles, VSGL_OWN_REFLECTOR_SIGMAS)
             vpls = view_vpls(arrays, rsm_view.light)
         finally:
@@ -426,6 +435,9 @@ def main(argv=None):
     parser.add_argument("--split-at-jumps", choices=("on", "off"), default=None,
                         help="the kernels' descent off depth discontinuities for every light (on) or none "
                              "(off) instead of pipeline.SPLIT_LIGHT_TYPES (and in the reference generation)")
+    parser.add_argument("--max-slope", type=float, default=None,
+                        help="the maps' float64 lookup with this cap of the slope-scaled bias (reference/ism.py "
+                             "ISM_MAX_SLOPE; the maps stay as built)")
     parser.add_argument("--append", action="store_true")
     parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
     args = parser.parse_args(argv)
@@ -449,13 +461,15 @@ def main(argv=None):
                 start = time.perf_counter()
                 results[f"{name} N={count}"] = analyse(name, path, args.stride, count, args.seed, extra,
                                                        args.generation,
-                                                       None if args.split_at_jumps is None else args.split_at_jumps == "on")
+                                                       None if args.split_at_jumps is None else args.split_at_jumps == "on",
+                                                       args.max_slope)
                 log(f"  ({time.perf_counter() - start:.0f} s)")
     argv_text = (f"--only {' '.join(args.only)} --counts {' '.join(map(str, args.counts))} --stride {args.stride}"
                  + ("" if args.seed is None else f" --seed {args.seed}")
                  + "".join(f" --{key.replace('_', '-')} {value}" for key, value in extra.items())
                  + ("" if args.generation == "gpu" else f" --generation {args.generation}")
-                 + ("" if args.split_at_jumps is None else f" --split-at-jumps {args.split_at_jumps}"))
+                 + ("" if args.split_at_jumps is None else f" --split-at-jumps {args.split_at_jumps}")
+                 + ("" if args.max_slope is None else f" --max-slope {args.max_slope}"))
     target = args.results_dir / "courtyard_leak.md"
     append = args.append and target.is_file()
     text = markdown(results, argv_text, first=not append)
