@@ -615,3 +615,61 @@ def test_bad_arguments(compiled):
     with pytest.raises(ValueError):
         vg.generate_vsgls_gpu({**{name: getattr(rsm, name) for name in vsgl.RSM.__dataclass_fields__},
                                "flux_diffuse": -np.ones((8, 8, 3))}, 4)
+
+
+# --------------------------------------------------------------------------------------------
+# Kernels off depth discontinuities (reference.vsgl.SPLIT_AT_JUMPS)
+
+
+def step_rsm(size, texel=0.25, step=3.0, column=29):
+    """A sun's orthographic RSM looking down −z at a ground (z = 0) beside a raised face (z =
+    ``step``, turned towards +y) from ``column`` on, with a varied flux and a glossy lobe."""
+    v, u = _grid(size)
+    x, y = u * size * texel, v * size * texel
+    z = np.where(np.arange(size)[None, :] >= column, step, 0.0) + 0.0 * x
+    position = np.stack([x, y, z], -1)
+    normal = np.broadcast_to(np.array([0.0, 0.0, 1.0]), position.shape).copy()
+    normal[:, column:] = _unit(np.array([0.0, 0.8, 0.6]))  # the raised part faces another way
+    flux_d = np.stack([0.5 + u, 0.6 + 0.0 * u, 0.4 + v], -1)
+    incoming = _unit(np.stack([0.3 + 0.0 * u, 0.0 * u, np.ones_like(u)], -1))
+    axis, lam = _specular(normal, incoming, np.full((size, size), 0.4))
+    return vsgl.RSM(position, normal, flux_d, 0.2 * flux_d, axis, lam)
+
+
+@pytest.mark.parametrize("rotation", [(0.1, 0.2), (0.62, 0.37), (0.9, 0.05)])
+def test_kernels_descend_off_a_depth_step_as_the_reference(compiled, monkeypatch, rotation):
+    """With SPLIT_AT_JUMPS the GPU's jump plane is the reference's (plane 5's second channel:
+    lum(Φ(Rd + Rs)) on texel_jumps' texels) and its table matches the reference's within the
+    module's tolerances (levels lowered by whole levels, centres moved onto their texels), and
+    the descent happens: some levels drop by at least one, none rises."""
+    monkeypatch.setattr(vsgl, "SPLIT_AT_JUMPS", True)
+    rsm = step_rsm(64)
+    compare_with_reference(rsm, 64, 1.0, "modified", rotation)
+    vg = _vg()
+    generation = vg.VSGLGeneration()
+    try:
+        generation.run(rsm, 64, 1.0, "modified", rotation=rotation)
+        split = generation.read_table()
+        from vsgl_addon.passes.gpu_util import read_texture
+
+        plane = read_texture(generation.level0[vg.PDF_PLANE], 64, 64)[..., 1].astype(np.float64)
+    finally:
+        generation.free()
+    expected = vsgl.luminance(rsm.flux_diffuse + rsm.flux_specular) * vsgl.texel_jumps(rsm)
+    np.testing.assert_allclose(plane, expected, rtol=1e-6, atol=0.0)
+    whole = vsgl.generate_vsgls(rsm, 64, rotation=rotation, split_at_jumps=False)
+    assert np.all(split["kernel_level"] <= whole["kernel_level"] + 1e-6)
+    assert np.sum(split["kernel_level"] < whole["kernel_level"] - 0.5) >= 3
+
+
+def test_no_descent_without_a_jump_on_the_gpu(compiled, monkeypatch):
+    """On the smooth test RSM (no jump texel) SPLIT_AT_JUMPS changes no row of the GPU's table."""
+    rsm = smooth_rsm(32)
+    assert not vsgl.texel_jumps(rsm).any()
+    vg = _vg()
+    monkeypatch.setattr(vsgl, "SPLIT_AT_JUMPS", False)
+    before = vg.generate_vsgls_gpu(rsm, 128, rotation=(0.3, 0.6))
+    monkeypatch.setattr(vsgl, "SPLIT_AT_JUMPS", True)
+    after = vg.generate_vsgls_gpu(rsm, 128, rotation=(0.3, 0.6))
+    for name in vsgl.OUTPUT_KEYS:
+        np.testing.assert_array_equal(after[name], before[name], err_msg=name)

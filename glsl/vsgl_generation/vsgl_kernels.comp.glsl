@@ -93,6 +93,34 @@ vec2 warp_hierarchical(vec2 sample_point, int top, out ivec2 texel)
   return min(uv, vec2(BELOW_ONE));
 }
 
+// One plane filtered at (uv, fractional level): the reference's `mipmap.trilinear`.
+vec4 plane_trilinear(int plane, vec2 uv, float level, int top)
+{
+  int lower, upper;
+  float fraction;
+  mip_level_split(level, top, lower, upper, fraction);
+  return (1.0 - fraction) * mip_atlas_bilinear(rsm_size, lower, plane, uv)
+         + fraction * mip_atlas_bilinear(rsm_size, upper, plane, uv);
+}
+
+// The kernel holds more than STRADDLE_SHARE of its power on texels beside a depth discontinuity
+// (plane 5's second channel) and its surfaces face different ways: reference `vsgl.straddles`.
+bool kernel_straddles(vec2 uv, float level, int top)
+{
+  vec4 p0 = plane_trilinear(0, uv, level, top);
+  vec4 p1 = plane_trilinear(1, uv, level, top);
+  vec4 p2 = plane_trilinear(2, uv, level, top);
+  float weight = luminance(p0.xyz + vec3(p1.zw, p2.x));
+  float jump = plane_trilinear(PDF_PLANE, uv, level, top).y;
+  // Only surfaces facing different ways (reference NORMAL_AGREEMENT): the diffuse lobes' Toksvig
+  // mean direction against one surface's, lambda_d / (lambda_d + 1).
+  float diffuse = luminance(p0.xyz);
+  float one_surface = DIFFUSE_SHARPNESS / (DIFFUSE_SHARPNESS + 1.0);
+  bool disagree = NORMAL_AGREEMENT <= 0.0 || !(diffuse > 0.0)
+                  || length(vec3(p0.w, p1.xy)) < NORMAL_AGREEMENT * one_surface * diffuse;
+  return weight > 0.0 && jump > STRADDLE_SHARE * weight && disagree;
+}
+
 float interpolate_levels(float per_level[MIP_ATLAS_MAX_LEVELS], float level, int top)
 {
   int lower, upper;
@@ -238,6 +266,22 @@ void main()
       }
     }
     level = 0.5 * (level_min + level_max);
+    if (split_at_jumps != 0) {
+      // Reference `vsgl.kernel_level_unstraddled`: down a level at a time off a depth
+      // discontinuity, then onto the centre of its own texel if level 0 still straddles.
+      for (int step = 0; step <= top && step < MAX_DESCENT; step++) {
+        if (!(level > 0.0) || !kernel_straddles(center, level, top)) {
+          break;
+        }
+        level = max(level - 1.0, 0.0);
+      }
+      if (SNAP_TO_TEXEL != 0 && !(level > 0.0) && kernel_straddles(center, level, top)) {
+        center = (vec2(texel) + 0.5) / float(rsm_size);
+        for (int l = 0; l <= top; l++) {
+          per_level[l] = uniform_pdf ? 1.0 : mip_atlas_bilinear(rsm_size, l, PDF_PLANE, center).x * pdf_scale;
+        }
+      }
+    }
     // Eq. 5: the same kernel filters numerator and denominator.
     denominator = n * interpolate_levels(per_level, level, top);
   }

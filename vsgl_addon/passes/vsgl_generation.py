@@ -89,7 +89,7 @@ _LEVEL0_SAMPLERS = [("FLOAT_2D", f"level0_plane{plane}") for plane in range(ATLA
 
 def _texel_moments_interface() -> ShaderInterface:
     return ShaderInterface(
-        push_constants=[("INT", "rsm_size"), ("INT", "use_custom_pdf")],
+        push_constants=[("INT", "rsm_size"), ("INT", "use_custom_pdf"), ("INT", "compute_jumps")],
         samplers=[("FLOAT_2D", f"rsm_{name}") for name in RSM.slot_names] + [("FLOAT_2D", "pdf_image")],
         vertex_inputs=[("VEC2", "position")],
         varyings=[("VEC2", "uv")],
@@ -120,7 +120,7 @@ def _vsgl_kernels_interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("INT", "rsm_size"), ("INT", "vsgl_count"), ("INT", "kernel_mode"),
                         ("INT", "positional_distribution"), ("FLOAT", "kernel_k"),
-                        ("IVEC2", "lattice_rotation_fixed")],
+                        ("IVEC2", "lattice_rotation_fixed"), ("INT", "split_at_jumps")],
         samplers=_LEVEL0_SAMPLERS,
         images=[_ATLAS_IMAGE, ("RGBA32F", "FLOAT_2D", "vsgl_table")],
         local_group_size=_KERNEL_GROUP,
@@ -147,6 +147,7 @@ PASS = GPUPass(
     shaders={
         "texel_moments": ShaderSpec(_texel_moments_interface,
                                     {"vertex": _FULLSCREEN, "fragment": "vsgl_generation/texel_moments.frag.glsl"},
+                                    defines=lambda: {"JUMP_TEXELS": float(reference.JUMP_TEXELS)},
                                     code=lambda: {"fragment": RSM.glsl("samplers_load")}),
         "mip_reduce_level1": ShaderSpec(_mip_reduce_level1_interface,
                                         {"vertex": _FULLSCREEN,
@@ -154,6 +155,10 @@ PASS = GPUPass(
         "mip_reduce": ShaderSpec(_mip_reduce_interface, {"compute": "vsgl_generation/mip_reduce.comp.glsl"}),
         "vsgl_kernels": ShaderSpec(_vsgl_kernels_interface,
                                    {"compute": "vsgl_generation/vsgl_kernels.comp.glsl"},
+                                   defines=lambda: {"STRADDLE_SHARE": float(reference.STRADDLE_SHARE),
+                                                    "NORMAL_AGREEMENT": float(reference.NORMAL_AGREEMENT),
+                                                    "SNAP_TO_TEXEL": int(bool(reference.SNAP_TO_TEXEL)),
+                                                    "MAX_DESCENT": int(reference.MAX_DESCENT)},
                                    code=lambda: {"compute": VSGL_TABLE.glsl("image_store")}),
     },
     reads=(RSM.name,),
@@ -330,8 +335,11 @@ class VSGLGeneration:
         self.table_width = 0
         self.vsgl_count = 0
 
-    def build_mip_atlas(self, rsm_textures: RSMTextures, pdf_texture=None) -> None:
-        """Stages 1, 2 and 2b: level 0 from the RSM, then the mip levels of every plane."""
+    def build_mip_atlas(self, rsm_textures: RSMTextures, pdf_texture=None, jumps=None) -> None:
+        """Stages 1, 2 and 2b: level 0 from the RSM, then the mip levels of every plane. ``jumps``:
+        plane 5's power on texels beside a depth discontinuity (what :meth:`generate`'s
+        ``split_at_jumps`` reads; four neighbour loads per texel), or zero; None reads
+        reference.SPLIT_AT_JUMPS."""
         import gpu
 
         size = int(rsm_textures.size)
@@ -360,6 +368,8 @@ class VSGLGeneration:
                 moments.bind()
                 set_uniform(moments.uniform_int, "rsm_size", size)
                 set_uniform(moments.uniform_int, "use_custom_pdf", 0 if pdf_texture is None else 1)
+                jumps = reference.SPLIT_AT_JUMPS if jumps is None else jumps
+                set_uniform(moments.uniform_int, "compute_jumps", int(bool(jumps)))
                 for name in RSM.slot_names:
                     moments.uniform_sampler(f"rsm_{name}", getattr(rsm_textures, name))
                 set_uniform(moments.uniform_sampler, "pdf_image",
@@ -401,8 +411,10 @@ class VSGLGeneration:
         program.image("mip_atlas", self.atlas)
 
     def generate(self, vsgl_count: int, k: float = 1.0, kernel: str = "modified",
-                 rotation=(0.0, 0.0), positional_distribution: str = "per-lobe"):
-        """Stage 3 on the current mip atlas; returns the table texture (see the module doc)."""
+                 rotation=(0.0, 0.0), positional_distribution: str = "per-lobe", split_at_jumps=None):
+        """Stage 3 on the current mip atlas; returns the table texture (see the module doc).
+        ``split_at_jumps``: the kernels descend off depth discontinuities (reference
+        ``kernel_level_unstraddled``); None reads reference.SPLIT_AT_JUMPS."""
         import gpu
 
         if self.atlas is None:
@@ -422,6 +434,9 @@ class VSGLGeneration:
                     _POSITIONAL_INDEX[positional_distribution])
         set_uniform(kernels.uniform_float, "kernel_k", k)
         set_uniform(kernels.uniform_int, "lattice_rotation_fixed", rotation_fixed_point(rotation))
+        # reference.SPLIT_AT_JUMPS read at each generation, as the reference reads it per call.
+        split = reference.SPLIT_AT_JUMPS if split_at_jumps is None else split_at_jumps
+        set_uniform(kernels.uniform_int, "split_at_jumps", int(bool(split)))
         self._bind_levels(kernels)
         kernels.image("vsgl_table", self.table)
         gpu.compute.dispatch(kernels, _groups(count, _KERNEL_GROUP[0]), 1, 1)

@@ -282,12 +282,15 @@ def normalize_pdf(pdf) -> np.ndarray:
 
 @dataclass(frozen=True)
 class RSMMipmaps:
-    """Mip chains of an RSM: ``moments`` (levels of (h, w, 20), means of ``texel_moments``) and
-    ``pdf`` (levels of (h, w), the density p = M · texel probability, so the top level is 1)."""
+    """Mip chains of an RSM: ``moments`` (levels of (h, w, 20), means of ``texel_moments``),
+    ``pdf`` (levels of (h, w), the density p = M · texel probability, so the top level is 1) and
+    ``jump`` (levels of (h, w), means of w · [texel beside a depth discontinuity] with w =
+    lum(Φ (Rd + Rs)), :func:`texel_jumps`; what :func:`straddles` reads)."""
 
     moments: list
     pdf: list
     texel_count: int
+    jump: list | None = None
 
     @property
     def top_level(self) -> int:
@@ -295,16 +298,151 @@ class RSMMipmaps:
 
 
 def build_mipmaps(rsm, pdf=None) -> RSMMipmaps:
-    """The mipmapped RSM of 000 §4.1 / Fig. 4 and the PDF mipmap (000 §3.2)."""
+    """The mipmapped RSM of 000 §4.1 / Fig. 4, the PDF mipmap (000 §3.2) and that of the power on
+    texels beside a depth discontinuity (:func:`straddles`)."""
     rsm = RSM.coerce(rsm)
     probability = default_pdf(rsm) if pdf is None else normalize_pdf(pdf)
     if probability.shape != (rsm.size, rsm.size):
         raise ValueError(f"pdf must have shape {(rsm.size, rsm.size)}, got {probability.shape}")
+    weight = luminance(rsm.flux_diffuse + rsm.flux_specular)
     return RSMMipmaps(
         moments=mipmap.build_mip_chain(texel_moments(rsm)),
         pdf=mipmap.build_mip_chain(probability * rsm.texel_count),
         texel_count=rsm.texel_count,
+        jump=mipmap.build_mip_chain(weight * texel_jumps(rsm)),
     )
+
+
+def _one_sided_difference(position, lit, axis):
+    """(H, W, 3) the shorter of the forward and backward differences of ``position`` along image
+    ``axis`` (0 rows, 1 columns) between lit texels, zero where neither neighbour is lit."""
+    size = position.shape[axis]
+    best = np.zeros(position.shape)
+    best_length = np.full(position.shape[:2], np.inf)
+    for step in (1, -1):
+        neighbour = np.roll(position, -step, axis=axis)
+        neighbour_lit = np.roll(lit, -step, axis=axis)
+        index = np.arange(size) + step
+        inside = (index >= 0) & (index < size)
+        inside = inside[:, None] if axis == 0 else inside[None, :]
+        ok = lit & neighbour_lit & inside
+        difference = (neighbour - position) * step
+        length = norm(difference)
+        better = ok & (length < best_length)
+        best = np.where(better[..., None], difference, best)
+        best_length = np.where(better, length, best_length)
+    return best
+
+
+def texel_areas(rsm) -> np.ndarray:
+    """(H, W) the surface area each lit texel covers: |Δ_u y × Δ_v y| of its position's one-sided
+    differences to its lit neighbours along the image's columns and rows, the shorter side of each
+    (across a depth discontinuity the other side's difference spans the jump, not the texel);
+    |Δ|² of the one axis with a lit neighbour when the other has none; 0 for a texel without a lit
+    neighbour and for unlit texels. Twin of glsl/vsgl_generation/texel_moments.frag.glsl."""
+    rsm = RSM.coerce(rsm)
+    lit = luminance(rsm.flux_diffuse + rsm.flux_specular) > 0.0
+    position = np.where(lit[..., None], rsm.position, 0.0)
+    du = _one_sided_difference(position, lit, 1)
+    dv = _one_sided_difference(position, lit, 0)
+    crossed = norm(np.cross(du, dv))
+    has_u, has_v = dot(du, du) > 0.0, dot(dv, dv) > 0.0
+    area = np.where(has_u & has_v, crossed, np.where(has_u, dot(du, du), dot(dv, dv)))
+    return np.where(lit, area, 0.0)
+
+
+def texel_jumps(rsm, jump_texels=None) -> np.ndarray:
+    """(H, W) bool: lit texels with a lit 4-neighbour farther than ``jump_texels`` (JUMP_TEXELS when
+    None) times the texel's own size √a (:func:`texel_areas`) in space: the two sides of a depth
+    discontinuity (a wall's top beside the ground below it, a silhouette against what lies
+    behind). Texels without an area (no lit neighbour) have no jump. Twin of
+    glsl/vsgl_generation/texel_moments.frag.glsl."""
+    rsm = RSM.coerce(rsm)
+    jump_texels = JUMP_TEXELS if jump_texels is None else float(jump_texels)
+    lit = luminance(rsm.flux_diffuse + rsm.flux_specular) > 0.0
+    position = np.where(lit[..., None], rsm.position, 0.0)
+    reach = jump_texels * np.sqrt(texel_areas(rsm))
+    size = rsm.size
+    jump = np.zeros(lit.shape, bool)
+    for axis in (0, 1):
+        for step in (1, -1):
+            neighbour = np.roll(position, -step, axis=axis)
+            neighbour_lit = np.roll(lit, -step, axis=axis)
+            index = np.arange(size) + step
+            inside = (index >= 0) & (index < size)
+            inside = inside[:, None] if axis == 0 else inside[None, :]
+            jump |= lit & neighbour_lit & inside & (reach > 0.0) & (norm(neighbour - position) > reach)
+    return jump
+
+
+#: A 4-neighbour this many texel sizes away in space is across a depth discontinuity
+#: (:func:`texel_jumps`): a surface at 86° from the light has texels 4x longer than wide.
+JUMP_TEXELS = 4.0
+
+#: 000 §4 clusters the VPLs of a kernel on the RSM's image plane, which puts the two sides of a
+#: depth discontinuity (a wall's sunlit back beside the ground beyond its top) in one cluster: its
+#: mean floats between them (in the air, inside the wall) and one lobe mixes a surface facing away
+#: from the receivers with one facing them (benchmarks/courtyard_leak.py: the sun courtyard's
+#: clusters of the wall's back and the courtyard's ground bring it 0.25 of Cycles' light too much
+#: at N = 256 and at N = 1024). A kernel whose filter holds more than STRADDLE_SHARE of its power on
+#: texels beside a jump (:func:`texel_jumps`) descends a level (:func:`kernel_level_unstraddled`)
+#: until it holds none (or reaches level 0). The generation's default (True: descend; False:
+#: 000's kernels); the renderer asks for the descent per light (pipeline.SPLIT_LIGHT_TYPES).
+SPLIT_AT_JUMPS = False
+#: The most levels a kernel descends (:func:`kernel_level_unstraddled`).
+MAX_DESCENT = 16
+#: A kernel that still straddles at level 0 moves onto its own texel's centre (a VPL there) when
+#: True, or keeps its level-0 bilinear taps across the jump (:func:`kernel_level_unstraddled`).
+SNAP_TO_TEXEL = True
+#: The share of a kernel's power on jump texels it may hold (:func:`straddles`).
+STRADDLE_SHARE = 0.0
+#: A kernel over a jump straddles only where its surfaces face different ways: its diffuse lobes'
+#: Toksvig mean direction |Σ w_d ξ̄_d| / Σ w_d (000 app. B.1) shorter than NORMAL_AGREEMENT times
+#: one surface's, λ_d / (λ_d + 1) (two normals at 90° in shares q, 1 − q: √(1 − 2q(1 − q)) of
+#: it, 0.95 at q = 0.05). Layers facing one way (a table's top over the floor) keep 000's kernels:
+#: their descended, VPL-like VSGLs brought more noise than the floating mean cost
+#: (benchmarks/split_at_jumps.py). 0: every kernel over a jump straddles.
+NORMAL_AGREEMENT = 0.95
+
+
+def straddles(maps: RSMMipmaps, center, level) -> np.ndarray:
+    """(N,) True where the kernel at ``center`` (N, 2), ``level`` (N,) holds more than
+    STRADDLE_SHARE of its power on texels beside a depth discontinuity (the same trilinear filter
+    of the moments and of the power on jump texels, RSMMipmaps.jump) and, with NORMAL_AGREEMENT
+    > 0 and diffuse power, its diffuse normals disagree (see NORMAL_AGREEMENT)."""
+    level = f64(level)
+    filtered = mipmap.trilinear(maps.moments, center, level)
+    weight = luminance(filtered[..., CH_DIFFUSE] + filtered[..., CH_SPECULAR])
+    jump = mipmap.trilinear(maps.jump, center, level)
+    diffuse = luminance(filtered[..., CH_DIFFUSE])
+    length = norm(filtered[..., CH_DIFFUSE_DIRECTION])
+    one_surface = DIFFUSE_SHARPNESS / (DIFFUSE_SHARPNESS + 1.0)
+    disagree = (NORMAL_AGREEMENT <= 0.0) | ~(diffuse > 0.0) | (length < NORMAL_AGREEMENT * one_surface * diffuse)
+    return (weight > 0.0) & (jump > STRADDLE_SHARE * weight) & disagree
+
+
+def kernel_level_unstraddled(maps: RSMMipmaps, center, texel, level, split=None):
+    """(level (N,), center (N, 2)): every kernel that :func:`straddles` moved down one level at a
+    time until it no longer does (``split``: SPLIT_AT_JUMPS when None; False returns ``level`` and
+    ``center``), and one that still does at level 0 (its bilinear taps across the jump) moved onto
+    the centre of its own texel ``texel`` (N, 2) (row, column; the warp's), where it is that
+    texel's VPL: its cluster then lies on one side of the discontinuity. 000 Eq. 5 divides by the
+    PDF filtered at the new level and centre, so where p ∝ the power the VSGL keeps its power and
+    covers a smaller part of the RSM (the kernels no longer tile the RSM there: 000 §6's overlaps
+    and gaps, unbiased over lattice rotations)."""
+    split = SPLIT_AT_JUMPS if split is None else bool(split)
+    level, center = f64(level).copy(), f64(center).copy()
+    if not split or maps.jump is None:
+        return level, center
+    for _ in range(min(maps.top_level + 1, MAX_DESCENT)):
+        down = straddles(maps, center, level) & (level > 0.0)
+        if not down.any():
+            break
+        level = np.where(down, np.maximum(level - 1.0, 0.0), level)
+    size = maps.pdf[0].shape[0]
+    own = (np.asarray(texel)[:, ::-1] + 0.5) / size  # (column, row) → uv
+    snap = straddles(maps, center, level) & (level <= 0.0) & SNAP_TO_TEXEL
+    return level, np.where(snap[:, None], own, center)
 
 
 def kernel_pdf_mass(pdf_chain, uv, level, texel_count) -> np.ndarray:
@@ -481,16 +619,20 @@ def two_vsgls(rsm) -> dict:
     return out
 
 
-def cluster_totals(maps: RSMMipmaps, center, texel, k, vsgl_count, kernel="modified"):
-    """Kernel levels (N) and cluster estimates (N, 20) of the moments at warped kernel centres.
+def cluster_totals(maps: RSMMipmaps, center, texel, k, vsgl_count, kernel="modified", split_at_jumps=None):
+    """Kernel levels (N), centres (N, 2) and cluster estimates (N, 20) of the moments at warped
+    kernel centres.
 
     ``center`` (N, 2) and ``texel`` (N, 2) as returned by ``mipmap.warp_hierarchical``.
-    'modified': l_i from Eq. 3 (Algorithm 1), estimate M F̄(x_i, l_i) / (N p̄(x_i, l_i)) (Eq. 5).
+    'modified': l_i from Eq. 3 (Algorithm 1), lowered where the kernel straddles a depth
+    discontinuity (:func:`kernel_level_unstraddled`, ``split_at_jumps``: SPLIT_AT_JUMPS when
+    None), estimate M F̄(x_i, l_i) / (N p̄(x_i, l_i)) (Eq. 5).
     'original': l_i from Eq. 1, estimate M F̄(x_i, l_i) / max(N p(x_i), 1) (Eq. 4).
     """
     texel_count = maps.texel_count
     if kernel == "modified":
         level = kernel_level_modified(maps.pdf, center, k, vsgl_count, texel_count)
+        level, center = kernel_level_unstraddled(maps, center, texel, level, split_at_jumps)
         # Eq. 5: numerator and denominator filtered with the same kernel.
         denominator = vsgl_count * mipmap.trilinear(maps.pdf, center, level)
     elif kernel == "original":
@@ -505,11 +647,11 @@ def cluster_totals(maps: RSMMipmaps, center, texel, k, vsgl_count, kernel="modif
     # floor only guards against a subnormal PDF.
     denominator = np.maximum(denominator, np.finfo(np.float64).tiny)
     filtered = mipmap.trilinear(maps.moments, center, level)
-    return level, texel_count * filtered / denominator[:, None]
+    return level, center, texel_count * filtered / denominator[:, None]
 
 
 def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
-                   rotation=None, positional_distribution="per-lobe") -> dict:
+                   rotation=None, positional_distribution="per-lobe", split_at_jumps=None) -> dict:
     """Generate VSGLs from an RSM by filtered importance sampling (000 §4, app. B.3, app. D).
 
     rsm         an :class:`RSM` or a mapping with its field names.
@@ -521,6 +663,8 @@ def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
     rotation    explicit Cranley-Patterson shift (2,) of the Fibonacci lattice.
     positional_distribution  "per-lobe" (default) or "shared" (000 app. B.2 as written); see
                 ``POSITIONAL_DISTRIBUTIONS`` and ``vsgl_parameters``.
+    split_at_jumps  'modified' kernels over a depth discontinuity descend until they hold none
+                of it (:func:`kernel_level_unstraddled`; SPLIT_AT_JUMPS when None).
 
     Returns a dict of float64 arrays, one row per VSGL: ``mean`` (N, 3), ``variance`` (N)
     (000 app. B.2), ``diffuse_mean``/``specular_mean`` (N, 3), ``diffuse_variance``/
@@ -546,7 +690,7 @@ def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
 
     lattice = mipmap.fibonacci_lattice(vsgl_count, lattice_rotation(seed, rotation))
     center, texel = mipmap.warp_hierarchical(maps.pdf, lattice)
-    level, totals = cluster_totals(maps, center, texel, k, vsgl_count, kernel)
+    level, center, totals = cluster_totals(maps, center, texel, k, vsgl_count, kernel, split_at_jumps)
 
     fallback_mean, fallback_variance = _rsm_fallback(maps.moments[-1])
     out = vsgl_parameters(totals, fallback_mean, fallback_variance, positional_distribution)
