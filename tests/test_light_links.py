@@ -131,8 +131,9 @@ def test_objects_hidden_from_one_ray_type_leave_that_lobe_s_vsgls():
     np.testing.assert_array_equal(glossy_set.rsm.flux_diffuse, plain.rsm.flux_diffuse)
     np.testing.assert_array_equal(diffuse_set.rsm.flux_diffuse[~card], plain.rsm.flux_diffuse[~card])
     # A frame shades each receiver lobe from its own set: glossy as without the control, diffuse less.
-    # (MRP-ASG and the glossy VPLs off: a proxy or a sharp reflector would split the sets of both scenes.)
-    settings = VSGLSettings(vsgl_count=64, rsm_size=64, glossy_reflectors=False, caustics=False)
+    # (MRP-ASG and the glossy VPLs off: a proxy or a sharp reflector would split the sets of both scenes;
+    # the light PDF: with the view PDF the one set of the whole scene follows it, and a glossy set not.)
+    settings = VSGLSettings(vsgl_count=64, rsm_size=64, glossy_reflectors=False, caustics=False, pdf="light")
     renderer = FrameRenderer()
     try:
         split, whole = renderer.render(scene, settings, 48, 36), renderer.render(_scene(), settings, 48, 36)

@@ -32,8 +32,9 @@ REPO = Path(__file__).resolve().parents[1]
 REGION = (160, 120)  # a small viewport: the coarse overlay at scale 0.5 is 80 x 60
 # The glossy VPL pass's cross-bilateral filter is image-space: a band of rows is filtered within its
 # rows, so bands equal the whole image only unfiltered (radius 0; the filter's seam is measured in
-# tests/test_vpl_render.py).
-SETTINGS = VSGLSettings(vsgl_count=64, rsm_size=64, vpl_filter_radius=0)
+# tests/test_vpl_render.py). The light PDF: the overlay's light passes have no single view to weigh
+# the texels by (planner.plan_frame), so a frame equals the overlay's only with it.
+SETTINGS = VSGLSettings(vsgl_count=64, rsm_size=64, vpl_filter_radius=0, pdf="light")
 
 
 @pytest.fixture
