@@ -1,0 +1,374 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Is any one-bounce light path counted twice or dropped by the frame's techniques? (not a test)
+
+    .venv/bin/python benchmarks/path_partition.py [--only NAME ...] [--stride S] [--results-dir DIR]
+
+The path-partition check of ../shared/reference/light-paths.md on the frame the renderer builds
+(renderer.SceneLights: with a rectangle proxy that is also a sharp reflector, three VSGL sets, the
+glossy VPLs and MRP-ASG), visibility off (brute force has none; the light's own shadow at the
+reflector is in the RSM either way), the VPL pass without its denoise filter, interleave 1 and
+δ = 1e-6 (its smallest: nearly every VPL accepted, weight 1), 240x180, on every S-th pixel both ways:
+
+1. texels: every RSM texel of each set read back against the whole RSM (the "all" set): the
+   diffuse flux Φ Rd is in every set unchanged; the diffuse receivers' set keeps the specular flux
+   Φ Rs of every texel but the sharp ones (GGX α < α_c), which the VPL table holds instead (matched
+   texel by texel); the glossy receivers' set keeps every texel's Φ Rs but those on a kept proxy
+   (tested in float64 against the proxies' rectangles), which MRP-ASG carries. Reported as the
+   largest residual |set + its complement − whole| / max |whole| per identity.
+2. cells: float64 brute force (every texel of the whole RSM a VPL: Φ Rd/π ⟨ω, n⟩ and
+   Φ Rs f_GGX(ω', ω; F = 1) ⟨ω, n⟩, as 004's glossy VPLs shine; the receiver's exact Lambert and
+   GGX) restricted to the table's cells (reflector diffuse / specular α ≥ α_c / sharp on a proxy /
+   sharp elsewhere × receiver diffuse / specular), summed over the cells against the unrestricted
+   brute force; and the same brute force of each technique's own input (each set's texels, the VPL
+   table) so that the inputs' sum per receiver lobe, set by set as the frame composes them, can be
+   compared with the whole: a path counted twice shows as a sum above 1, a dropped one below.
+3. techniques: each pass's own image on the same pixels against the brute force of its cell(s):
+   the diffuse receivers' VSGLs (diffuse image), the VPL pass (Indirect Caustics), the glossy
+   receivers' VSGLs (specular image), MRP-ASG (Indirect Glossy Reflectors), the whole set's
+   VSGLs, and the composed Indirect Diffuse / Indirect Specular against the whole brute force,
+   as luminance ratios of the pixel sums, served (MRP-ASG's receiver range) and unserved pixels.
+
+Writes ``path_partition.{md,json}`` in the results directory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
+    sys.path.insert(0, str(folder))
+
+from build_validation_scenes import RESOLUTION  # noqa: E402
+from tradeoff.bench import Bench  # noqa: E402
+from tradeoff.demo import RESULTS_DIR, log  # noqa: E402
+from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+SCENES = ("demo", "polished_metal_floor", "occluded_reflector")
+
+
+def partition_settings(settings):
+    """``settings`` for the check: no visibility, δ at its smallest, no VPL filter."""
+    return settings.overridden(visibility=False, delta=1e-6, vpl_filter_radius=0, vpl_interleave="1",
+                               vpl_samples=1)
+
+
+def set_texels(table_set, scene) -> dict:
+    """Every texel of every view of a frame VSGL set (pipeline.SceneVSGLs), flat, float64, in
+    (light, view, texel) order: position, normal, geometric flux Φ, Φ Rd, Φ Rs, roughness,
+    incoming ω', light index, covered."""
+    from vsgl_addon.reference.rsm import incoming_directions
+
+    parts = []
+    for light_index in sorted(table_set.views_by_light):
+        for view in table_set.views_by_light[light_index]:
+            a = view.to_numpy()
+            position = a.rsm.position.reshape(-1, 3).astype(np.float64)
+            normal = a.rsm.normal.reshape(-1, 3).astype(np.float64)
+            normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
+            parts.append({"position": position, "normal": normal,
+                          "flux_diffuse": a.rsm.flux_diffuse.reshape(-1, 3).astype(np.float64),
+                          "flux_specular": a.rsm.flux_specular.reshape(-1, 3).astype(np.float64),
+                          "roughness": a.roughness.reshape(-1).astype(np.float64),
+                          "incoming": incoming_directions(scene.lights[light_index], position),
+                          "light": np.full(len(position), light_index),
+                          "covered": a.coverage.reshape(-1)})
+    return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+
+
+def on_proxies(position, normal, roughness, proxies) -> np.ndarray:
+    """(M,) bool: the float64 twin of glsl/rsm/rsm.frag.glsl rsm_on_proxy (plane and rectangle within
+    1e-4 of the proxy's size, parallel, of its roughness)."""
+    inside = np.zeros(len(position), bool)
+    for proxy, _ in proxies:
+        tolerance = 1e-4 * (1.0 + max(proxy.half_u, proxy.half_v))
+        d = position - np.asarray(proxy.center, np.float64)
+        inside |= ((np.abs(d @ np.asarray(proxy.normal, np.float64)) <= tolerance)
+                   & (np.abs(d @ np.asarray(proxy.axis_u, np.float64)) <= proxy.half_u + tolerance)
+                   & (np.abs(d @ np.asarray(proxy.axis_v, np.float64)) <= proxy.half_v + tolerance)
+                   & (np.abs(normal @ np.asarray(proxy.normal, np.float64)) > 0.999)
+                   & (np.abs(roughness - np.sqrt(max(proxy.alpha, 0.0))) < 1e-4))
+    return inside
+
+
+def brute_force(texels, flux_diffuse, flux_specular, position, normal, view, rd, f0, alpha, chunk=16):
+    """(diffuse, specular) (P, 3) at the receivers: every texel a VPL Φ Rd/π ⟨ω, n⟩ +
+    Φ Rs f_GGX(ω', ω; F = 1) ⟨ω, n⟩ (004's glossy VPL), onto the receiver's Lambert Rd/π and GGX
+    (F0, α); no visibility; texels at the receiver skipped."""
+    from vsgl_addon.reference.ggx import microfacet_brdf
+    from vsgl_addon.reference.principled import principled_alpha
+    from vsgl_addon.reference.vpl_culling import VPL_ALPHA_MIN
+    from vsgl_addon.reference.vsgl_shading import _ggx_rgb
+
+    keep = (np.abs(flux_diffuse).sum(-1) + np.abs(flux_specular).sum(-1)) > 0.0
+    y, n, w = texels["position"][keep], texels["normal"][keep], texels["incoming"][keep]
+    fd, fs = flux_diffuse[keep], flux_specular[keep]
+    ay = np.maximum(principled_alpha(texels["roughness"][keep]), VPL_ALPHA_MIN)
+    diffuse = np.zeros((len(position), 3))
+    specular = np.zeros((len(position), 3))
+    for start in range(0, len(position), chunk):
+        p = slice(start, start + chunk)
+        r = y[None] - position[p, None]  # receiver -> texel
+        d2 = np.einsum("pmi,pmi->pm", r, r)
+        ok = d2 > 1e-12
+        omega = r / np.sqrt(np.where(ok, d2, 1.0))[..., None]
+        out = -omega  # texel -> receiver
+        cos_y = np.maximum(np.einsum("pmi,mi->pm", out, n), 0.0)
+        cos_x = np.maximum(np.einsum("pmi,pi->pm", omega, normal[p]), 0.0)
+        geometry = np.where(ok, cos_y * cos_x / np.where(ok, d2, 1.0), 0.0)
+        f1 = microfacet_brdf(np.broadcast_to(w, out.shape), out, np.broadcast_to(n, out.shape),
+                             np.broadcast_to(ay, out.shape[:-1]), 1.0)
+        irradiance = (fd[None] / np.pi + fs[None] * f1[..., None]) * geometry[..., None]
+        diffuse[p] = irradiance.sum(axis=1) * rd[p] / np.pi
+        brdf = _ggx_rgb(omega, np.broadcast_to(view[p, None], omega.shape), np.broadcast_to(normal[p, None], omega.shape),
+                        np.broadcast_to(alpha[p, None], omega.shape[:-1]), np.broadcast_to(f0[p, None], omega.shape))
+        specular[p] = (irradiance * brdf).sum(axis=1)
+    return diffuse, specular
+
+
+def lum(image) -> float:
+    return float(np.sum(np.asarray(image, np.float64)[..., :3] @ LUMINANCE))
+
+
+def relative_residual(value, whole) -> float:
+    scale = float(np.max(np.abs(whole))) if np.size(whole) else 0.0
+    return float(np.max(np.abs(value - whole))) / scale if scale > 0.0 else float(np.max(np.abs(value - whole), initial=0.0))
+
+
+def check(name, path, stride) -> dict:
+    from vsgl_addon.passes.gpu_util import read_texture
+    from vsgl_addon.passes.vpl_culling import read_vpls
+    from vsgl_addon.reference.principled import principled_alpha
+    from vsgl_addon.renderer import RECEIVER_ALPHA_RANGE, FrameRenderer, SceneLights
+
+    width, height = RESOLUTION
+    settings, truth, description = scene_with_truth(name, path, width, height)
+    settings = partition_settings(settings)
+    camera = description.camera
+    view_matrix, projection = camera.view_matrix(), camera.projection_matrix()
+    bench = Bench(description, width, height)
+    renderer = FrameRenderer()
+    lights = SceneLights.build(description, settings, view=(view_matrix, projection))
+    result = {"scene": name, "stride": stride, "receiver_sets": list(lights.plan.receiver_sets),
+              "proxies": len(lights.proxies), "caustic_roughness": settings.caustic_roughness}
+    try:
+        pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride)
+        served = (alpha >= RECEIVER_ALPHA_RANGE[0]) & (alpha <= RECEIVER_ALPHA_RANGE[1]) if lights.proxies \
+            else np.zeros(len(alpha), bool)
+        frame = renderer.render_view(lights, settings, width, height, view_matrix, projection)
+        images = {"frame_diffuse": frame.indirect_diffuse[pick], "frame_specular": frame.indirect_specular[pick],
+                  "vsgl_diffuse_set_diffuse": renderer._shading.read()[0][..., :3][pick]}
+        if frame.indirect_caustics is not None:
+            images["vpl"] = frame.indirect_caustics[pick]
+        if frame.indirect_glossy_reflectors is not None:
+            images["mrp"] = frame.indirect_glossy_reflectors[pick]
+            served_gpu = read_texture(renderer._mrp.texture, width, height)[..., 3][pick] > 0.0
+            result["served_agrees"] = float(np.mean(served_gpu == served))
+            served = served_gpu
+        if lights.glossy_vsgls is not None:
+            images["vsgl_glossy_set_specular"] = renderer._glossy_shading.read()[1][..., :3][pick]
+        if lights.whole_vsgls is not None:
+            images["vsgl_whole_set_specular"] = renderer._whole_shading.read()[1][..., :3][pick]
+        else:
+            images["vsgl_whole_set_specular"] = renderer._shading.read()[1][..., :3][pick]
+        result["pixels"], result["served"] = int(pick.sum()), int(served.sum())
+
+        sets = {"first": lights.vsgls, "glossy": lights.glossy_vsgls, "whole": lights.whole_vsgls}
+        names = dict(zip(("first", "glossy", "whole"), lights.plan.receiver_sets))
+        texels = {key: set_texels(value, description) for key, value in sets.items() if value is not None}
+        whole = texels.get("whole", texels["first"] if names["first"] == "all" else None)
+        if whole is None:
+            raise RuntimeError(f"{name}: no set of every reflector to compare with ({names})")
+        sharp = principled_alpha(whole["roughness"]) < settings.caustic_roughness
+        proxy = on_proxies(whole["position"], whole["normal"], whole["roughness"], lights.proxies)
+        lit = np.abs(whole["flux_specular"]).sum(-1) > 0.0
+        residuals = {}
+        # 1. Texel identities (same views, same texel order: the sets share the plan's view specs).
+        for key, t in texels.items():
+            residuals[f"{key}: position"] = relative_residual(t["position"], whole["position"])
+            residuals[f"{key}: flux_diffuse"] = relative_residual(t["flux_diffuse"], whole["flux_diffuse"])
+        vpl_flux = np.zeros_like(whole["flux_specular"])
+        if lights.vpls is not None:
+            vpls = read_vpls(lights.vpls)
+            # The VPL table comes from its own RSM render of the same views: matched by position.
+            index = {tuple(np.round(p, 6)): i for i, p in enumerate(whole["position"]) if whole["covered"][i]}
+            unmatched = 0
+            for p, flux in zip(vpls["position"], vpls["flux"]):
+                i = index.get(tuple(np.round(p, 6)))
+                if i is None:
+                    unmatched += 1
+                    continue
+                vpl_flux[i] += flux
+            result["vpls"], result["vpls_unmatched"] = int(len(vpls["flux"])), unmatched
+        if "first" in texels and names["first"] == "diffuse":
+            residuals["first Φs + VPL Φs vs whole Φs"] = relative_residual(
+                texels["first"]["flux_specular"] + vpl_flux, whole["flux_specular"])
+            residuals["first Φs on sharp texels"] = relative_residual(
+                texels["first"]["flux_specular"][sharp], 0.0 * whole["flux_specular"][sharp])
+        mrp_cell = np.where((proxy & sharp)[:, None], whole["flux_specular"], 0.0)
+        if "glossy" in texels:
+            residuals["glossy Φs + proxy-cell Φs vs whole Φs"] = relative_residual(
+                texels["glossy"]["flux_specular"] + mrp_cell, whole["flux_specular"])
+            cut = lit & ~(np.abs(texels["glossy"]["flux_specular"]).sum(-1) > 0.0)
+            result["cut_texels"], result["proxy_texels_lit"] = int(cut.sum()), int((proxy & lit).sum())
+            result["cut_not_sharp"] = int((cut & ~sharp).sum())
+        result["residuals"] = residuals
+
+        # 2. Cells (float64 brute force of the whole RSM, restricted).
+        receivers = (position, normal, view, rd, f0, alpha)
+        zero = np.zeros_like(whole["flux_diffuse"])
+        fs = whole["flux_specular"]
+        cells = {"diffuse lobe": (whole["flux_diffuse"], zero),
+                 "specular, alpha >= alpha_c": (zero, np.where((~sharp)[:, None], fs, 0.0)),
+                 "specular, sharp, on a proxy": (zero, np.where((sharp & proxy)[:, None], fs, 0.0)),
+                 "specular, sharp, elsewhere": (zero, np.where((sharp & ~proxy)[:, None], fs, 0.0))}
+        start = time.perf_counter()
+        brute = {key: brute_force(whole, *flux, *receivers) for key, flux in cells.items()}
+        brute["whole"] = brute_force(whole, whole["flux_diffuse"], fs, *receivers)
+        inputs = {}
+        if "first" in texels:
+            inputs["first set"] = brute_force(whole, texels["first"]["flux_diffuse"], texels["first"]["flux_specular"], *receivers)
+        if lights.vpls is not None:
+            inputs["VPL table"] = brute_force(whole, zero, vpl_flux, *receivers)
+        if "glossy" in texels:
+            inputs["glossy set"] = brute_force(whole, texels["glossy"]["flux_diffuse"], texels["glossy"]["flux_specular"], *receivers)
+        log(f"{name}: brute force of {int(whole['covered'].sum())} texels at {len(position)} pixels, "
+            f"{time.perf_counter() - start:.0f} s")
+        masks = {"all": np.ones(len(position), bool), "served": served, "unserved": ~served}
+        table = {}
+        for key, (d, s) in brute.items():
+            table[key] = {f"{lobe} {m}": lum(img[mask]) for lobe, img in (("diffuse", d), ("specular", s))
+                          for m, mask in masks.items()}
+        result["cells"] = table
+        cell_sum_d = sum(brute[key][0] for key in cells)
+        cell_sum_s = sum(brute[key][1] for key in cells)
+        result["cells_sum_residual"] = {"diffuse": relative_residual(cell_sum_d, brute["whole"][0]),
+                                        "specular": relative_residual(cell_sum_s, brute["whole"][1])}
+        # The frame's composition of inputs, per receiver lobe, against the whole brute force.
+        whole_d, whole_s = brute["whole"]
+        compose_d = inputs["first set"][0] + (inputs["VPL table"][0] if "VPL table" in inputs else 0.0) \
+            if names["first"] == "diffuse" else inputs["first set"][0]
+        if "glossy set" in inputs:
+            spec_served = inputs["glossy set"][1] + brute["specular, sharp, on a proxy"][1]
+            spec_unserved = whole_s if lights.whole_vsgls is not None else inputs["first set"][1]
+            compose_s = np.where(served[:, None], spec_served, spec_unserved)
+        else:
+            compose_s = inputs["first set"][1]
+        result["composed_inputs"] = {
+            "diffuse / whole": lum(compose_d) / max(lum(whole_d), 1e-30),
+            "specular / whole": lum(compose_s) / max(lum(whole_s), 1e-30),
+            "diffuse max |Δ| / max": relative_residual(compose_d, whole_d),
+            "specular max |Δ| / max": relative_residual(compose_s, whole_s)}
+
+        # 3. Techniques against their cells.
+        b = brute
+        tech = {}
+
+        def ratio(label, image, reference, mask):
+            ref = lum(reference[mask])
+            tech[label] = {"ours": lum(image[mask]), "cell": ref, "ratio": lum(image[mask]) / ref if ref > 0 else None}
+
+        sharp_d = b["specular, sharp, on a proxy"][0] + b["specular, sharp, elsewhere"][0]
+        ratio("diffuse receivers' VSGLs (diffuse) vs diffuse lobe + specular alpha >= alpha_c -> diffuse",
+              images["vsgl_diffuse_set_diffuse"], b["diffuse lobe"][0] + b["specular, alpha >= alpha_c"][0], masks["all"])
+        if "vpl" in images:
+            ratio("VPL pass vs sharp -> diffuse", images["vpl"], sharp_d, masks["all"])
+        if "vsgl_glossy_set_specular" in images:
+            ratio("glossy receivers' VSGLs (specular) vs all but sharp-on-proxy -> specular, served",
+                  images["vsgl_glossy_set_specular"], whole_s - b["specular, sharp, on a proxy"][1], served)
+        if "mrp" in images:
+            ratio("MRP-ASG vs sharp-on-proxy -> specular, served", images["mrp"], b["specular, sharp, on a proxy"][1], served)
+            ratio("MRP-ASG on unserved pixels (must be 0) vs sharp-on-proxy -> specular", images["mrp"],
+                  b["specular, sharp, on a proxy"][1], ~served)
+        ratio("whole set's VSGLs (specular) vs whole -> specular, unserved", images["vsgl_whole_set_specular"], whole_s, ~served)
+        ratio("frame Indirect Diffuse vs whole -> diffuse", images["frame_diffuse"], whole_d, masks["all"])
+        ratio("frame Indirect Specular vs whole -> specular", images["frame_specular"], whole_s, masks["all"])
+        ratio("frame Indirect Specular vs whole -> specular, served", images["frame_specular"], whole_s, served)
+        ratio("frame Indirect Specular vs whole -> specular, unserved", images["frame_specular"], whole_s, ~served)
+        # The frame's composition of its own images (renderer.render_view_textures).
+        recomposed_d = images["vsgl_diffuse_set_diffuse"] + images.get("vpl", 0.0)
+        if "mrp" in images:
+            recomposed_s = np.where(served[:, None], images.get("vsgl_glossy_set_specular", images["vsgl_whole_set_specular"])
+                                    + images["mrp"], images["vsgl_whole_set_specular"])
+        else:
+            recomposed_s = images["vsgl_whole_set_specular"]
+        result["frame_composition"] = {"diffuse": relative_residual(images["frame_diffuse"], recomposed_d),
+                                       "specular": relative_residual(images["frame_specular"], recomposed_s)}
+        result["techniques"] = tech
+    finally:
+        lights.free()
+        renderer.free()
+        bench.free()
+    return result
+
+
+def markdown(results, command) -> str:
+    lines = ["# Path partition: is any light path counted twice or dropped?", "",
+             f"`{command}` (benchmarks/path_partition.py's documentation: visibility off, every VPL "
+             "accepted, no VPL filter, 240x180).", ""]
+    for r in results:
+        lines += [f"## {r['scene']}", "",
+                  f"VSGL sets {r['receiver_sets']}, {r['proxies']} proxies, α_c {r['caustic_roughness']}; "
+                  f"{r['pixels']} pixels (every {r['stride']}th both ways), {r['served']} served by MRP-ASG"
+                  + (f" (receiver-range test agrees with the pass's alpha on {r['served_agrees']:.3f})" if "served_agrees" in r else "")
+                  + (f"; {r['vpls']} VPLs, {r['vpls_unmatched']} not matched to a texel" if "vpls" in r else "")
+                  + (f"; glossy set: {r['cut_texels']} texels lost Φs, {r['proxy_texels_lit']} lit texels on proxies, "
+                     f"{r['cut_not_sharp']} of the cut not sharp" if "cut_texels" in r else "") + ".", "",
+                  "Texel identities (max |Δ| / max |whole|):", ""]
+        lines += [f"- {key}: {value:.2e}" for key, value in r["residuals"].items()]
+        lines += ["", f"Cells summed vs the unrestricted brute force (max |Δ| / max): diffuse "
+                      f"{r['cells_sum_residual']['diffuse']:.2e}, specular {r['cells_sum_residual']['specular']:.2e}.", "",
+                  "Brute force per cell (luminance summed over the pixels):", "",
+                  "| cell | → diffuse | → specular | → specular, served | → specular, unserved |", "|---|---|---|---|---|"]
+        for key, value in r["cells"].items():
+            lines.append(f"| {key} | {value['diffuse all']:.5g} | {value['specular all']:.5g} | "
+                         f"{value['specular served']:.5g} | {value['specular unserved']:.5g} |")
+        c = r["composed_inputs"]
+        lines += ["", f"The frame's inputs composed as the frame composes them, brute-forced, over the whole: diffuse "
+                      f"{c['diffuse / whole']:.6f} (max |Δ| / max {c['diffuse max |Δ| / max']:.1e}), specular "
+                      f"{c['specular / whole']:.6f} (max |Δ| / max {c['specular max |Δ| / max']:.1e}).", "",
+                  f"The frame's images recomposed from its passes' images (max |Δ| / max): diffuse "
+                  f"{r['frame_composition']['diffuse']:.1e}, specular {r['frame_composition']['specular']:.1e}.", "",
+                  "| technique vs its cell (brute force) | ours | cell | ours / cell |", "|---|---|---|---|"]
+        for key, value in r["techniques"].items():
+            shown = "" if value["ratio"] is None else f"{value['ratio']:.3f}"
+            lines.append(f"| {key} | {value['ours']:.5g} | {value['cell']:.5g} | {shown} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", nargs="+", default=list(SCENES))
+    parser.add_argument("--stride", type=int, default=6)
+    parser.add_argument("--results-dir", type=Path, default=RESULTS_DIR)
+    args = parser.parse_args(argv)
+    from vsgl_addon import register, unregister
+    from vsgl_addon.gpu_context import ensure_gpu_context
+
+    paths = {name: path for name, path, _ in suite()}
+    register()
+    ensure_gpu_context()
+    try:
+        results = [check(name, paths[name], args.stride) for name in args.only]
+    finally:
+        unregister()
+    command = "benchmarks/path_partition.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    text = markdown(results, command.strip())
+    args.results_dir.mkdir(parents=True, exist_ok=True)
+    (args.results_dir / "path_partition.md").write_text(text + "\n")
+    (args.results_dir / "path_partition.json").write_text(json.dumps({"command": command.strip(), "results": results},
+                                                                     indent=1, default=float) + "\n")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
