@@ -60,79 +60,6 @@ def partition_settings(settings):
                                vpl_samples=1)
 
 
-def set_texels(table_set, scene) -> dict:
-    """Every texel of every view of a frame VSGL set (pipeline.SceneVSGLs), flat, float64, in
-    (light, view, texel) order: position, normal, geometric flux Φ, Φ Rd, Φ Rs, roughness,
-    incoming ω', light index, covered."""
-    from vsgl_addon.reference.rsm import incoming_directions
-
-    parts = []
-    for light_index in sorted(table_set.views_by_light):
-        for view in table_set.views_by_light[light_index]:
-            a = view.to_numpy()
-            position = a.rsm.position.reshape(-1, 3).astype(np.float64)
-            normal = a.rsm.normal.reshape(-1, 3).astype(np.float64)
-            normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
-            parts.append({"position": position, "normal": normal,
-                          "flux_diffuse": a.rsm.flux_diffuse.reshape(-1, 3).astype(np.float64),
-                          "flux_specular": a.rsm.flux_specular.reshape(-1, 3).astype(np.float64),
-                          "roughness": a.roughness.reshape(-1).astype(np.float64),
-                          "incoming": incoming_directions(scene.lights[light_index], position),
-                          "light": np.full(len(position), light_index),
-                          "covered": a.coverage.reshape(-1)})
-    return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
-
-
-def on_proxies(position, normal, roughness, proxies) -> np.ndarray:
-    """(M,) bool: the float64 twin of glsl/rsm/rsm.frag.glsl rsm_on_proxy (plane and rectangle within
-    1e-4 of the proxy's size, parallel, of its roughness)."""
-    inside = np.zeros(len(position), bool)
-    for proxy, _ in proxies:
-        tolerance = 1e-4 * (1.0 + max(proxy.half_u, proxy.half_v))
-        d = position - np.asarray(proxy.center, np.float64)
-        inside |= ((np.abs(d @ np.asarray(proxy.normal, np.float64)) <= tolerance)
-                   & (np.abs(d @ np.asarray(proxy.axis_u, np.float64)) <= proxy.half_u + tolerance)
-                   & (np.abs(d @ np.asarray(proxy.axis_v, np.float64)) <= proxy.half_v + tolerance)
-                   & (np.abs(normal @ np.asarray(proxy.normal, np.float64)) > 0.999)
-                   & (np.abs(roughness - np.sqrt(max(proxy.alpha, 0.0))) < 1e-4))
-    return inside
-
-
-def brute_force(texels, flux_diffuse, flux_specular, position, normal, view, rd, f0, alpha, chunk=16):
-    """(diffuse, specular) (P, 3) at the receivers: every texel a VPL Φ Rd/π ⟨ω, n⟩ +
-    Φ Rs f_GGX(ω', ω; F = 1) ⟨ω, n⟩ (004's glossy VPL), onto the receiver's Lambert Rd/π and GGX
-    (F0, α); no visibility; texels at the receiver skipped."""
-    from vsgl_addon.reference.ggx import microfacet_brdf
-    from vsgl_addon.reference.principled import principled_alpha
-    from vsgl_addon.reference.vpl_culling import VPL_ALPHA_MIN
-    from vsgl_addon.reference.vsgl_shading import _ggx_rgb
-
-    keep = (np.abs(flux_diffuse).sum(-1) + np.abs(flux_specular).sum(-1)) > 0.0
-    y, n, w = texels["position"][keep], texels["normal"][keep], texels["incoming"][keep]
-    fd, fs = flux_diffuse[keep], flux_specular[keep]
-    ay = np.maximum(principled_alpha(texels["roughness"][keep]), VPL_ALPHA_MIN)
-    diffuse = np.zeros((len(position), 3))
-    specular = np.zeros((len(position), 3))
-    for start in range(0, len(position), chunk):
-        p = slice(start, start + chunk)
-        r = y[None] - position[p, None]  # receiver -> texel
-        d2 = np.einsum("pmi,pmi->pm", r, r)
-        ok = d2 > 1e-12
-        omega = r / np.sqrt(np.where(ok, d2, 1.0))[..., None]
-        out = -omega  # texel -> receiver
-        cos_y = np.maximum(np.einsum("pmi,mi->pm", out, n), 0.0)
-        cos_x = np.maximum(np.einsum("pmi,pi->pm", omega, normal[p]), 0.0)
-        geometry = np.where(ok, cos_y * cos_x / np.where(ok, d2, 1.0), 0.0)
-        f1 = microfacet_brdf(np.broadcast_to(w, out.shape), out, np.broadcast_to(n, out.shape),
-                             np.broadcast_to(ay, out.shape[:-1]), 1.0)
-        irradiance = (fd[None] / np.pi + fs[None] * f1[..., None]) * geometry[..., None]
-        diffuse[p] = irradiance.sum(axis=1) * rd[p] / np.pi
-        brdf = _ggx_rgb(omega, np.broadcast_to(view[p, None], omega.shape), np.broadcast_to(normal[p, None], omega.shape),
-                        np.broadcast_to(alpha[p, None], omega.shape[:-1]), np.broadcast_to(f0[p, None], omega.shape))
-        specular[p] = (irradiance * brdf).sum(axis=1)
-    return diffuse, specular
-
-
 def lum(image) -> float:
     return float(np.sum(np.asarray(image, np.float64)[..., :3] @ LUMINANCE))
 
@@ -145,6 +72,8 @@ def relative_residual(value, whole) -> float:
 def check(name, path, stride) -> dict:
     from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.passes.vpl_culling import read_vpls
+    from vsgl_addon.reference.path_partition import (brute_force_one_bounce as brute_force, cell_fluxes,
+                                                     match_vpl_flux, rsm_on_proxy, set_texels)
     from vsgl_addon.reference.principled import principled_alpha
     from vsgl_addon.renderer import RECEIVER_ALPHA_RANGE, FrameRenderer, SceneLights
 
@@ -182,12 +111,12 @@ def check(name, path, stride) -> dict:
 
         sets = {"first": lights.vsgls, "glossy": lights.glossy_vsgls, "whole": lights.whole_vsgls}
         names = dict(zip(("first", "glossy", "whole"), lights.plan.receiver_sets))
-        texels = {key: set_texels(value, description) for key, value in sets.items() if value is not None}
+        texels = {key: set_texels(value, description.lights) for key, value in sets.items() if value is not None}
         whole = texels.get("whole", texels["first"] if names["first"] == "all" else None)
         if whole is None:
             raise RuntimeError(f"{name}: no set of every reflector to compare with ({names})")
         sharp = principled_alpha(whole["roughness"]) < settings.caustic_roughness
-        proxy = on_proxies(whole["position"], whole["normal"], whole["roughness"], lights.proxies)
+        proxy = rsm_on_proxy(whole["position"], whole["normal"], whole["roughness"], lights.proxies)
         lit = np.abs(whole["flux_specular"]).sum(-1) > 0.0
         residuals = {}
         # 1. Texel identities (same views, same texel order: the sets share the plan's view specs).
@@ -198,14 +127,7 @@ def check(name, path, stride) -> dict:
         if lights.vpls is not None:
             vpls = read_vpls(lights.vpls)
             # The VPL table comes from its own RSM render of the same views: matched by position.
-            index = {tuple(np.round(p, 6)): i for i, p in enumerate(whole["position"]) if whole["covered"][i]}
-            unmatched = 0
-            for p, flux in zip(vpls["position"], vpls["flux"]):
-                i = index.get(tuple(np.round(p, 6)))
-                if i is None:
-                    unmatched += 1
-                    continue
-                vpl_flux[i] += flux
+            vpl_flux, unmatched = match_vpl_flux(whole, vpls["position"], vpls["flux"])
             result["vpls"], result["vpls_unmatched"] = int(len(vpls["flux"])), unmatched
         if "first" in texels and names["first"] == "diffuse":
             residuals["first Φs + VPL Φs vs whole Φs"] = relative_residual(
@@ -225,10 +147,7 @@ def check(name, path, stride) -> dict:
         receivers = (position, normal, view, rd, f0, alpha)
         zero = np.zeros_like(whole["flux_diffuse"])
         fs = whole["flux_specular"]
-        cells = {"diffuse lobe": (whole["flux_diffuse"], zero),
-                 "specular, alpha >= alpha_c": (zero, np.where((~sharp)[:, None], fs, 0.0)),
-                 "specular, sharp, on a proxy": (zero, np.where((sharp & proxy)[:, None], fs, 0.0)),
-                 "specular, sharp, elsewhere": (zero, np.where((sharp & ~proxy)[:, None], fs, 0.0))}
+        cells = cell_fluxes(whole, lights.proxies, settings.caustic_roughness)
         start = time.perf_counter()
         brute = {key: brute_force(whole, *flux, *receivers) for key, flux in cells.items()}
         brute["whole"] = brute_force(whole, whole["flux_diffuse"], fs, *receivers)
