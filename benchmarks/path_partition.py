@@ -116,7 +116,7 @@ def check(name, path, stride) -> dict:
         if whole is None:
             raise RuntimeError(f"{name}: no set of every reflector to compare with ({names})")
         sharp = principled_alpha(whole["roughness"]) < settings.caustic_roughness
-        proxy = rsm_on_proxy(whole["position"], whole["normal"], whole["roughness"], lights.proxies)
+        proxy = rsm_on_proxy(whole["position"], whole["normal"], whole["roughness"], lights.proxies, whole["light"])
         lit = np.abs(whole["flux_specular"]).sum(-1) > 0.0
         residuals = {}
         # 1. Texel identities (same views, same texel order: the sets share the plan's view specs).

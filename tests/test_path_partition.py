@@ -180,6 +180,8 @@ def test_a_light_between_the_proxy_samples_stays_in_mrp_asg():
     assert (lit & on_floor & (whole["light"] == narrow)).sum() > 3  # the narrow spot's pool is on the floor
     cut = lit & (glossy["flux_specular"].max(axis=-1) == 0.0)
     assert cut.sum() > 50
+    cells = cell_fluxes(whole, proxies, SETTINGS.caustic_roughness)
+    np.testing.assert_array_equal(glossy["flux_specular"] + cells[CELLS[2]][1], whole["flux_specular"])
     for light_index in np.unique(whole["light"][cut]):
         on = cut & (whole["light"] == light_index)
         carried = np.zeros(len(on), bool)

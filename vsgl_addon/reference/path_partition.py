@@ -24,23 +24,29 @@ from .rsm import incoming_directions
 CELLS = ("diffuse lobe", "specular, alpha >= alpha_c", "specular, sharp, on a proxy", "specular, sharp, elsewhere")
 
 
-def rsm_on_proxy(position, geometric_normal, roughness, proxies) -> np.ndarray:
-    """(M,) bool: texels in one of ``proxies`` (RectangleProxy, or (proxy, mask) pairs) as the glossy
-    receivers' RSM tests it (glsl/rsm/rsm.frag.glsl rsm_on_proxy): in its plane and rectangle within
-    1e-4 of its size, parallel to it, of its Principled roughness (the proxy table's √α)."""
+def rsm_on_proxy(position, geometric_normal, roughness, proxies, light=None) -> np.ndarray:
+    """(M,) bool: texels in one of ``proxies`` as the glossy receivers' RSM tests it
+    (glsl/rsm/rsm.frag.glsl rsm_on_proxy): in its plane and rectangle within 1e-4 of its size,
+    parallel to it, of its Principled roughness (the proxy table's √α). ``proxies``: RectangleProxy
+    (for every texel) or (proxy, lit-by mask) pairs, which with ``light`` (M,) (each texel's light
+    index) hold only for the texels of the mask's lights (pipeline.render_scene_vsgls)."""
     position = f64(position).reshape(-1, 3)
     geometric_normal = f64(geometric_normal).reshape(-1, 3)
     roughness = f64(roughness).reshape(-1)
     inside = np.zeros(len(position), bool)
     for proxy in proxies:
-        proxy = proxy[0] if isinstance(proxy, tuple) else proxy
+        lights = np.ones(len(position), bool)
+        if isinstance(proxy, tuple):
+            proxy, mask = proxy
+            if light is not None:
+                lights = np.asarray(mask, bool)[np.asarray(light, np.int64)]
         tolerance = 1e-4 * (1.0 + max(proxy.half_u, proxy.half_v))
         d = position - f64(proxy.center)
         inside |= ((np.abs(d @ f64(proxy.normal)) <= tolerance)
                    & (np.abs(d @ f64(proxy.axis_u)) <= proxy.half_u + tolerance)
                    & (np.abs(d @ f64(proxy.axis_v)) <= proxy.half_v + tolerance)
                    & (np.abs(geometric_normal @ f64(proxy.normal)) > 0.999)
-                   & (np.abs(roughness - np.sqrt(max(proxy.alpha, 0.0))) < 1e-4))
+                   & (np.abs(roughness - np.sqrt(max(proxy.alpha, 0.0))) < 1e-4) & lights)
     return inside
 
 
@@ -70,9 +76,10 @@ def set_texels(table_set, lights) -> dict:
 
 def cell_fluxes(texels: dict, proxies, caustic_roughness: float) -> dict:
     """cell name (:data:`CELLS`) -> (Φ Rd, Φ Rs) (M, 3) of ``texels`` (:func:`set_texels` of the
-    whole RSM) that belong to it; the four sum to the texels' fluxes exactly."""
+    whole RSM) that belong to it, a texel on a proxy only for the lights of its lit-by mask when
+    ``proxies`` are (proxy, mask) pairs; the four sum to the texels' fluxes exactly."""
     sharp = principled_alpha(texels["roughness"]) < caustic_roughness
-    proxy = rsm_on_proxy(texels["position"], texels["normal"], texels["roughness"], proxies)
+    proxy = rsm_on_proxy(texels["position"], texels["normal"], texels["roughness"], proxies, texels["light"])
     zero = np.zeros_like(texels["flux_diffuse"])
     fs = texels["flux_specular"]
     return {CELLS[0]: (texels["flux_diffuse"], zero),
