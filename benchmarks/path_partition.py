@@ -242,8 +242,11 @@ def check(name, path, stride) -> dict:
             split["served: MRP-ASG's own error²"] = float(np.sum(e_mrp ** 2)) / total
             split["served: cross term 2 e_vsgl e_mrp"] = float(2.0 * np.sum(e_vsgl * e_mrp)) / total
         materials = np.asarray(bench.material_index[pick])
+        cycles = 0.5 * (truth["glossy_a"] + truth["glossy_b"])[..., :3][pick].astype(np.float64)
+        split["Cycles (visibility, all paths) / brute"] = lum(cycles) / max(lum(whole_s), 1e-30)
         for index in np.unique(materials):
             here = materials == index
+            split[f"material {bench.materials[index]} Cycles/brute"] = lum(cycles[here]) / max(lum(whole_s[here]), 1e-30)
             split[f"material {bench.materials[index]} share"] = float(np.sum(error[here] ** 2)) / total
             split[f"material {bench.materials[index]} ours/brute"] = lum(images["frame_specular"][here]) / max(lum(whole_s[here]), 1e-30)
         result["specular_error"] = split
@@ -256,8 +259,8 @@ def check(name, path, stride) -> dict:
 
 def markdown(results, command) -> str:
     lines = ["# Path partition: is any light path counted twice or dropped?", "",
-             f"`{command}` (benchmarks/path_partition.py's documentation: visibility off, every VPL "
-             "accepted, no VPL filter, 240x180).", ""]
+             f"`{command}` (benchmarks/path_partition.py's documentation: visibility off, δ 1e-6, "
+             "no VPL filter, 240x180).", ""]
     for r in results:
         lines += [f"## {r['scene']}", "",
                   f"VSGL sets {r['receiver_sets']}, {r['proxies']} proxies, α_c {r['caustic_roughness']}; "
