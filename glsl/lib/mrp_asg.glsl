@@ -191,9 +191,17 @@ float mrp_convolve(vec3 view, vec3 normal, float roughness, vec3 m, vec3 n, vec3
   vec3 axis;
   float sharpness, sg_amplitude;
   mrp_receiver_sg(view, normal, roughness, axis, sharpness, sg_amplitude);
-  float value = mode == MRP_MODE_SG ?
-                    sg_product_integral(z, 2.0 * max(bandwidth_m, bandwidth_n), axis, sharpness) :
-                    sg_asg_convolution(axis, sharpness, m, n, z, bandwidth_m, bandwidth_n);
+  // The receiver's GGX NDF as two SGs of the same peak and integral (reference RECEIVER_NDF_LOBES):
+  // Eq. 8's single SG has a wider core than GGX and over-lights sharp receivers.
+  const float weights[2] = float[2](0.83, 0.17);
+  const float scales[2] = float[2](1.96, 0.17 / (1.0 - 0.83 / 1.96));
+  float value = 0.0;
+  for (int i = 0; i < 2; i++) {
+    float lobe = scales[i] * sharpness;
+    value += weights[i] * (mode == MRP_MODE_SG ?
+                               sg_product_integral(z, 2.0 * max(bandwidth_m, bandwidth_n), axis, lobe) :
+                               sg_asg_convolution(axis, lobe, m, n, z, bandwidth_m, bandwidth_n));
+  }
   return amplitude * sg_amplitude * value;
 }
 

@@ -88,6 +88,14 @@ DISK_LOBE_SCALE = 1.5
 #: Disk-radius rules of ``mrp_shade``: 001's user-controlled r_d alone, or at least DISK_LOBE_SCALE
 #: lobe footprints.
 DISK_RULES = ("fixed", "lobe")
+#: The receiver's GGX NDF as two SGs (weight, sharpness scale over Eq. 8's λ_h = 2/α²): GGX is
+#: D(θ) = (1/πα²) (1 + θ²/α²)⁻² for small α, a narrower core than Eq. 8's single SG
+#: e^(−θ²/α²) of the same peak and integral, with longer tails, so the single SG gives 1.25× the
+#: light of a sharp receiver (α 0.05) whose light is about as wide as its lobe
+#: (benchmarks/results/mrp_asg_receiver_split.md). 0.83 e^(−1.96 θ²/α²) + 0.17 e^(−0.295 θ²/α²)
+#: keeps the peak (weights sum to 1) and the integral (Σ w/c = 1) and fits (1 + u²)⁻² with 1/30 of
+#: the single SG's squared error (∫ (f − g)² u du, u = θ/α, least squares over w₁ and c₁).
+RECEIVER_NDF_LOBES = ((0.83, 1.96), (0.17, 0.17 / (1.0 - 0.83 / 1.96)))
 #: ε = 0.05 of 001 Eq. 31 gives ln(1/ε) = 2.996 in Eq. 32.
 LOG_INV_EPSILON = 2.996
 MODES = ("asg", "sg")
@@ -292,13 +300,16 @@ def mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amp
     """∫ Ga(ω) Gi(ω) dω of Eq. 10 with the ASG light (m, n, z; λ along m, µ along n; amplitude t)
     and the receiver SG (``mrp_receiver_sg``): Eq. 11 (``"asg"``) or Eq. 37 + SG product
     integral (``"sg"``)."""
-    axis, sharpness, sg_amplitude = mrp_receiver_sg(view, normal, roughness)
-    if mode == "asg":
-        value = sg_asg_convolution(axis, sharpness, m, n, z, bandwidth_m, bandwidth_n)
-    elif mode == "sg":
-        value = sg_product_integral(z, 2.0 * np.maximum(bandwidth_m, bandwidth_n), axis, sharpness)
-    else:
+    if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    axis, sharpness, sg_amplitude = mrp_receiver_sg(view, normal, roughness)
+    value = 0.0
+    for weight, scale in RECEIVER_NDF_LOBES:  # the NDF's two SGs (RECEIVER_NDF_LOBES)
+        if mode == "asg":
+            value = value + weight * sg_asg_convolution(axis, scale * sharpness, m, n, z, bandwidth_m, bandwidth_n)
+        else:
+            value = value + weight * sg_product_integral(z, 2.0 * np.maximum(bandwidth_m, bandwidth_n), axis,
+                                                         scale * sharpness)
     return f64(amplitude) * sg_amplitude * value
 
 
