@@ -77,10 +77,11 @@ def test_scalar_functions():
                                                                  indexing="ij"))
     out = evaluate_glsl(
         "disk = mrp_disk_integral(c, a, e, s); band = mrp_bandwidth(e); brdf = mrp_peak_brdf(c, a, 0.9);"
-        "ratio = mrp_exp_ratio(e * (s - 2.0));",
-        dict(c=c, a=a, e=e, s=s), {"disk": 1, "band": 1, "brdf": 1, "ratio": 1}, libraries=LIB)
+        "ratio = mrp_exp_ratio(e * (s - 2.0)); lobe = mrp_lobe_extent(c, a, s);",
+        dict(c=c, a=a, e=e, s=s), {"disk": 1, "band": 1, "brdf": 1, "ratio": 1, "lobe": 1}, libraries=LIB)
     groups = np.stack((c, a), axis=1)
     check(out["disk"], mrp.mrp_disk_integral(c, a, e, s), groups, label="disk")
+    check(out["lobe"], mrp.mrp_lobe_extent(c, a, s), groups, label="lobe extent")
     check(out["band"], mrp.mrp_bandwidth(e), label="bandwidth", groups=e)
     check(out["brdf"], mrp.mrp_peak_brdf(c, a, 0.9), groups, label="peak brdf")
     x = e * (s - 2.0)

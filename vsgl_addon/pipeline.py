@@ -224,7 +224,10 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
     only of those seen by diffuse or by glossy rays, for a scene where some object is hidden from one
     ray type (Blender's ray visibility): the receivers' two lobes then see different reflectors.
     ``proxies`` (with "glossy"): the rectangle proxies whose specular flux MRP-ASG carries to the
-    receivers' glossy lobes instead (light-paths.md; passes/rsm.py). ``sharp_alpha`` > 0: no texel
+    receivers' glossy lobes instead (light-paths.md; passes/rsm.py), each a RectangleProxy (for
+    every light) or a (proxy, lit-by mask) pair of planner.kept_proxies (for the lights of its mask:
+    MRP-ASG shades a proxy with those alone, so another light's reflection off it stays in these
+    VSGLs instead of being in neither). ``sharp_alpha`` > 0: no texel
     with GGX α below it keeps specular flux, which the glossy VPLs carry to diffuse receivers.
     ``plan``: the frame's planner.FramePlan (made here when None); the views' measured powers share
     its N (FramePlan.allocate, recorded in the plan under ``receiver_lobe``). ``receivers``
@@ -247,8 +250,10 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             light_plan = plan.lights[light_index]
             # The views the planner culled already (light_reach): not tested a second time per frame.
             specs = light_plan.view_specs if len(light_plan.view_specs) == light_plan.rsm_views else None
+            light_proxies = [proxy[0] if isinstance(proxy, tuple) else proxy for proxy in proxies
+                             if not isinstance(proxy, tuple) or proxy[1][light_index]]
             views = render_rsm_views(scene_gpu, light_index, light_plan.rsm_size, receiver_lobe,
-                                     proxies, sharp_alpha, specs)
+                                     light_proxies, sharp_alpha, specs)
             result.views_by_light[light_index] = views
             for view_index, view in enumerate(views):
                 generation = VSGLGeneration()

@@ -174,11 +174,11 @@ class VSGLSceneSettings(PropertyGroup):
     disk_radius: FloatProperty(
         name="Disk Radius",
         description=(
-            "Radius r_d of the sampling disk at each specular peak (001 section 3.4), in metres: the "
-            "part of the reflector whose light a receiver gathers. Small keeps a sharp reflection's "
-            "shape but loses the light of rougher reflectors (their highlight is wider than the disk); "
-            "large gathers all of it but spreads it over the disk, blurring sharp reflections. "
-            "It costs nothing either way"
+            "Smallest radius r_d of the sampling disk at each specular peak (001 section 3.4), in "
+            "metres: the part of the reflector whose light a receiver gathers. The disk is never "
+            "smaller than 1.5 footprints of the reflector's highlight seen from the receiver, so a "
+            "small r_d loses no light; a larger one spreads the light over the disk, blurring sharp "
+            "reflections. It costs nothing either way"
         ),
         default=0.1,
         min=DISK_RADIUS_RANGE[0],

@@ -136,7 +136,7 @@ class SceneLights:
             # both passes and MRP-ASG gated by receiver roughness, a third of every reflector.
             receivers = view_receivers(scene_gpu, *view) if plan.runs("view_pdf") else None
             for lobe in plan.receiver_sets:
-                cut_proxies = [proxy for proxy, _ in proxies] if lobe == "glossy" else ()
+                cut_proxies = proxies if lobe == "glossy" else ()
                 sharp_alpha = settings.caustic_roughness if caustics and lobe == "diffuse" else 0.0
                 sets.append(render_scene_vsgls(scene_gpu, settings, lobe, cut_proxies, sharp_alpha, plan, receivers))
                 if sets[-1].generations:

@@ -17,6 +17,8 @@ const float MRP_EXTENT_FLOOR = 1e-4;
 const float MRP_EXTENT_MAX = 1e6;
 const float MRP_BANDWIDTH_FLOOR = 1e-3;
 const float MRP_K_OFFSET = 0.673;
+// The sampling disk's radius in lobe footprints (reference DISK_LOBE_SCALE): at least this many.
+const float MRP_DISK_LOBE_SCALE = 1.5;
 const float MRP_LOG_INV_EPSILON = 2.996;
 const int MRP_MODE_ASG = 0;
 const int MRP_MODE_SG = 1;
@@ -94,6 +96,19 @@ float mrp_disk_integral(float cos_sigma, float roughness, float extent, float sp
   float q = e * e * c * c;
   float t = q / (1.0 + q);
   return PI * t * mrp_exp_ratio(k * t);
+}
+
+// rho_lobe, the unit-distance radius of the reflector lobe's footprint (reference mrp_lobe_extent):
+// k t = 1 with mrp_disk_integral's k, rho = 1 / (cos sigma sqrt(k - 1)); MRP_EXTENT_MAX for k <= 1.
+float mrp_lobe_extent(float cos_sigma, float roughness, float spread)
+{
+  float c = clamp(cos_sigma, COSINE_FLOOR, 1.0);
+  float alpha = max(roughness, MRP_ALPHA_MIN);
+  float k = 1.0 / (4.0 * alpha * alpha * c) - MRP_K_OFFSET;
+  if (k > 0.0) {
+    k *= spread * spread;
+  }
+  return k > 1.0 ? min(1.0 / (c * sqrt(k - 1.0)), MRP_EXTENT_MAX) : MRP_EXTENT_MAX;
 }
 
 // A of Eq. 36: the bounding rectangle of disk and R in R's frame, over the disk's square 4 r^2.
@@ -176,9 +191,17 @@ float mrp_convolve(vec3 view, vec3 normal, float roughness, vec3 m, vec3 n, vec3
   vec3 axis;
   float sharpness, sg_amplitude;
   mrp_receiver_sg(view, normal, roughness, axis, sharpness, sg_amplitude);
-  float value = mode == MRP_MODE_SG ?
-                    sg_product_integral(z, 2.0 * max(bandwidth_m, bandwidth_n), axis, sharpness) :
-                    sg_asg_convolution(axis, sharpness, m, n, z, bandwidth_m, bandwidth_n);
+  // The receiver's GGX NDF as two SGs of the same peak and integral (reference RECEIVER_NDF_LOBES):
+  // Eq. 8's single SG has a wider core than GGX and over-lights sharp receivers.
+  const float weights[2] = float[2](0.83, 0.17);
+  const float scales[2] = float[2](1.96, 0.17 / (1.0 - 0.83 / 1.96));
+  float value = 0.0;
+  for (int i = 0; i < 2; i++) {
+    float lobe = scales[i] * sharpness;
+    value += weights[i] * (mode == MRP_MODE_SG ?
+                               sg_product_integral(z, 2.0 * max(bandwidth_m, bandwidth_n), axis, lobe) :
+                               sg_asg_convolution(axis, lobe, m, n, z, bandwidth_m, bandwidth_n));
+  }
   return amplitude * sg_amplitude * value;
 }
 
@@ -227,9 +250,13 @@ bool mrp_shade(vec3 position, vec3 normal, vec3 view, float roughness, vec3 f0, 
   if (!(distance > 0.0 && irradiance > 0.0 && cos_sigma > 0.0)) {
     return false;
   }
-  float extent = min(disk_radius / distance, MRP_EXTENT_MAX);
   float spread = light_distance > 0.0 ? 1.0 + distance / light_distance : 1.0;
-  float total = mrp_area_ratio(peak, center, axis_u, axis_v, half_u, half_v, disk_radius) *
+  // A disk of at least MRP_DISK_LOBE_SCALE lobe footprints: it holds the highlight for far
+  // receivers, grazing light and rougher reflectors, which a fixed r_d loses (docs/accuracy.md).
+  float extent = min(max(disk_radius / distance,
+                         MRP_DISK_LOBE_SCALE * mrp_lobe_extent(cos_sigma, rect_roughness, spread)),
+                     MRP_EXTENT_MAX);
+  float total = mrp_area_ratio(peak, center, axis_u, axis_v, half_u, half_v, extent * distance) *
                 mrp_disk_integral(cos_sigma, rect_roughness, extent, spread) *
                 mrp_peak_brdf_geometry(cos_sigma, rect_roughness) * cos_sigma * irradiance;
   float bandwidth_m = mrp_bandwidth(extent);

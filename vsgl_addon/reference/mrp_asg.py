@@ -80,6 +80,22 @@ BANDWIDTH_FLOOR = 1e-3
 #: Fit constants of 001 Eq. 25.
 K_SLOPE = 0.288
 K_OFFSET = 0.673
+#: The sampling disk's radius in units of the reflector lobe's footprint (``mrp_lobe_extent``): at
+#: least this much of the footprint, so the disk holds the highlight wherever the receiver is (a
+#: fixed r_d loses most of it for far receivers, grazing light and rougher reflectors). 1.5 has the
+#: lowest error of 1, 1.5 and 2 in the accuracy table (benchmarks/mrp_asg_accuracy.py, docs/accuracy.md).
+DISK_LOBE_SCALE = 1.5
+#: Disk-radius rules of ``mrp_shade``: 001's user-controlled r_d alone, or at least DISK_LOBE_SCALE
+#: lobe footprints.
+DISK_RULES = ("fixed", "lobe")
+#: The receiver's GGX NDF as two SGs (weight, sharpness scale over Eq. 8's λ_h = 2/α²): GGX is
+#: D(θ) = (1/πα²) (1 + θ²/α²)⁻² for small α, a narrower core than Eq. 8's single SG
+#: e^(−θ²/α²) of the same peak and integral, with longer tails, so the single SG gives 1.25× the
+#: light of a sharp receiver (α 0.05) whose light is about as wide as its lobe
+#: (benchmarks/results/mrp_asg_receiver_split.md). 0.83 e^(−1.96 θ²/α²) + 0.17 e^(−0.295 θ²/α²)
+#: keeps the peak (weights sum to 1) and the integral (Σ w/c = 1) and fits (1 + u²)⁻² with 1/30 of
+#: the single SG's squared error (∫ (f − g)² u du, u = θ/α, least squares over w₁ and c₁).
+RECEIVER_NDF_LOBES = ((0.83, 1.96), (0.17, 0.17 / (1.0 - 0.83 / 1.96)))
 #: ε = 0.05 of 001 Eq. 31 gives ln(1/ε) = 2.996 in Eq. 32.
 LOG_INV_EPSILON = 2.996
 MODES = ("asg", "sg")
@@ -178,6 +194,21 @@ def mrp_disk_integral(cos_sigma, roughness, extent, spread=1.0, fit="energy"):
     return np.pi * t * mrp_exp_ratio(k * t)
 
 
+def mrp_lobe_extent(cos_sigma, roughness, spread=1.0):
+    """ρ_lobe, the unit-distance radius of the reflector lobe's footprint around the peak: where the
+    disk integral's integrand e^(−k t) (``mrp_disk_integral``'s energy-matched k, times spread²) has
+    fallen to 1/e, k t = 1 with t = q/(1 + q), q = ρ² cos² σ: ρ = 1/(cos σ √(k − 1)); EXTENT_MAX when
+    k ≤ 1 (a reflector so rough its lobe has no footprint smaller than the hemisphere)."""
+    c = np.clip(f64(cos_sigma), COSINE_FLOOR, 1.0)
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
+    k = 1.0 / (4.0 * alpha * alpha * c) - K_OFFSET
+    s = f64(spread)
+    k = np.where(k > 0.0, k * s * s, k)
+    excess = k - 1.0
+    extent = 1.0 / (c * np.sqrt(np.where(excess > 0.0, excess, 1.0)))
+    return np.where(excess > 0.0, np.minimum(extent, EXTENT_MAX), EXTENT_MAX)
+
+
 def mrp_area_ratio(peak, center, axis_u, axis_v, half_u, half_v, disk_radius,
                    normalization="square"):
     """A of Eq. 36 from J, the bounding rectangle (in R's frame) of disk ∩ R.
@@ -269,13 +300,16 @@ def mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amp
     """∫ Ga(ω) Gi(ω) dω of Eq. 10 with the ASG light (m, n, z; λ along m, µ along n; amplitude t)
     and the receiver SG (``mrp_receiver_sg``): Eq. 11 (``"asg"``) or Eq. 37 + SG product
     integral (``"sg"``)."""
-    axis, sharpness, sg_amplitude = mrp_receiver_sg(view, normal, roughness)
-    if mode == "asg":
-        value = sg_asg_convolution(axis, sharpness, m, n, z, bandwidth_m, bandwidth_n)
-    elif mode == "sg":
-        value = sg_product_integral(z, 2.0 * np.maximum(bandwidth_m, bandwidth_n), axis, sharpness)
-    else:
+    if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    axis, sharpness, sg_amplitude = mrp_receiver_sg(view, normal, roughness)
+    value = 0.0
+    for weight, scale in RECEIVER_NDF_LOBES:  # the NDF's two SGs (RECEIVER_NDF_LOBES)
+        if mode == "asg":
+            value = value + weight * sg_asg_convolution(axis, scale * sharpness, m, n, z, bandwidth_m, bandwidth_n)
+        else:
+            value = value + weight * sg_product_integral(z, 2.0 * np.maximum(bandwidth_m, bandwidth_n), axis,
+                                                         scale * sharpness)
     return f64(amplitude) * sg_amplitude * value
 
 
@@ -298,13 +332,15 @@ def light_irradiance_at(light, point):
 
 def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, mode="asg",
               visibility=1.0, spread_correction=True, peak_form="blender",
-              area_normalization="square", fit="energy"):
+              area_normalization="square", fit="energy", disk="lobe"):
     """L_x(o) of one rectangle and one light at receivers (001 Eqs. 3–37; module documentation).
 
     ``rect``: mapping with ``center``, ``normal``, ``axis_u``, ``axis_v``, ``half_u``, ``half_v``,
     ``roughness``, ``f0``. ``light``: a ``scene_description.Light``-like object. ``visibility``:
     the light's shadow at p_y (1 = lit). Per unit light colour and per colour channel of the F0s.
-    ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only)."""
+    ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only). ``disk``: "lobe" (the
+    default) samples a disk of radius max(r_d, DISK_LOBE_SCALE ρ_lobe |p_y − p_x|), "fixed" 001's
+    r_d alone (``DISK_RULES``)."""
     position = f64(position)
     n_r = f64(rect["normal"])
     if light.type == "SUN":
@@ -323,10 +359,14 @@ def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, m
     d_safe = np.where(valid, distance, 1.0)
     extent = np.where(valid, f64(disk_radius) / d_safe, 1.0)
     spread = 1.0 + safe_ratio(d_safe, light_distance) if spread_correction else 1.0
-    disk = mrp_disk_integral(cos_sigma, rect["roughness"], extent, spread, fit)
+    if disk == "lobe":
+        extent = np.maximum(extent, DISK_LOBE_SCALE * mrp_lobe_extent(cos_sigma, rect["roughness"], spread))
+    elif disk != "fixed":
+        raise ValueError(f"disk must be one of {DISK_RULES}, got {disk!r}")
+    disk_integral = mrp_disk_integral(cos_sigma, rect["roughness"], extent, spread, fit)
     area = mrp_area_ratio(peak, rect["center"], rect["axis_u"], rect["axis_v"], rect["half_u"],
-                          rect["half_v"], disk_radius, area_normalization)
-    total = area * disk * radiance
+                          rect["half_v"], np.minimum(extent, EXTENT_MAX) * d_safe, area_normalization)
+    total = area * disk_integral * radiance
     bandwidth_m = mrp_bandwidth(extent)
     bandwidth_n = mrp_bandwidth(extent * np.abs(cos_n))
     amplitude = np.sqrt(bandwidth_m) * np.sqrt(bandwidth_n) / np.pi * total
