@@ -86,6 +86,14 @@ def test_view_pdf_matches_the_reference(size, receivers):
         assert gpu.sum() == pytest.approx(1.0, rel=1e-4)
 
 
+def test_the_defensive_share_is_read_when_called(monkeypatch):
+    """The reference's DEFENSIVE_SHARE at the time of the call (benchmarks/view_pdf.py's sweep sets it)."""
+    rng = np.random.default_rng(13)
+    fields, chosen = _random_rsm(rng, 16), _receivers(rng, 32)
+    monkeypatch.setattr(brsm, "DEFENSIVE_SHARE", 0.9)
+    _assert_close(_gpu(fields, chosen), _reference(fields, chosen, 0.9), "β = 0.9 by the module's share")
+
+
 @pytest.mark.parametrize("defensive", [0.0, 0.25, 1.0])
 def test_every_defensive_share(defensive):
     rng = np.random.default_rng(11)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..layouts import RSM
-from ..reference.brsm import DEFENSIVE_SHARE
+from ..reference import brsm as _reference
 from ..shaders import ShaderInterface
 from .contract import LIGHT_PASSES, GPUPass, ShaderSpec
 from .gpu_util import set_uniform, texture_from_array
@@ -105,10 +105,10 @@ def run(rsm_textures, receivers: ViewReceivers, defensive: float | None = None):
     """The defensive mixture of the view PDF and the light PDF for one RSM view
     (``vsgl_generation.RSMTextures``), as an (size, size) RGBA32F texture whose R channel is p
     (summing to 1 over the texels where any has weight, all 0 where none has). ``defensive`` β,
-    reference ``DEFENSIVE_SHARE`` (read when called) when None."""
+    reference ``DEFENSIVE_SHARE`` (read when called: the benchmark's sweep sets it) when None."""
     import gpu
 
-    defensive = DEFENSIVE_SHARE if defensive is None else float(defensive)
+    defensive = _reference.DEFENSIVE_SHARE if defensive is None else float(defensive)
     if not 0.0 <= defensive <= 1.0:
         raise ValueError(f"the defensive share must lie in [0, 1], got {defensive}")
     size = int(rsm_textures.size)
