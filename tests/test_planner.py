@@ -415,7 +415,7 @@ def test_the_pdf_setting_and_its_command_line_flag():
     from vsgl_addon.cli import build_parser
     from vsgl_addon.settings import SettingsError
 
-    assert VSGLSettings().pdf == "view" and VSGLSettings(pdf="light").pdf == "light"
+    assert VSGLSettings().pdf == "light" and VSGLSettings(pdf="view").pdf == "view"
     with pytest.raises(SettingsError, match="PDF must be one of light, view"):
         VSGLSettings(pdf="eye")
     arguments = build_parser().parse_args(["render", "s.blend", "--out", "o.exr", "--pdf", "view"])

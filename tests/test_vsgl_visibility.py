@@ -62,7 +62,7 @@ def _object_pixels(description, name):
 @pytest.mark.parametrize("pdf,points,at_most", [
     ("light", 4096, 0.05), ("light", 16384, 0.035),
     pytest.param("view", 4096, 0.05, marks=pytest.mark.xfail(
-        strict=True, reason="missed with the view PDF, the default: the receiver keeps 5.4 % (the light PDF 3.2 %); "
+        strict=True, reason="missed with the view PDF: the receiver keeps 5.4 % (the light PDF, the default, 3.2 %); "
                             "its unshadowed importance draws kernels to the floor by the wall, whose maps leak more")),
     ("view", 16384, 0.035)])
 def test_a_wall_between_the_lit_floor_and_a_receiver_stops_the_bounce(pdf, points, at_most):
