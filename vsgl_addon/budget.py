@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .planner import rsm_size_for_share
+from .views import rsm_size_for_share
 from .settings import VSGLSettings, interleave_factor
 
 #: The features each timed step (its FrameImages.timings key) is linear in. Units keep the
@@ -143,7 +143,7 @@ def frame_features(plan, settings: VSGLSettings, size: tuple[int, int], full_siz
                    triangles: int = 0, vpl_fraction: float | None = None, vpl_stride: int = 1) -> dict:
     """step -> (k,) float64 features of one frame of ``plan`` rendered with ``settings`` at ``size``
     (w, h), upscaled to ``full_size`` when that differs; ``triangles``: the scene's. The lights' RSM
-    sides follow the plan's rule for the settings' side (planner.rsm_size_for_share of their bounce
+    sides follow the plan's rule for the settings' side (views.rsm_size_for_share of their bounce
     estimates); ``vpl_fraction``: VPLs per RSM texel of the VPL pass's views (a frame of the scene
     counted them), DEFAULT_VPL_FRACTION when unknown; ``vpl_stride``: the VPL pass shades one VPL
     of each block of that many (the viewport's coarse preview)."""

@@ -42,20 +42,12 @@ from .proxies import ProxyCache, lit_proxies, material_alpha, material_f0
 from .reference.lights import light_intensity
 from .reference.vsgl import LUMINANCE_WEIGHTS
 from .settings import VSGLSettings
-from .views import light_view_specs, scene_bounds, view_sees_triangles
+from .views import MIN_RSM_SIZE, light_view_specs, rsm_size_for_share, scene_bounds, view_sees_triangles
 
 #: At most this fraction of the frame's bounce power (the dimmest views first) may go without
 #: VSGLs: its light is still drawn directly, its bounce is dropped (a bias of at most this much).
 NEGLIGIBLE_BOUNCE = 1e-3
 
-#: Smallest RSM side the plan gives a light that shares N with others. √share × the settings' side
-#: keeps a light's texels per VSGL what one light alone has (128² for N = 256: 64); a point light
-#: with 3 % of N (8 VSGLs over 6 cube views) needs 11² per view for that, so 32² still gives each of
-#: its VSGLs 12 times the lone light's texels. The views are also the direct light's shadow maps,
-#: whose texel grows with it (a 90° cube face of 32²: 2.8°). Measured on 32 point lights at N = 256
-#: (benchmarks/frame_planner.py's 32-light variant, llvmpipe): the light passes 553 -> 340 ms from a
-#: 64² floor to 32², 278 ms at 16².
-MIN_RSM_SIZE = 32
 
 #: GGX α of the receivers MRP-ASG shades (both ends included); rougher ones take the proxies' light
 #: from the VSGLs. Measured: the receiver's SG (001 Eqs. 6, 8) fits a rough GGX NDF poorly (α ≥ 0.5
@@ -277,16 +269,6 @@ class FramePlan:
                              for name, (share, added, base) in self.weighed.items()},
             "summary": self.summary_lines(),
         }
-
-
-def rsm_size_for_share(rsm_size: int, share: float) -> int:
-    """The RSM side of a light expected to get ``share`` of the frame's VSGLs: √share × ``rsm_size``
-    rounded up to a power of two, within [min(MIN_RSM_SIZE, rsm_size), rsm_size]."""
-    floor = min(MIN_RSM_SIZE, rsm_size)
-    if not share > 0.0:
-        return floor
-    side = rsm_size * math.sqrt(min(share, 1.0))
-    return int(min(max(2 ** math.ceil(math.log2(max(side, 1.0)) - 1e-9), floor), rsm_size))
 
 
 def allocate_vsgls(budget: int, view_powers: dict) -> tuple[dict, float]:

@@ -463,3 +463,23 @@ def view_sees_triangles(spec: RSMViewSpec, positions: np.ndarray, bounds=None) -
             return False
     h = np.c_[positions.reshape(-1, 3), np.ones(positions.shape[0] * 3)] @ matrix
     return bool(np.any(~_outside_one_plane(h.reshape(-1, 3, 4))))
+
+
+#: Smallest RSM side the plan gives a light that shares N with others. √share × the settings' side
+#: keeps a light's texels per VSGL what one light alone has (128² for N = 256: 64); a point light
+#: with 3 % of N (8 VSGLs over 6 cube views) needs 11² per view for that, so 32² still gives each of
+#: its VSGLs 12 times the lone light's texels. The views are also the direct light's shadow maps,
+#: whose texel grows with it (a 90° cube face of 32²: 2.8°). Measured on 32 point lights at N = 256
+#: (benchmarks/frame_planner.py's 32-light variant, llvmpipe): the light passes 553 -> 340 ms from a
+#: 64² floor to 32², 278 ms at 16².
+MIN_RSM_SIZE = 32
+
+
+def rsm_size_for_share(rsm_size: int, share: float) -> int:
+    """The RSM side of a light expected to get ``share`` of the frame's VSGLs: √share × ``rsm_size``
+    rounded up to a power of two, within [min(MIN_RSM_SIZE, rsm_size), rsm_size]."""
+    floor = min(MIN_RSM_SIZE, rsm_size)
+    if not share > 0.0:
+        return floor
+    side = rsm_size * math.sqrt(min(share, 1.0))
+    return int(min(max(2 ** math.ceil(math.log2(max(side, 1.0)) - 1e-9), floor), rsm_size))
