@@ -313,19 +313,24 @@ def build_mipmaps(rsm, pdf=None) -> RSMMipmaps:
     )
 
 
+def _lit_neighbour(position, lit, axis, step):
+    """The neighbour ``step`` (±1) texels along image ``axis`` (0 rows, 1 columns) of every texel:
+    its position (H, W, 3), and (H, W) whether both texels are lit and the neighbour is inside the
+    image."""
+    size = position.shape[axis]
+    index = np.arange(size) + step
+    inside = (index >= 0) & (index < size)
+    inside = inside[:, None] if axis == 0 else inside[None, :]
+    return np.roll(position, -step, axis=axis), lit & np.roll(lit, -step, axis=axis) & inside
+
+
 def _one_sided_difference(position, lit, axis):
     """(H, W, 3) the shorter of the forward and backward differences of ``position`` along image
     ``axis`` (0 rows, 1 columns) between lit texels, zero where neither neighbour is lit."""
-    size = position.shape[axis]
     best = np.zeros(position.shape)
     best_length = np.full(position.shape[:2], np.inf)
     for step in (1, -1):
-        neighbour = np.roll(position, -step, axis=axis)
-        neighbour_lit = np.roll(lit, -step, axis=axis)
-        index = np.arange(size) + step
-        inside = (index >= 0) & (index < size)
-        inside = inside[:, None] if axis == 0 else inside[None, :]
-        ok = lit & neighbour_lit & inside
+        neighbour, ok = _lit_neighbour(position, lit, axis, step)
         difference = (neighbour - position) * step
         length = norm(difference)
         better = ok & (length < best_length)
@@ -362,16 +367,11 @@ def texel_jumps(rsm, jump_texels=None) -> np.ndarray:
     lit = luminance(rsm.flux_diffuse + rsm.flux_specular) > 0.0
     position = np.where(lit[..., None], rsm.position, 0.0)
     reach = jump_texels * np.sqrt(texel_areas(rsm))
-    size = rsm.size
     jump = np.zeros(lit.shape, bool)
     for axis in (0, 1):
         for step in (1, -1):
-            neighbour = np.roll(position, -step, axis=axis)
-            neighbour_lit = np.roll(lit, -step, axis=axis)
-            index = np.arange(size) + step
-            inside = (index >= 0) & (index < size)
-            inside = inside[:, None] if axis == 0 else inside[None, :]
-            jump |= lit & neighbour_lit & inside & (reach > 0.0) & (norm(neighbour - position) > reach)
+            neighbour, ok = _lit_neighbour(position, lit, axis, step)
+            jump |= ok & (reach > 0.0) & (norm(neighbour - position) > reach)
     return jump
 
 
