@@ -54,6 +54,7 @@ for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
 from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
 from build_validation_scenes import RESOLUTION  # noqa: E402
 from energy_budget import segments_blocked, vpl_light  # noqa: E402
+from energy_budget import view_vpls as texel_vpls  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
 from tradeoff.demo import log  # noqa: E402
 from visibility_diagnosis import exact_visibility  # noqa: E402
@@ -68,32 +69,12 @@ OWN_SURFACE_SIGMAS = 0.75
 
 
 def view_vpls(view_arrays, light):
-    """Every covered, lit texel of one RSM view as a VPL (energy_budget.rsm_vpls's fields) and its
-    flat texel index row · W + column."""
-    from vsgl_addon.reference.principled import principled_alpha, principled_directional_albedos
-    from vsgl_addon.reference.rsm import incoming_directions
-
-    a = view_arrays
-    keep = a.coverage & (a.flux_white > 0.0)
-    y = a.rsm.position[keep]
-    n = a.rsm.normal[keep]
-    n = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
-    flux = a.flux[keep]
-    safe = np.where(flux > 0.0, flux, 1.0)
-    rd = np.where(flux > 0.0, a.rsm.flux_diffuse[keep] / safe, 0.0)
-    rs = np.where(flux > 0.0, a.rsm.flux_specular[keep] / safe, 0.0)
-    w = incoming_directions(light, y)
-    mu = np.clip(np.einsum("ij,ij->i", w, n), 1e-4, 1.0)
-    if light.type == "SUN":
-        area = a.texel_measure[keep] / mu
-    else:
-        area = a.texel_measure[keep] * np.sum((np.asarray(light.position) - y) ** 2, axis=-1) / mu
-    roughness = a.roughness[keep]
-    e_white = principled_directional_albedos(mu, roughness, 0.04, 0.0, samples=16)[0]
-    return {"position": np.asarray(y, np.float64), "normal": np.asarray(n, np.float64),
-            "flux": np.asarray(flux, np.float64), "rd": rd, "rs": rs, "incoming": w,
-            "alpha": np.maximum(principled_alpha(roughness), 1e-3), "e_white": np.maximum(e_white, 1e-6),
-            "footprint": np.sqrt(area), "texel": np.flatnonzero(keep.reshape(-1))}
+    """Every covered, lit texel of one RSM view as a VPL (energy_budget.view_vpls, positions, normals
+    and flux in float64 for the ray casts) and its flat texel index row · W + column."""
+    vpls = texel_vpls(view_arrays, light)
+    for name in ("position", "normal", "flux"):
+        vpls[name] = np.asarray(vpls[name], np.float64)
+    return vpls
 
 
 def kernel_weights(center, level, size):

@@ -93,11 +93,37 @@ def segments_blocked(starts, ends, triangles, chunk_rays=8192, chunk_triangles=6
     return blocked
 
 
+def view_vpls(view_arrays, light) -> dict:
+    """Every covered, lit texel of one RSM view (its ``to_numpy()``) as a VPL: dict of flat arrays,
+    with each one's flat texel index row · W + column (``texel``)."""
+    from vsgl_addon.reference.principled import principled_alpha, principled_directional_albedos
+    from vsgl_addon.reference.rsm import incoming_directions
+
+    a = view_arrays
+    keep = a.coverage & (a.flux_white > 0.0)
+    y = a.rsm.position[keep]
+    n = a.rsm.normal[keep]
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
+    flux = a.flux[keep]
+    safe = np.where(flux > 0.0, flux, 1.0)
+    rd = np.where(flux > 0.0, a.rsm.flux_diffuse[keep] / safe, 0.0)
+    rs = np.where(flux > 0.0, a.rsm.flux_specular[keep] / safe, 0.0)
+    w = incoming_directions(light, y)
+    mu = np.clip(np.einsum("ij,ij->i", w, n), 1e-4, 1.0)
+    if light.type == "SUN":
+        area = a.texel_measure[keep] / mu
+    else:
+        area = a.texel_measure[keep] * np.sum((np.asarray(light.position) - y) ** 2, axis=-1) / mu
+    roughness = a.roughness[keep]
+    e_white = principled_directional_albedos(mu, roughness, 0.04, 0.0, samples=16)[0]
+    return {"position": y, "normal": n, "flux": flux, "rd": rd, "rs": rs, "incoming": w,
+            "alpha": np.maximum(principled_alpha(roughness), 1e-3), "e_white": np.maximum(e_white, 1e-6),
+            "footprint": np.sqrt(area), "texel": np.flatnonzero(keep.reshape(-1))}
+
+
 def rsm_vpls(scene_gpu, size):
     """Every covered texel of every RSM view as a VPL: dict of flat float64 arrays."""
     from vsgl_addon.passes.rsm import render_rsm_views
-    from vsgl_addon.reference.principled import principled_alpha, principled_directional_albedos
-    from vsgl_addon.reference.rsm import incoming_directions
 
     parts = []
     for index in range(len(scene_gpu.scene.lights)):
@@ -105,25 +131,9 @@ def rsm_vpls(scene_gpu, size):
             a = view.to_numpy()
             light = view.light
             view.free()
-            keep = a.coverage & (a.flux_white > 0.0)
-            y = a.rsm.position[keep]
-            n = a.rsm.normal[keep]
-            n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
-            flux = a.flux[keep]
-            safe = np.where(flux > 0.0, flux, 1.0)
-            rd = np.where(flux > 0.0, a.rsm.flux_diffuse[keep] / safe, 0.0)
-            rs = np.where(flux > 0.0, a.rsm.flux_specular[keep] / safe, 0.0)
-            w = incoming_directions(light, y)
-            mu = np.clip(np.einsum("ij,ij->i", w, n), 1e-4, 1.0)
-            if light.type == "SUN":
-                area = a.texel_measure[keep] / mu
-            else:
-                area = a.texel_measure[keep] * np.sum((np.asarray(light.position) - y) ** 2, axis=-1) / mu
-            roughness = a.roughness[keep]
-            e_white = principled_directional_albedos(mu, roughness, 0.04, 0.0, samples=16)[0]
-            parts.append({"position": y, "normal": n, "flux": flux, "rd": rd, "rs": rs, "incoming": w,
-                          "alpha": np.maximum(principled_alpha(roughness), 1e-3), "e_white": np.maximum(e_white, 1e-6),
-                          "footprint": np.sqrt(area)})
+            part = view_vpls(a, light)
+            del part["texel"]
+            parts.append(part)
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
