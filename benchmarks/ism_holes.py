@@ -133,7 +133,7 @@ def analyse(name, path, stride, overrides, internals=None):
         bench.free()
     cycles = truth["indirect"][pick].astype(np.float64) @ LUMINANCE
     if internals is not None:
-        internals.update(position=position, normal=normal, cycles=cycles, names=names, tables=per_table,
+        internals.update(points=points, point_area=point_area, position=position, normal=normal, cycles=cycles, names=names, tables=per_table,
                          material=bench.material_index[pick])
     weight = np.concatenate([t["weight"] for t in per_table], axis=1)
     v_maps, v_ideal, v_exact = (np.concatenate([t[k] for t in per_table], axis=1)

@@ -124,7 +124,9 @@ def _ism_defines() -> dict[str, object]:
             "ISM_NORMAL_OFFSET": repr(float(ism.NORMAL_OFFSET)),
             "ISM_NORMAL_OFFSET_DEPTH": repr(float(ism.NORMAL_OFFSET_DEPTH)),
             "ISM_BACK_OFFSET": repr(float(ism.BACK_OFFSET)),
-            "ISM_SPREAD": repr(float(ism.SPREAD_BIAS))}
+            "ISM_SPREAD": repr(float(ism.SPREAD_BIAS)),
+            "ISM_SPLAT_PLANE_DEPTH": repr(float(ism.SPLAT_PLANE_DEPTH)),
+            "ISM_GAP_EXTRAPOLATE": "true" if ism.GAP_EXTRAPOLATE else "false"}
 
 
 #: Defines a library takes from its float64 twin, added to every shader that requires it (read at

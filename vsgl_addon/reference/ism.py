@@ -142,15 +142,48 @@ def splat(points, origin, size: int, min_distance: float = 0.0, normals=None, po
     if normals is None or not point_area > 0.0:
         np.minimum.at(depth, (texel[:, 1], texel[:, 0]), distance)
         return depth
-    cos_theta = (f64(normals).reshape(-1, 3)[keep] * offsets).sum(axis=-1) / distance
+    normals = f64(normals).reshape(-1, 3)[keep]
+    cos_theta = (normals * offsets).sum(axis=-1) / distance
     radius = splat_radius(offsets, cos_theta, point_area, size)
+    directions = texel_directions(size) if SPLAT_PLANE_DEPTH > 0.0 else None
     for r in np.unique(radius):
         here = radius == r
         for dy in range(-r, r + 1):
             for dx in range(-r, r + 1):
                 column, row = octahedral_wrap(texel[here, 0] + dx, texel[here, 1] + dy, size)
-                np.minimum.at(depth, (row, column), distance[here])
+                written = distance[here]
+                if directions is not None:
+                    written = plane_depth(offsets[here], normals[here], directions[row, column], point_area)
+                np.minimum.at(depth, (row, column), written)
     return depth
+
+
+#: A splatted texel's depth: 0, the point's own distance over its whole splat; > 0, where the
+#: texel's direction meets the point's tangent plane, within SPLAT_PLANE_DEPTH point spacings
+#: (√point_area) of its distance (plane_depth).
+SPLAT_PLANE_DEPTH = 1.0
+
+
+def plane_depth(offsets, normals, directions, point_area):
+    """(N,) the depth a point (offset p − o from the map's origin, unit normal n) writes into the
+    splat texel of unit centre direction u: the disk the point stands for lies in its tangent plane,
+    which the texel's ray meets at t = n · (p − o) / n · u (an oriented splat, a surfel: Pfister et
+    al. 2000). Its own distance |p − o| written over the whole splat is nearer than its surface by up
+    to the splat's half-width times the surface's depth slope, so a receiver on that surface at grazing
+    incidence shadows itself unless the lookup's bias spans the splat; the slope-scaled depth bias
+    that does so reaches through a thin wall in front of the receiver. t is kept within
+    SPLAT_PLANE_DEPTH · √point_area of |p − o| (the depth the disk and its neighbours' gap can span;
+    the plane's depth grows without bound towards its horizon), and a ray that leaves the plane
+    behind (t ≤ 0, or n · u = 0) takes the far end of that range: the surface recedes there."""
+    offsets, normals, directions = f64(offsets), f64(normals), f64(directions)
+    distance = np.linalg.norm(offsets, axis=-1)
+    reach = SPLAT_PLANE_DEPTH * np.sqrt(max(f64(point_area), 0.0))
+    across = (normals * directions).sum(axis=-1)
+    height = (normals * offsets).sum(axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = height / across
+    t = np.where(np.isfinite(t) & (t > 0.0), t, distance + reach)
+    return np.clip(t, distance - reach, distance + reach)
 
 
 def keeps_point(offsets, plane) -> np.ndarray:
@@ -168,6 +201,9 @@ GAP_REACH = 3
 GAP_MARGIN = 0.1
 #: The four lines a gap is looked for along: rows, columns, both diagonals.
 GAP_DIRECTIONS = ((1, 0), (0, 1), (1, 1), (1, -1))
+#: Each side's surface continued to the texel with its own depth slope (close_gaps); False: the
+#: side's nearest depth as it is.
+GAP_EXTRAPOLATE = True
 
 
 def close_gaps(depth) -> np.ndarray:
@@ -185,17 +221,44 @@ def close_gaps(depth) -> np.ndarray:
     size = depth.shape[0]
     rows, columns = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
     best = np.full(depth.shape, EMPTY)
+    scale = 1.0 / np.abs(texel_directions(size)).sum(axis=-1)  # |q|, q = d/|d|₁ on the octahedron
+    reach = min(GAP_REACH, size)  # the fold's mirror reaches at most a side
     for dx, dy in GAP_DIRECTIONS:
-        sides = []
+        sides, surfaces = [], []
         for sign in (-1, 1):
             nearest = np.full(depth.shape, EMPTY)
-            for k in range(1, min(GAP_REACH, size) + 1):  # the fold's mirror reaches at most a side
+            at = np.zeros(depth.shape, np.int64)
+            for k in range(1, reach + 1):
                 column, row = octahedral_wrap(columns + sign * k * dx, rows + sign * k * dy, size)
-                nearest = np.minimum(nearest, depth[row, column])
+                here = depth[row, column]
+                at = np.where(here < nearest, k, at)
+                nearest = np.minimum(nearest, here)
             sides.append(nearest)
+            if GAP_EXTRAPOLATE:
+                surfaces.append(np.maximum(nearest, _plane_continued(depth, scale, columns, rows, sign * dx,
+                                                                     sign * dy, at, size)))
+            else:
+                surfaces.append(nearest)
         farther = np.maximum(sides[0], sides[1])
-        best = np.minimum(best, np.where(farther < (1.0 - GAP_MARGIN) * depth, farther, EMPTY))
+        gap = np.maximum(surfaces[0], surfaces[1]) < (1.0 - GAP_MARGIN) * depth
+        best = np.minimum(best, np.where(gap, farther, EMPTY))
     return np.minimum(depth, best)
+
+
+def _plane_continued(depth, scale, columns, rows, dx, dy, at, size):
+    """The depth at each texel of the surface seen ``at`` and at + 1 texels away along (dx, dy),
+    continued as a plane: a plane n · x = h seen from the origin has depth t = h |q| / (n · q) along
+    the octahedron's point q of a direction, and q is linear in the texel coordinates on each face,
+    so |q| / t is too. EMPTY where the continued plane turns away (|q| / t ≤ 0) or the texel beyond
+    is empty, so that the side's nearest depth stands."""
+    column, row = octahedral_wrap(columns + at * dx, rows + at * dy, size)
+    near_w = scale[row, column] / depth[row, column]
+    column, row = octahedral_wrap(columns + (at + 1) * dx, rows + (at + 1) * dy, size)
+    beyond_w = scale[row, column] / depth[row, column]
+    w = near_w + at * (near_w - beyond_w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        continued = np.where((w > 0.0) & (beyond_w > 0.0) & (near_w > 0.0), scale / w, EMPTY)
+    return continued
 
 
 def pull_push(depth) -> np.ndarray:
