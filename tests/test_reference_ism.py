@@ -304,3 +304,110 @@ def test_vsgl_map_origins_follow_each_lobe_map_by_map(maps_per_vsgl):
                                    rtol=1e-14, atol=1e-14)
         assert sets[m] == (60 + m) % 64
         assert distance[m] == pytest.approx(1.5 * sigma, rel=1e-14, abs=0.0)
+
+
+def _plane_depths(directions, point, normal):
+    """Ray-cast depth along unit ``directions`` from the origin to the plane through ``point`` with
+    ``normal`` (inf where the ray runs away from it)."""
+    with np.errstate(divide="ignore"):
+        t = (np.asarray(point) @ np.asarray(normal)) / (directions @ np.asarray(normal))
+    return np.where(t > 0.0, t, np.inf)
+
+
+@pytest.fixture
+def map_surfaces():
+    """Sets reference.ism's SPLAT_PLANE_DEPTH and GAP_EXTRAPOLATE for a test, restored after."""
+    saved = ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE
+
+    def set_surfaces(plane, extrapolate):
+        ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE = plane, extrapolate
+
+    yield set_surfaces
+    ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE = saved
+
+
+def test_oriented_splats_keep_a_floor_s_depth_as_ray_casting(map_surfaces):
+    """A floor seen from 0.4 m above it, its points splatted with their normals and area: most texels
+    the splats cover hold where the texel centre's ray meets the floor (every point's tangent plane),
+    the rest, at grazing angles, at most a point spacing beyond the nearest point's distance; the
+    point's own distance over its splat, nearer than the floor by up to the splat's half-width in
+    depth, almost never does. plane_depth against a brute-force ray-plane intersection (the ray's
+    point whose offset from the point has no normal component), within its reach and at its ends."""
+    scene = _geometry(_quad(-6, -6, 6, 6))
+    points = sp.scene_point_sets(scene, 4000, 1, seed=3)
+    area = sp.triangle_areas(scene.positions).sum() / 4000
+    origin = np.array([0.0, 0.0, 0.4])
+    size = 32
+    exact = _plane_depths(ism.texel_directions(size), -origin, np.array([0.0, 0.0, 1.0]))
+    errors = {}
+    for plane in (1.0, 0.0):
+        map_surfaces(plane, True)
+        depth = ism.splat(points.positions[0], origin, size, normals=points.normals[0], point_area=area)
+        covered = np.isfinite(depth) & np.isfinite(exact)
+        assert covered.sum() > 300
+        errors[plane] = np.abs(depth[covered] / exact[covered] - 1.0)
+    assert np.median(errors[1.0]) < 1e-9 and np.median(errors[0.0]) > 0.05
+    assert errors[1.0].mean() < 0.6 * errors[0.0].mean()
+
+    rng = np.random.default_rng(4)
+    offsets = rng.normal(size=(500, 3)) * 2.0
+    normals = rng.normal(size=(500, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    directions = offsets / np.linalg.norm(offsets, axis=1, keepdims=True) + 0.3 * rng.normal(size=(500, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    spacing = 1.5
+    map_surfaces(1.0, True)
+    got = ism.plane_depth(offsets, normals, directions, spacing ** 2)
+    distance = np.linalg.norm(offsets, axis=1)
+    for o, n, u, t, d in zip(offsets, normals, directions, got, distance):
+        # Brute force: bisect the ray parameter for the sign change of n · (t u − o) on [0, 100].
+        f = lambda x: n @ (x * u - o)  # noqa: E731
+        lo, hi = 0.0, 100.0
+        if f(lo) * f(hi) > 0.0:
+            hit = np.inf
+        else:
+            for _ in range(200):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if f(lo) * f(mid) > 0.0 else (lo, mid)
+            hit = 0.5 * (lo + hi)
+        expected = np.clip(hit, d - spacing, d + spacing) if np.isfinite(hit) and hit > 0.0 else d + spacing
+        assert t == pytest.approx(expected, rel=1e-9, abs=1e-9)
+
+
+def test_a_concave_corner_is_no_gap_and_a_hole_in_a_tilted_wall_still_closes(map_surfaces):
+    """The exact depth map of a room seen from inside (six walls, each depth the ray-cast plane's):
+    its corners are farther than the walls on both sides, and gap closing with the
+    sides' nearest depths pulls a fifth of the map in; with each side continued as a plane
+    (|q| / depth linear on an octahedron face) a fifth of that. A tilted wall with a hole in front of a far
+    background: the hole closes either way."""
+    size = 32
+    directions = ism.texel_directions(size)
+    walls = [(np.array(n, np.float64), c) for n, c in (((1, 0, 0), 1.0), ((-1, 0, 0), 2.1), ((0, 1, 0), 0.7),
+                                                          ((0, -1, 0), 1.6), ((0, 0, 1), 0.9), ((0, 0, -1), 1.3))]
+    corner = np.min([_plane_depths(directions, n * c, n) for n, c in walls], axis=0)  # a box's inside
+    assert np.isfinite(corner).all()
+    pulled_in = {}
+    for extrapolate in (False, True):
+        map_surfaces(1.0, extrapolate)
+        closed = ism.close_gaps(corner)
+        assert np.all(closed <= corner)
+        pulled_in[extrapolate] = int((closed < corner * (1.0 - 1e-9)).sum())
+    # What still closes: sides whose two texels straddle another wall's edge or a face boundary of
+    # the octahedron (u = 0, v = 0, |u| + |v| = 1), where |q| / depth is not linear.
+    assert pulled_in[False] > 0.15 * size * size and pulled_in[True] < 0.2 * pulled_in[False], pulled_in
+    normal = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])
+    wall = _plane_depths(directions, 0.8 * normal, normal)
+    depth = np.where(np.isfinite(wall) & (wall < 3.0), wall, 20.0)
+    reach = ism.GAP_REACH + 1
+    inside = [(r, c) for r in range(reach, size - reach) for c in range(reach, size - reach)
+              if (depth[r - reach:r + reach + 1, c - reach:c + reach + 1] < 3.0).all()]
+    assert len(inside) > 20
+    holes = inside[::max(len(inside) // 3, 1)][:3]
+    holed = depth.copy()
+    for row, column in holes:
+        holed[row, column] = 20.0
+    for extrapolate in (False, True):
+        map_surfaces(1.0, extrapolate)
+        closed = ism.close_gaps(holed)
+        for row, column in holes:
+            assert closed[row, column] < 3.0
