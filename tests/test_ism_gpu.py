@@ -328,32 +328,32 @@ def test_maps_of_a_table_texture_equal_those_of_the_same_origins_from_numpy(maps
     assert np.mean(np.abs(a[finite] - b[finite]) <= 1e-4 * np.maximum(b[finite], 1.0)) > 0.999
 
 
-@pytest.mark.parametrize("plane,extrapolate", [(0.0, False), (1.0, False), (1.0, True), (0.5, True)])
-def test_oriented_splats_and_continued_gap_sides_match_the_reference(monkeypatch, plane, extrapolate):
-    """Sized splats at the point's own distance or its tangent plane's depth (reference
-    SPLAT_PLANE_DEPTH), gap sides as their nearest depth or continued as planes (GAP_EXTRAPOLATE):
-    a floor grazed from 0.3 m and a wall, the GPU's maps against the float64 twin's, and each
-    variant's maps differ from the point-distance ones (the variant reached the shaders)."""
+@pytest.mark.parametrize("plane,continued", [(1.0, True), (0.5, True), (1.0, False)])
+def test_maps_that_keep_their_surfaces_match_the_reference(monkeypatch, plane, continued):
+    """An atlas that keeps its surfaces (ISMAtlas.surfaces): sized splats at their tangent plane's
+    depth (reference splat ``plane_depth`` = SPLAT_PLANE_DEPTH) and gap sides continued as planes
+    or as their nearest depth (close_gaps ``continued`` = GAP_EXTRAPOLATE), a floor grazed from
+    0.3 m and a wall: the GPU's maps against the float64 twin's, and unlike the maps that do not
+    keep their surfaces (the variant reached the shaders)."""
+    monkeypatch.setattr(ism, "SPLAT_PLANE_DEPTH", plane)
+    monkeypatch.setattr(ism, "GAP_EXTRAPOLATE", continued)
     scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
     points = sp.scene_point_sets(scene, 2048, 2, seed=6)
     area = sp.triangle_areas(scene.positions).sum() / 2048
     origins = np.array([[0.0, 0.0, 0.3], [-0.6, 0.4, 1.2]])
 
-    def maps(plane_depth, continued):
-        monkeypatch.setattr(ism, "SPLAT_PLANE_DEPTH", plane_depth)
-        monkeypatch.setattr(ism, "GAP_EXTRAPOLATE", continued)
-        atlas = ism_pass.PASS.run(points, origins, [0, 1], 32, point_area=area)
+    def maps(surfaces):
+        atlas = ism_pass.PASS.run(points, origins, [0, 1], 32, point_area=area, surfaces=surfaces)
         try:
-            got = atlas.read()
+            assert atlas.surfaces == surfaces
+            return atlas.read()
         finally:
             ism_pass.PASS.free(atlas)
-        expected = np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, 32, normals=points.normals[s],
-                                                                    point_area=area))) for o, s in zip(origins, [0, 1])])
-        return got, expected
 
-    got, expected = maps(plane, extrapolate)
+    got, plain = maps(True), maps(False)
+    expected = np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, 32, normals=points.normals[s],
+                                                                point_area=area, plane_depth=plane), continued))
+                         for o, s in zip(origins, [0, 1])])
     assert np.isfinite(got).all()
     assert np.isclose(got, expected, rtol=1e-5).mean() > 0.99
-    if plane > 0.0 or extrapolate:
-        plain, _ = maps(0.0, False)
-        assert not np.isclose(got, plain, rtol=1e-5).all()
+    assert not np.isclose(got, plain, rtol=1e-5).all()

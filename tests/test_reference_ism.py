@@ -314,24 +314,12 @@ def _plane_depths(directions, point, normal):
     return np.where(t > 0.0, t, np.inf)
 
 
-@pytest.fixture
-def map_surfaces():
-    """Sets reference.ism's SPLAT_PLANE_DEPTH and GAP_EXTRAPOLATE for a test, restored after."""
-    saved = ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE
-
-    def set_surfaces(plane, extrapolate):
-        ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE = plane, extrapolate
-
-    yield set_surfaces
-    ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE = saved
-
-
-def test_oriented_splats_keep_a_floor_s_depth_as_ray_casting(map_surfaces):
+def test_oriented_splats_keep_a_floor_s_depth_as_ray_casting():
     """A floor seen from 0.4 m above it, its points splatted with their normals and area: most texels
     the splats cover hold where the texel centre's ray meets the floor (every point's tangent plane),
     the rest, at grazing angles, at most a point spacing beyond the nearest point's distance; the
     point's own distance over its splat, nearer than the floor by up to the splat's half-width in
-    depth, almost never does. plane_depth against a brute-force ray-plane intersection (the ray's
+    depth, almost never does. tangent_plane_depth against a brute-force ray-plane intersection (the ray's
     point whose offset from the point has no normal component), within its reach and at its ends."""
     scene = _geometry(_quad(-6, -6, 6, 6))
     points = sp.scene_point_sets(scene, 4000, 1, seed=3)
@@ -341,8 +329,8 @@ def test_oriented_splats_keep_a_floor_s_depth_as_ray_casting(map_surfaces):
     exact = _plane_depths(ism.texel_directions(size), -origin, np.array([0.0, 0.0, 1.0]))
     errors = {}
     for plane in (1.0, 0.0):
-        map_surfaces(plane, True)
-        depth = ism.splat(points.positions[0], origin, size, normals=points.normals[0], point_area=area)
+        depth = ism.splat(points.positions[0], origin, size, normals=points.normals[0], point_area=area,
+                          plane_depth=plane)
         covered = np.isfinite(depth) & np.isfinite(exact)
         assert covered.sum() > 300
         errors[plane] = np.abs(depth[covered] / exact[covered] - 1.0)
@@ -356,8 +344,7 @@ def test_oriented_splats_keep_a_floor_s_depth_as_ray_casting(map_surfaces):
     directions = offsets / np.linalg.norm(offsets, axis=1, keepdims=True) + 0.3 * rng.normal(size=(500, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     spacing = 1.5
-    map_surfaces(1.0, True)
-    got = ism.plane_depth(offsets, normals, directions, spacing ** 2)
+    got = ism.tangent_plane_depth(offsets, normals, directions, spacing ** 2, 1.0)
     distance = np.linalg.norm(offsets, axis=1)
     for o, n, u, t, d in zip(offsets, normals, directions, got, distance):
         # Brute force: bisect the ray parameter for the sign change of n · (t u − o) on [0, 100].
@@ -374,7 +361,7 @@ def test_oriented_splats_keep_a_floor_s_depth_as_ray_casting(map_surfaces):
         assert t == pytest.approx(expected, rel=1e-9, abs=1e-9)
 
 
-def test_a_concave_corner_is_no_gap_and_a_hole_in_a_tilted_wall_still_closes(map_surfaces):
+def test_a_concave_corner_is_no_gap_and_a_hole_in_a_tilted_wall_still_closes():
     """The exact depth map of a room seen from inside (six walls, each depth the ray-cast plane's):
     its corners are farther than the walls on both sides, and gap closing with the
     sides' nearest depths pulls a fifth of the map in; with each side continued as a plane
@@ -387,11 +374,10 @@ def test_a_concave_corner_is_no_gap_and_a_hole_in_a_tilted_wall_still_closes(map
     corner = np.min([_plane_depths(directions, n * c, n) for n, c in walls], axis=0)  # a box's inside
     assert np.isfinite(corner).all()
     pulled_in = {}
-    for extrapolate in (False, True):
-        map_surfaces(1.0, extrapolate)
-        closed = ism.close_gaps(corner)
+    for continued in (False, True):
+        closed = ism.close_gaps(corner, continued)
         assert np.all(closed <= corner)
-        pulled_in[extrapolate] = int((closed < corner * (1.0 - 1e-9)).sum())
+        pulled_in[continued] = int((closed < corner * (1.0 - 1e-9)).sum())
     # What still closes: sides whose two texels straddle another wall's edge or a face boundary of
     # the octahedron (u = 0, v = 0, |u| + |v| = 1), where |q| / depth is not linear.
     assert pulled_in[False] > 0.15 * size * size and pulled_in[True] < 0.2 * pulled_in[False], pulled_in
@@ -406,8 +392,7 @@ def test_a_concave_corner_is_no_gap_and_a_hole_in_a_tilted_wall_still_closes(map
     holed = depth.copy()
     for row, column in holes:
         holed[row, column] = 20.0
-    for extrapolate in (False, True):
-        map_surfaces(1.0, extrapolate)
-        closed = ism.close_gaps(holed)
+    for continued in (False, True):
+        closed = ism.close_gaps(holed, continued)
         for row, column in holes:
             assert closed[row, column] < 3.0

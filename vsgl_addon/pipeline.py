@@ -348,6 +348,23 @@ VSGL_OWN_REFLECTOR_SIGMAS = 0.3
 MAPS_PER_VSGL = 1
 
 
+#: The lights whose VSGLs' maps keep their surfaces' depth (reference/ism.py: oriented splats,
+#: gap sides continued as planes, the normal-offset lookup). A sun's RSM spans open ground whose
+#: VSGLs light the far faces of thin walls at grazing incidence, where the slope-scaled depth bias
+#: reaches through the wall (the sun courtyard: 1.19 of Cycles' light, 1.10 with these maps,
+#: exact ray-cast visibility from the same origins 1.08; benchmarks/ism_holes.py). In the closed
+#: scenes the normal offset shadows receivers at concave corners and on the demo's glossy floor
+#: (the demo's relative RMSE 0.374 to 0.438; benchmarks/results/ism_surfaces.md).
+SURFACE_LIGHT_TYPES = ("SUN",)
+
+
+def maps_keep_surfaces(lights) -> bool:
+    """Whether a shading table's maps keep their surfaces (SURFACE_LIGHT_TYPES): every light whose
+    VSGLs it holds is of those types."""
+    lights = list(lights)
+    return bool(lights) and all(light.type in SURFACE_LIGHT_TYPES for light in lights)
+
+
 def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSettings, first_map: int = 0,
                      timed: bool = False) -> int:
     """The imperfect shadow maps of every VSGL of ``vsgls`` (000 §5), one per lobe position (two
@@ -360,14 +377,20 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
     point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
     # Uploaded once for every table and every VSGL set of the frame.
     textures = scene_gpu.point_textures(settings.ism_points, POINT_SETS, settings.seed) if vsgls.generations else None
-    for table in vsgls.tables():
+    lights = scene_gpu.scene.lights
+    if vsgls.merged is not None:
+        table_lights = [[lights[index] for index, _, _ in vsgls.generations]]
+    else:
+        table_lights = [[lights[index]] for index, _, _ in vsgls.generations]
+    for table, its_lights in zip(vsgls.tables(), table_lights):
         # Each map's origin, point set and own-reflector distance made from the table texture on
         # the GPU (passes/ism.py vsgl_map_origins): the tables stay on the GPU.
         origins = ism_pass.vsgl_map_origins(table.texture, table.count, MAPS_PER_VSGL, first_map, POINT_SETS,
                                             VSGL_OWN_REFLECTOR_SIGMAS)
         size = ism_pass.fitting_size(origins.count, settings.ism_size)
         vsgls.isms.append(ism_pass.PASS.run(points, origins, None, size, point_area=point_area,
-                                            timed=timed, point_textures=textures))
+                                            timed=timed, point_textures=textures,
+                                            surfaces=maps_keep_surfaces(its_lights)))
         first_map += origins.count
     return first_map
 

@@ -125,8 +125,8 @@ def _ism_defines() -> dict[str, object]:
             "ISM_NORMAL_OFFSET_DEPTH": repr(float(ism.NORMAL_OFFSET_DEPTH)),
             "ISM_BACK_OFFSET": repr(float(ism.BACK_OFFSET)),
             "ISM_SPREAD": repr(float(ism.SPREAD_BIAS)),
-            "ISM_SPLAT_PLANE_DEPTH": repr(float(ism.SPLAT_PLANE_DEPTH)),
-            "ISM_GAP_EXTRAPOLATE": "true" if ism.GAP_EXTRAPOLATE else "false"}
+            "ISM_SURFACE_OFFSET": repr(float(ism.SURFACE_NORMAL_OFFSET)),
+            "ISM_SURFACE_OFFSET_DEPTH": repr(float(ism.SURFACE_NORMAL_OFFSET_DEPTH))}
 
 
 #: Defines a library takes from its float64 twin, added to every shader that requires it (read at

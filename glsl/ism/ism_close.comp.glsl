@@ -6,8 +6,9 @@
 // two (the least over the four lines): holes in a near occluder, through which the points behind
 // it show, close; silhouettes, with the background on one side only, stay. One invocation per
 // texel of the R32UI atlas (tiles of side ism_size, octahedral wrap inside each), written into a
-// second R32UI atlas. Empty texels (0xFFFFFFFF) are infinitely far. With ISM_GAP_EXTRAPOLATE, each
-// side's surface is continued to the texel as a plane before the comparison.
+// second R32UI atlas. Empty texels (0xFFFFFFFF) are infinitely far. With ism_continued != 0, each
+// side's surface is continued to the texel as a plane before the comparison (reference close_gaps
+// ``continued``).
 float ism_close_depth(ivec2 tile, ivec2 local, int size)
 {
   uint bits = imageLoad(ism_splatted, tile + octahedral_wrap(local, size)).r;
@@ -65,10 +66,9 @@ void main()
       after = min(after, a);
     }
     float farther = max(before, after);
-    // Each side's surface continued to this texel (reference GAP_EXTRAPOLATE): a concave corner of
-    // continuous surfaces is no gap.
+    // Each side's surface continued to this texel: a concave corner of continuous surfaces is no gap.
     float surfaces = farther;
-    if (ISM_GAP_EXTRAPOLATE) {
+    if (ism_continued != 0) {
       surfaces = max(max(before, before_at > 0 ? ism_plane_continued(tile, local, -directions[d], before_at, size) : 3.0e38),
                      max(after, after_at > 0 ? ism_plane_continued(tile, local, directions[d], after_at, size) : 3.0e38));
     }

@@ -40,15 +40,15 @@ void main()
   float texels = ism_point_area * abs(dot(normal, offset)) / distance / max(distance * distance, 1e-30) / texel;
   int radius = int(clamp(ceil(0.5 * (ISM_SPLAT_SHARE * sqrt(texels) - 1.0)), 0.0, float(ISM_SPLAT_MAX_RADIUS)));
   // Each texel takes the depth where its centre's direction meets the point's tangent plane, within
-  // ISM_SPLAT_PLANE_DEPTH point spacings of its distance (reference plane_depth: an oriented splat);
-  // 0: the point's own distance over the whole splat.
+  // ism_plane_depth point spacings of its distance (reference tangent_plane_depth: an oriented
+  // splat); 0: the point's own distance over the whole splat.
   float height = dot(normal, offset);
-  float reach = float(ISM_SPLAT_PLANE_DEPTH) * sqrt(max(ism_point_area, 0.0));
+  float reach = ism_plane_depth * sqrt(max(ism_point_area, 0.0));
   for (int dy = -radius; dy <= radius; dy++) {
     for (int dx = -radius; dx <= radius; dx++) {
       ivec2 local = octahedral_wrap(centre + ivec2(dx, dy), size);
       uint written = bits;
-      if (ISM_SPLAT_PLANE_DEPTH > 0.0) {
+      if (ism_plane_depth > 0.0) {
         vec3 direction = octahedral_decode((vec2(local) + 0.5) / float(size) * 2.0 - 1.0);
         float across = dot(normal, direction);
         float t = across != 0.0 ? height / across : -1.0;

@@ -58,6 +58,18 @@ float ism_bias(float distance, int size, float tan_incidence, float slope, float
 // every shader that requires this file (reference NORMAL_OFFSET, NORMAL_OFFSET_DEPTH, BACK_OFFSET).
 const float ISM_RECEIVER_OFFSET = float(ISM_NORMAL_OFFSET);
 const float ISM_RECEIVER_DEPTH = float(ISM_NORMAL_OFFSET_DEPTH);
+// The lookups' receiver offset and depth bias left: the constants above, or, for the maps that keep
+// their surfaces' depth (ism_use_surface_offset; vsgl_addon/passes/ism.py ISMAtlas.surfaces), the
+// defines ISM_SURFACE_OFFSET and ISM_SURFACE_OFFSET_DEPTH (reference SURFACE_NORMAL_OFFSET,
+// SURFACE_NORMAL_OFFSET_DEPTH). The same for every pixel of a draw, so its branches do not diverge.
+float ism_offset_scale = ISM_RECEIVER_OFFSET;
+float ism_offset_depth = ISM_RECEIVER_DEPTH;
+
+void ism_use_surface_offset(bool surfaces)
+{
+  ism_offset_scale = surfaces ? float(ISM_SURFACE_OFFSET) : ISM_RECEIVER_OFFSET;
+  ism_offset_depth = surfaces ? float(ISM_SURFACE_OFFSET_DEPTH) : ISM_RECEIVER_DEPTH;
+}
 const float ISM_RECEIVER_BACK_OFFSET = float(ISM_BACK_OFFSET);
 // The bilinear lookup's bias at most ISM_SPREAD_BIAS times its four texels' depth spread plus
 // ISM_RECEIVER_DEPTH texel footprints; 0: no such cap (the define ISM_SPREAD, reference SPREAD_BIAS).
@@ -75,15 +87,15 @@ float ism_receiver_offset(inout vec3 offset, inout float distance, vec3 normal, 
 {
   float towards = dot(normal, -offset);
   bool back = ISM_RECEIVER_BACK_OFFSET > 0.0 && towards < 0.0;
-  if (!back && !(ISM_RECEIVER_OFFSET > 0.0)) {
+  if (!back && !(ism_offset_scale > 0.0)) {
     return -1.0;
   }
   float texel = footprint * distance * texel_angle;
   float cos_theta = clamp(abs(towards) / max(distance, 1e-30), 0.0, 1.0);
-  float front = ISM_RECEIVER_OFFSET * texel * sqrt(max(1.0 - cos_theta * cos_theta, 0.0));
+  float front = ism_offset_scale * texel * sqrt(max(1.0 - cos_theta * cos_theta, 0.0));
   offset += (back ? ISM_RECEIVER_BACK_OFFSET * texel : towards >= 0.0 ? front : -front) * normal;
   distance = length(offset);
-  return back ? 1e-3 : ISM_RECEIVER_DEPTH * distance * texel_angle + 1e-3;
+  return back ? 1e-3 : ism_offset_depth * distance * texel_angle + 1e-3;
 }
 
 // The texel across an edge of an octahedral map: the mirror image about the edge's midpoint

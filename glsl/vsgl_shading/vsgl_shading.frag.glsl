@@ -16,7 +16,8 @@
 //
 // VSGL_VISIBILITY 1: each lobe's light is weighted by its visibility from the pixel, a filtered
 // lookup in the lobe position's imperfect shadow map (000 sec. 5; lib/ism.glsl, atlas of
-// vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, -, -); VSGL_ISM_MAPS, a
+// vsgl_addon/passes/ism.py): ism_params = (map side, tiles per atlas row, 1 where the maps keep their
+// surfaces' depth and the lookups take the surface normal offset (ISMAtlas.surfaces), -); VSGL_ISM_MAPS, a
 // compile-time define, the maps per VSGL (1: map i at the VSGL's diffuse lobe's positional Gaussian
 // (vsgl_addon/pipeline.py MAPS_PER_VSGL) for both lobes, or 2: map 2i the diffuse lobe's, 2i + 1 the
 // specular lobe's). Map m lies in tile (m mod columns, m div columns); the loop steps the tile with
@@ -69,6 +70,7 @@ void main()
   vec3 fresnel = vec3(0.0);
 #if VSGL_VISIBILITY
   ISMLookup ism = ism_lookup_constants(ism_atlas, ism_params.x);
+  ism_use_surface_offset(ism_params.z != 0);
   float tile_side = float(ism_params.x);
   float row_end = float(ism_params.x * ism_params.y);  // past the row's last tile_corner.x
   vec2 tile_corner = vec2(1.0);  // map 0's

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..layouts import VSGL_TABLE
+from ..reference import ism as _reference_ism
 from ..reference.ism import EMPTY, GAP_MARGIN, GAP_REACH, SPLAT_MAX_RADIUS, SPLAT_SHARE
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
@@ -48,7 +49,7 @@ _LEVEL_GROUP = (8, 8, 1)
 def _splat_interface() -> ShaderInterface:
     return ShaderInterface(
         # (points per set, map count, map side, tiles per atlas row)
-        push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_point_area")],
+        push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_point_area"), ("FLOAT", "ism_plane_depth")],
         # Inputs read as images, not samplers: on llvmpipe an imageLoad costs a fraction of a
         # texelFetch (benchmarks/light_build_profile.py), the same texels either way.
         images=[("R32UI", "UINT_2D", "ism_atlas"), ("RGBA32F", "FLOAT_2D", "scene_points"),
@@ -68,7 +69,7 @@ def _origins_interface() -> ShaderInterface:
 
 
 def _close_interface() -> ShaderInterface:
-    return ShaderInterface(push_constants=[("INT", "ism_size")],
+    return ShaderInterface(push_constants=[("INT", "ism_size"), ("INT", "ism_continued")],
                            images=[("R32UI", "UINT_2D", "ism_splatted"), ("R32UI", "UINT_2D", "ism_closed")],
                            local_group_size=_LEVEL_GROUP)
 
@@ -126,6 +127,9 @@ class ISMAtlas:
     columns: int
     rows: int
     seconds: dict = field(default_factory=dict)
+    #: The maps keep their surfaces' depth (oriented splats, continued gap sides) and their lookups
+    #: take the normal offset (reference.ism SPLAT_PLANE_DEPTH, GAP_EXTRAPOLATE, SURFACE_NORMAL_OFFSET).
+    surfaces: bool = False
 
     def read(self) -> np.ndarray:
         """(count, size, size) float64 depths [map, row, column]; EMPTY where the map has nothing."""
@@ -233,7 +237,7 @@ def vsgl_map_origins(table_texture, vsgl_count: int, maps_per_vsgl: int, first_m
 
 
 def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
-                    timed: bool = False, point_textures=None, planes=None) -> ISMAtlas:
+                    timed: bool = False, point_textures=None, planes=None, surfaces: bool = False) -> ISMAtlas:
     """The ISMs of ``origins`` (M, 3) (or a :class:`MapOrigins`, which holds the sets and minimum
     distances too: ``set_index``, ``min_distance`` and ``planes`` are then unused), map m splatting set ``set_index[m]`` of ``points`` (a
     :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two), leaving out the
@@ -242,7 +246,10 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
     each point stands for) sizes every splat to the solid angle it covers (reference splat_radius);
     0 splats single texels. ``point_textures``: :func:`upload_points` of ``points``, when several
     atlases splat the same sets (uploaded here otherwise). ``timed``: the GPU is waited for after each stage, and the atlas's
-    ``seconds`` holds the splat's and the pull-push's time (costs a few read-backs; benchmarks)."""
+    ``seconds`` holds the splat's and the pull-push's time (costs a few read-backs; benchmarks).
+    ``surfaces``: oriented splats (reference splat ``plane_depth`` = SPLAT_PLANE_DEPTH) and gap
+    sides continued as planes (close_gaps ``continued`` = GAP_EXTRAPOLATE); the atlas says so, and
+    its lookups then take the normal offset (vsgl_shading)."""
     import time
 
     import gpu
@@ -278,6 +285,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         splat.bind()
         splat.uniform_int("ism_params", (points.points_per_set, count, size, columns))
         splat.uniform_float("ism_point_area", float(point_area))
+        splat.uniform_float("ism_plane_depth", float(_reference_ism.SPLAT_PLANE_DEPTH) if surfaces else 0.0)
         splat.image("scene_points", point_texture)
         splat.image("scene_point_normals", normal_texture)
         splat.image("ism_origins", origin_texture)
@@ -290,6 +298,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
     close = PASS.shader("close")
     close.bind()
     close.uniform_int("ism_size", size)
+    close.uniform_int("ism_continued", 1 if surfaces and _reference_ism.GAP_EXTRAPOLATE else 0)
     close.image("ism_splatted", atlas)
     close.image("ism_closed", closed)
     gpu.compute.dispatch(close, _groups(width, _LEVEL_GROUP[0]), _groups(height, _LEVEL_GROUP[1]), 1)
@@ -338,7 +347,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         filled = target
     if timed:
         _finish_stage(filled, clock, seconds, "pull_push")
-    return ISMAtlas(filled, size, count, columns, rows, seconds)
+    return ISMAtlas(filled, size, count, columns, rows, seconds, surfaces=bool(surfaces))
 
 
 def _unknown(width: int, height: int):

@@ -334,7 +334,8 @@ class VSGLShading:
                     set_uniform(program.uniform_int, "vsgl_count", int(table.count))
                     program.image("vsgl_table", table.texture)
                     if visibility:
-                        program.uniform_int("ism_params", (table.ism.size, table.ism.columns, 0, 0))
+                        program.uniform_int("ism_params", (table.ism.size, table.ism.columns,
+                                                           int(getattr(table.ism, "surfaces", False)), 0))
                         program.uniform_sampler("ism_atlas", table.ism.texture)
                     batch.draw(program)
         finally:

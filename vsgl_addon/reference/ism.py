@@ -124,13 +124,16 @@ def splat_radius(offsets, cos_theta, point_area, size):
 
 
 def splat(points, origin, size: int, min_distance: float = 0.0, normals=None, point_area: float = 0.0,
-          plane=None) -> np.ndarray:
+          plane=None, plane_depth: float = 0.0) -> np.ndarray:
     """(size, size) float64 map [row, column] of the nearest radial distance of ``points`` (N, 3)
     seen from ``origin`` (3,) per texel; EMPTY where none lands. Points closer than
     ``min_distance`` (the origin's own point) are not splatted, nor, with ``plane`` = (n_x, n_y,
     n_z, c), the points whose offset p − origin has n · (p − origin) < c (:func:`keeps_point`).
     With ``normals`` and the surface area each point stands for (``point_area``), a point covers
-    the texels of :func:`splat_radius` around its own (wrapping across the octahedral folds)."""
+    the texels of :func:`splat_radius` around its own (wrapping across the octahedral folds), each
+    at the point's distance (``plane_depth`` 0) or at its tangent plane's depth within
+    ``plane_depth`` point spacings of it (:func:`tangent_plane_depth`; the maps that keep their surfaces,
+    SURFACE_LIGHT_TYPES in vsgl_addon/pipeline.py, take SPLAT_PLANE_DEPTH)."""
     offsets = f64(points).reshape(-1, 3) - f64(origin)
     distance = np.linalg.norm(offsets, axis=-1)
     keep = np.isfinite(distance) & (distance > max(min_distance, 1e-300))
@@ -145,7 +148,7 @@ def splat(points, origin, size: int, min_distance: float = 0.0, normals=None, po
     normals = f64(normals).reshape(-1, 3)[keep]
     cos_theta = (normals * offsets).sum(axis=-1) / distance
     radius = splat_radius(offsets, cos_theta, point_area, size)
-    directions = texel_directions(size) if SPLAT_PLANE_DEPTH > 0.0 else None
+    directions = texel_directions(size) if plane_depth > 0.0 else None
     for r in np.unique(radius):
         here = radius == r
         for dy in range(-r, r + 1):
@@ -153,18 +156,19 @@ def splat(points, origin, size: int, min_distance: float = 0.0, normals=None, po
                 column, row = octahedral_wrap(texel[here, 0] + dx, texel[here, 1] + dy, size)
                 written = distance[here]
                 if directions is not None:
-                    written = plane_depth(offsets[here], normals[here], directions[row, column], point_area)
+                    written = tangent_plane_depth(offsets[here], normals[here], directions[row, column],
+                                                  point_area, plane_depth)
                 np.minimum.at(depth, (row, column), written)
     return depth
 
 
-#: A splatted texel's depth: 0, the point's own distance over its whole splat; > 0, where the
-#: texel's direction meets the point's tangent plane, within SPLAT_PLANE_DEPTH point spacings
-#: (√point_area) of its distance (plane_depth).
+#: The splat of the maps that keep their surfaces (vsgl_addon/pipeline.py SURFACE_LIGHT_TYPES):
+#: each texel where its direction meets the point's tangent plane, within SPLAT_PLANE_DEPTH point
+#: spacings (√point_area) of the point's distance (tangent_plane_depth; 0: the distance).
 SPLAT_PLANE_DEPTH = 1.0
 
 
-def plane_depth(offsets, normals, directions, point_area):
+def tangent_plane_depth(offsets, normals, directions, point_area, reach_spacings=None):
     """(N,) the depth a point (offset p − o from the map's origin, unit normal n) writes into the
     splat texel of unit centre direction u: the disk the point stands for lies in its tangent plane,
     which the texel's ray meets at t = n · (p − o) / n · u (an oriented splat, a surfel: Pfister et
@@ -172,12 +176,12 @@ def plane_depth(offsets, normals, directions, point_area):
     to the splat's half-width times the surface's depth slope, so a receiver on that surface at grazing
     incidence shadows itself unless the lookup's bias spans the splat; the slope-scaled depth bias
     that does so reaches through a thin wall in front of the receiver. t is kept within
-    SPLAT_PLANE_DEPTH · √point_area of |p − o| (the depth the disk and its neighbours' gap can span;
+    ``reach_spacings`` (None: SPLAT_PLANE_DEPTH) · √point_area of |p − o| (the depth the disk and its neighbours' gap can span;
     the plane's depth grows without bound towards its horizon), and a ray that leaves the plane
     behind (t ≤ 0, or n · u = 0) takes the far end of that range: the surface recedes there."""
     offsets, normals, directions = f64(offsets), f64(normals), f64(directions)
     distance = np.linalg.norm(offsets, axis=-1)
-    reach = SPLAT_PLANE_DEPTH * np.sqrt(max(f64(point_area), 0.0))
+    reach = (SPLAT_PLANE_DEPTH if reach_spacings is None else reach_spacings) * np.sqrt(max(f64(point_area), 0.0))
     across = (normals * directions).sum(axis=-1)
     height = (normals * offsets).sum(axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -201,12 +205,13 @@ GAP_REACH = 3
 GAP_MARGIN = 0.1
 #: The four lines a gap is looked for along: rows, columns, both diagonals.
 GAP_DIRECTIONS = ((1, 0), (0, 1), (1, 1), (1, -1))
-#: Each side's surface continued to the texel with its own depth slope (close_gaps); False: the
-#: side's nearest depth as it is.
+#: The gap closing of the maps that keep their surfaces (vsgl_addon/pipeline.py
+#: SURFACE_LIGHT_TYPES): each side's surface continued to the texel as a plane (close_gaps
+#: ``continued``); False: the side's nearest depth as it is.
 GAP_EXTRAPOLATE = True
 
 
-def close_gaps(depth) -> np.ndarray:
+def close_gaps(depth, continued: bool = False) -> np.ndarray:
     """The splatted map with its gaps closed before pull-push: a texel (empty or not) whose nearest
     depths within GAP_REACH texels on *both* sides along a row, column or diagonal are nearer than
     (1 − GAP_MARGIN) × its own takes the farther of those two (the least over the four lines),
@@ -216,7 +221,10 @@ def close_gaps(depth) -> np.ndarray:
     sides, a silhouette's background only on one, so this closes holes up to 2·GAP_REACH − 1
     texels wide and leaves outlines where they are (concave corners of an outline and slits
     narrower than the reach close too). On a continuous surface the depth changes by much less
-    than GAP_MARGIN per texel, so the surfaces' own texels stay."""
+    than GAP_MARGIN per texel, so the surfaces' own texels stay. ``continued``: each side's
+    surface is continued to the texel as a plane (:func:`_plane_continued`) and the texel is a gap
+    only when both continued sides pass in front of it: a room's concave corner, farther than the
+    walls on both sides, is no gap (with oriented splats, whose depths follow the walls' planes)."""
     depth = f64(depth)
     size = depth.shape[0]
     rows, columns = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
@@ -234,7 +242,7 @@ def close_gaps(depth) -> np.ndarray:
                 at = np.where(here < nearest, k, at)
                 nearest = np.minimum(nearest, here)
             sides.append(nearest)
-            if GAP_EXTRAPOLATE:
+            if continued:
                 surfaces.append(np.maximum(nearest, _plane_continued(depth, scale, columns, rows, sign * dx,
                                                                      sign * dy, at, size)))
             else:
@@ -361,7 +369,14 @@ BACK_OFFSET = 1.0
 SPREAD_BIAS = 0.0
 
 
-def lookup_offsets(offsets, normals, size: int, footprint: float):
+#: The lookup of the maps that keep their surfaces (vsgl_addon/pipeline.py SURFACE_LIGHT_TYPES):
+#: NORMAL_OFFSET and NORMAL_OFFSET_DEPTH for them (lookup_offsets ``surfaces``). The GPU's twins are
+#: the defines ISM_SURFACE_OFFSET and ISM_SURFACE_OFFSET_DEPTH of glsl/lib/ism.glsl.
+SURFACE_NORMAL_OFFSET = 1.0
+SURFACE_NORMAL_OFFSET_DEPTH = 1.0
+
+
+def lookup_offsets(offsets, normals, size: int, footprint: float, surfaces: bool = False):
     """The receivers' offsets from the map's origin (..., 3) and their depth bias (...,) as the
     lookup tests them, for a filter of ``footprint`` texels (α = √(4π)/size a texel's span, θ the
     receiver's incidence from the origin, n its unit normal, which faces the camera).
@@ -379,7 +394,15 @@ def lookup_offsets(offsets, normals, size: int, footprint: float):
     stands between them; the G-buffer's normal faces the camera) moves BACK_OFFSET · footprint ·
     |x − o| · α along n, away from the origin, with 1 mm of depth bias, whatever NORMAL_OFFSET is:
     it sees the origin only if nothing is splatted across its own surface's texels, where either
-    bias above lets the light of a VSGL behind a wall that is thinner than the bias through it."""
+    bias above lets the light of a VSGL behind a wall that is thinner than the bias through it.
+
+    ``surfaces``: a map that keeps its surfaces' depth (oriented splats, continued gap sides) takes
+    SURFACE_NORMAL_OFFSET and SURFACE_NORMAL_OFFSET_DEPTH instead: its receivers' own surfaces are
+    stored at their depth, so the small depth bias the normal offset leaves does not shadow them,
+    and the offset stops the light of a VSGL behind a thin wall that the slope-scaled depth bias of
+    a grazed receiver lets through (benchmarks/ism_holes.py)."""
+    normal_offset = SURFACE_NORMAL_OFFSET if surfaces else NORMAL_OFFSET
+    offset_depth = SURFACE_NORMAL_OFFSET_DEPTH if surfaces else NORMAL_OFFSET_DEPTH
     offsets = f64(offsets)
     distance = np.linalg.norm(offsets, axis=-1)
     if normals is None:
@@ -391,40 +414,40 @@ def lookup_offsets(offsets, normals, size: int, footprint: float):
     bias = ism_bias(distance, size, sin_theta / np.maximum(cos_theta, 1e-3), slope=footprint)
     texel = footprint * distance * np.sqrt(4.0 * np.pi) / size
     shift = np.zeros_like(distance)
-    if NORMAL_OFFSET > 0.0:
-        shift = NORMAL_OFFSET * texel * sin_theta * np.where(towards >= 0.0, 1.0, -1.0)
+    if normal_offset > 0.0:
+        shift = normal_offset * texel * sin_theta * np.where(towards >= 0.0, 1.0, -1.0)
     back = (towards < 0.0) & (BACK_OFFSET > 0.0)
     shift = np.where(back, BACK_OFFSET * texel, shift)
     moved = offsets + shift[..., None] * normals
-    if NORMAL_OFFSET > 0.0:
-        bias = NORMAL_OFFSET_DEPTH * np.linalg.norm(moved, axis=-1) * np.sqrt(4.0 * np.pi) / size + 1e-3
+    if normal_offset > 0.0:
+        bias = offset_depth * np.linalg.norm(moved, axis=-1) * np.sqrt(4.0 * np.pi) / size + 1e-3
     return moved, np.where(back, 1e-3, bias)
 
 
-def _receiver(depth, origin, receivers, normals, bias, footprint=1.0):
+def _receiver(depth, origin, receivers, normals, bias, footprint=1.0, surfaces=False):
     size = depth.shape[0]
     offsets = f64(receivers) - f64(origin)
     if bias is None:
-        offsets, bias = lookup_offsets(offsets, normals, size, footprint)
+        offsets, bias = lookup_offsets(offsets, normals, size, footprint, surfaces)
     return ism_texel(offsets, size), np.linalg.norm(offsets, axis=-1), f64(bias)
 
 
-def ism_visibility(depth, origin, receivers, normals=None, bias=None) -> np.ndarray:
+def ism_visibility(depth, origin, receivers, normals=None, bias=None, surfaces=False) -> np.ndarray:
     """1 where receivers (..., 3) see the ISM's origin (nothing stored nearer than them, less the
     bias; default :func:`ism_bias`, slope-scaled by the receivers' ``normals`` when given), 0 where
     the map holds something in front."""
-    texel, distance, bias = _receiver(depth, origin, receivers, normals, bias)
+    texel, distance, bias = _receiver(depth, origin, receivers, normals, bias, surfaces=surfaces)
     stored = f64(depth)[texel[..., 1], texel[..., 0]]
     return (distance <= stored + bias).astype(np.float64)
 
 
-def ism_pcf(depth, origin, receivers, radius: int, normals=None, bias=None) -> np.ndarray:
+def ism_pcf(depth, origin, receivers, radius: int, normals=None, bias=None, surfaces=False) -> np.ndarray:
     """The visibility test averaged over the (2·radius + 1)² texels around each receiver's texel,
     wrapping across the octahedral folds (percentage-closer filtering). The default bias spans the
     filter's footprint (1 + radius texels): a neighbour texel of a sloped surface lies nearer."""
     size = depth.shape[0]
     depth = f64(depth)
-    texel, distance, bias = _receiver(depth, origin, receivers, normals, bias, footprint=1.0 + radius)
+    texel, distance, bias = _receiver(depth, origin, receivers, normals, bias, 1.0 + radius, surfaces)
     total = np.zeros(distance.shape)
     for dy in range(-radius, radius + 1):
         for dx in range(-radius, radius + 1):
@@ -433,7 +456,7 @@ def ism_pcf(depth, origin, receivers, radius: int, normals=None, bias=None) -> n
     return total / (2 * radius + 1) ** 2
 
 
-def ism_pcf_bilinear(depth, origin, receivers, normals=None, bias=None) -> np.ndarray:
+def ism_pcf_bilinear(depth, origin, receivers, normals=None, bias=None, surfaces=False) -> np.ndarray:
     """The visibility test on the four texels around each receiver's continuous position in the
     map (texel centres at (i + ½)/size of the octahedral square), weighted bilinearly: a filter of
     about two texels from one textureGather on the GPU. The block is kept inside the square
@@ -441,12 +464,12 @@ def ism_pcf_bilinear(depth, origin, receivers, normals=None, bias=None) -> np.nd
     direction among them) instead of wrapping across the folds: the wrap's four separate fetches
     and mirrors cost the shading pass more than the rest of its lookup on llvmpipe, which runs
     both sides of a branch (benchmarks/visibility_cost.py). A 1² map: its one texel. The default
-    bias (:func:`lookup_offsets`) spans the filter's footprint (two texels)."""
+    bias (:func:`lookup_offsets`, ``surfaces`` as there) spans the filter's footprint (two texels)."""
     size = depth.shape[0]
     depth = f64(depth)
     offsets = f64(receivers) - f64(origin)
     if bias is None:
-        offsets, bias = lookup_offsets(offsets, normals, size, 2.0)
+        offsets, bias = lookup_offsets(offsets, normals, size, 2.0, surfaces)
     distance = np.linalg.norm(offsets, axis=-1)
     cell = (octahedral_encode(offsets) * 0.5 + 0.5) * size - 0.5
     corner = np.clip(np.floor(cell), 0.0, max(size - 2, 0))

@@ -426,7 +426,7 @@ def vsgl_reflector_side(mean, axis, sharpness, position):
     return np.clip(1.0 + sin_elevation / np.maximum(sin_c, 1e-4), 0.0, 1.0)
 
 
-def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius, reflector_side=False):
+def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius, reflector_side=False, surfaces=False):
     """(P, N, 2) visibility of each VSGL lobe from P shading points (glsl/vsgl_shading's
     vsgl_visibility): the filtered lookup (reference.ism.ism_pcf) from the lobe's shadow origin
     (reference.ism.shadow_origin) in its map of
@@ -434,7 +434,9 @@ def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius, 
     VSGL; with one, both lobes take the map of the VSGL's diffuse lobe position ``diffuse_mean``): one texel where σ_v / distance is under half a texel (or ``max_radius`` is 0), else the
     bilinear filter of about two texels (reference.ism.ism_pcf_bilinear). ``reflector_side``: the
     diffuse lobe's times :func:`vsgl_reflector_side`, which the shader no longer applies
-    (pipeline.VSGL_OWN_REFLECTOR_SIGMAS says why; benchmarks/visibility_diagnosis.py measures it)."""
+    (pipeline.VSGL_OWN_REFLECTOR_SIGMAS says why; benchmarks/visibility_diagnosis.py measures it).
+    ``surfaces``: maps that keep their surfaces' depth, whose lookups take the surface normal offset
+    (reference.ism.lookup_offsets; passes/ism.py ISMAtlas.surfaces)."""
     from . import ism
 
     position, normal = f64(position).reshape(-1, 3), f64(normal).reshape(-1, 3)
@@ -459,8 +461,10 @@ def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius, 
             for r in np.unique(radius).astype(int):
                 here = radius == r
                 depth = depths[maps_per_vsgl * i + lobe]
-                result[here, i, lobe] = (ism.ism_pcf(depth, mean, position[here], 0, normals=normal[here]) if r == 0
-                                         else ism.ism_pcf_bilinear(depth, mean, position[here], normals=normal[here]))
+                result[here, i, lobe] = (ism.ism_pcf(depth, mean, position[here], 0, normals=normal[here],
+                                                     surfaces=surfaces) if r == 0
+                                         else ism.ism_pcf_bilinear(depth, mean, position[here], normals=normal[here],
+                                                                   surfaces=surfaces))
     if not reflector_side:
         return result
     # The diffuse lobe's own reflector (vsgl_reflector_side); with one map per VSGL the specular
