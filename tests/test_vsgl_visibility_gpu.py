@@ -127,3 +127,41 @@ def test_visibility_off_reproduces_today_s_images_exactly():
     again = shading_pass.shade_gpu(gbuffer, CAMERA, [table])
     for a, b in zip(first, again):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("surfaces", [False, True])
+def test_a_table_whose_maps_keep_their_surfaces_takes_their_lookup(surfaces):
+    """Sized maps that keep their surfaces or not (passes/ism.py ISMAtlas.surfaces): the shading
+    pass's lookups take the surface normal offset for the first (reference vsgl_visibility
+    ``surfaces``), and the images match the reference's; the two lookups differ on this scene."""
+    vsgls = _vsgls(count=8, seed=5)
+    g, _ = _gbuffer()
+    points = sp.scene_point_sets(SCENE, 4096, 8, seed=1)
+    area = sp.triangle_areas(SCENE.positions).sum() / 4096
+    origins = np.stack([vsgls["diffuse_mean"], vsgls["specular_mean"]], 1).reshape(-1, 3)
+    sigma = np.sqrt(np.stack([vsgls["diffuse_variance"], vsgls["specular_variance"]], 1).reshape(-1))
+    atlas = ism_pass.PASS.run(points, origins, sp.set_index(np.arange(len(origins)), 8), 16,
+                              min_distance=2.0 * sigma, point_area=area, surfaces=surfaces)
+    table = shading_pass.upload_vsgl_table(vsgls)
+    seen = shading_pass.VSGLTable(table.texture, table.count, False, atlas)
+    gbuffer = shading_pass.upload_gbuffer(**g)
+    try:
+        gpu_d, _ = shading_pass.shade_gpu(gbuffer, CAMERA, [seen], "cosine")
+        depths = atlas.read()
+    finally:
+        ism_pass.PASS.free(atlas)
+    position = g["position"].reshape(-1, 3).astype(np.float32).astype(np.float64)
+    normal = g["normal"].reshape(-1, 3)
+    view = CAMERA - position
+    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    f32 = {k: np.asarray(v, np.float32).astype(np.float64) for k, v in vsgls.items()}
+    lookups = {s: vs.vsgl_visibility(depths, 2, f32, position, normal, shading_pass.ISM_MAX_RADIUS, surfaces=s)
+               for s in (False, True)}
+    assert not np.allclose(lookups[False], lookups[True])
+    ref_d, _ = vs.shade(f32, position, normal, view, g["diffuse_reflectance"].reshape(-1, 3),
+                        g["specular_f0"].reshape(-1, 3), g["roughness"].reshape(-1), visibility=lookups[surfaces],
+                        diffuse_mode="cosine")
+    got_d = gpu_d[..., :3].reshape(-1, 3)
+    assert np.isfinite(got_d).all()
+    close = np.all(np.abs(got_d - ref_d) <= 1e-4 * np.abs(ref_d) + 1e-6 * np.abs(ref_d).max(), axis=1)
+    assert close.mean() > 0.97, close.mean()
