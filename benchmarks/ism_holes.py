@@ -3,7 +3,7 @@
 against the exact depth map from the same origin, per receiver and per texel.
 
     .venv/bin/python benchmarks/ism_holes.py [--only NAME ...] [--stride S] [--seed K]
-        [--vsgl-count N] [--ism-points P] [--ism-size S] [--append] [--results-dir DIR]
+        [--vsgl-count N] [--ism-points P] [--ism-size S] [--surface-types TYPE ...] [--append] [--results-dir DIR]
 
 Per scene (one RSM view, the scene's settings, visibility on), on every S-th pixel of the suite's
 camera G-buffer, the VSGLs' light (reference/vsgl_shading.shade, per lobe) with each lobe's
@@ -25,6 +25,8 @@ splat (before gap closing and pull-push, reference.ism.splat of the map's point 
 through* (a farther point landed there), *filled* (no point landed: gap closing or pull-push gave
 its depth). Per occluder object: the maps' points on it (the map's set, past the own-reflector
 distance), its footprint in texels, its holes, weighted by the leak the maps' lookups gave.
+``--surface-types``: the light types whose maps keep their surfaces (pipeline.SURFACE_LIGHT_TYPES;
+none given: no light's), instead of the default.
 Writes ``benchmarks/results/ism_holes.md`` (+ .json).
 """
 
@@ -249,6 +251,8 @@ def main(argv=None):
     parser.add_argument("--vsgl-count", type=int, default=None)
     parser.add_argument("--ism-points", type=int, default=None)
     parser.add_argument("--ism-size", type=int, default=None)
+    parser.add_argument("--surface-types", nargs="*", default=None,
+                        help="light types whose maps keep their surfaces instead of pipeline.SURFACE_LIGHT_TYPES")
     parser.add_argument("--append", action="store_true")
     parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
     args = parser.parse_args(argv)
@@ -259,6 +263,10 @@ def main(argv=None):
 
     register()
     ensure_gpu_context()
+    if args.surface_types is not None:
+        from vsgl_addon import pipeline
+
+        pipeline.SURFACE_LIGHT_TYPES = tuple(args.surface_types)
     results = {}
     for name, path, _ in suite():
         if name in args.only:
