@@ -124,7 +124,8 @@ def analyse(name, path, stride, overrides, internals=None):
                 ideal[m] = t.reshape(size, size)
                 hit_object[m] = np.where(tri >= 0, owners[np.maximum(tri, 0)], -1).reshape(size, size)
                 raw[m] = ism.splat(points.positions[index], origin, size, dist, points.normals[index], point_area,
-                                   plane_depth=ism.SPLAT_PLANE_DEPTH if surfaces else 0.0)
+                                   plane_depth=ism.SPLAT_PLANE_DEPTH if surfaces else 0.0,
+                                   max_radius=ism.SURFACE_SPLAT_MAX_RADIUS if surfaces else None)
             per_table.append(dict(
                 table=table, maps=maps, count=count, size=size, weight=weight, depths=depths, ideal=ideal,
                 hit_object=hit_object, raw=raw, origins=origins, sets=sets, near=near, surfaces=surfaces,

@@ -331,19 +331,19 @@ def test_maps_of_a_table_texture_equal_those_of_the_same_origins_from_numpy(maps
 @pytest.mark.parametrize("plane,continued", [(1.0, True), (0.5, True), (1.0, False)])
 def test_maps_that_keep_their_surfaces_match_the_reference(monkeypatch, plane, continued):
     """An atlas that keeps its surfaces (ISMAtlas.surfaces): sized splats at their tangent plane's
-    depth (reference splat ``plane_depth`` = SPLAT_PLANE_DEPTH) and gap sides continued as planes
+    depth (reference splat ``plane_depth`` = SPLAT_PLANE_DEPTH, radius up to SURFACE_SPLAT_MAX_RADIUS) and gap sides continued as planes
     or as their nearest depth (close_gaps ``continued`` = GAP_EXTRAPOLATE), a floor grazed from
     0.3 m and a wall: the GPU's maps against the float64 twin's, and unlike the maps that do not
     keep their surfaces (the variant reached the shaders)."""
     monkeypatch.setattr(ism, "SPLAT_PLANE_DEPTH", plane)
     monkeypatch.setattr(ism, "GAP_EXTRAPOLATE", continued)
     scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
-    points = sp.scene_point_sets(scene, 2048, 2, seed=6)
-    area = sp.triangle_areas(scene.positions).sum() / 2048
+    points = sp.scene_point_sets(scene, 512, 2, seed=6)  # sparse: the near floor's splats are wide
+    area = sp.triangle_areas(scene.positions).sum() / 512
     origins = np.array([[0.0, 0.0, 0.3], [-0.6, 0.4, 1.2]])
 
     def maps(surfaces):
-        atlas = ism_pass.PASS.run(points, origins, [0, 1], 32, point_area=area, surfaces=surfaces)
+        atlas = ism_pass.PASS.run(points, origins, [0, 1], 64, point_area=area, surfaces=surfaces)
         try:
             assert atlas.surfaces == surfaces
             return atlas.read()
@@ -351,9 +351,15 @@ def test_maps_that_keep_their_surfaces_match_the_reference(monkeypatch, plane, c
             ism_pass.PASS.free(atlas)
 
     got, plain = maps(True), maps(False)
-    expected = np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, 32, normals=points.normals[s],
-                                                                point_area=area, plane_depth=plane), continued))
+    expected = np.stack([ism.pull_push(ism.close_gaps(ism.splat(points.positions[s], o, 64, normals=points.normals[s],
+                                                                point_area=area, plane_depth=plane,
+                                                                max_radius=ism.SURFACE_SPLAT_MAX_RADIUS),
+                                                      continued))
                          for o, s in zip(origins, [0, 1])])
     assert np.isfinite(got).all()
     assert np.isclose(got, expected, rtol=1e-5).mean() > 0.99
     assert not np.isclose(got, plain, rtol=1e-5).all()
+    offsets = points.positions[0] - origins[0]
+    cos_theta = (points.normals[0] * offsets).sum(axis=1) / np.linalg.norm(offsets, axis=1)
+    radius = ism.splat_radius(offsets, cos_theta, area, 64, ism.SURFACE_SPLAT_MAX_RADIUS)
+    assert radius.max() > ism.SPLAT_MAX_RADIUS  # the near floor's splats reach past the others' cap

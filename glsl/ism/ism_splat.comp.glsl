@@ -38,7 +38,7 @@ void main()
   float l1_ratio = (abs(offset.x) + abs(offset.y) + abs(offset.z)) / distance;
   float texel = 4.0 / float(size * size) * l1_ratio * l1_ratio * l1_ratio;
   float texels = ism_point_area * abs(dot(normal, offset)) / distance / max(distance * distance, 1e-30) / texel;
-  int radius = int(clamp(ceil(0.5 * (ISM_SPLAT_SHARE * sqrt(texels) - 1.0)), 0.0, float(ISM_SPLAT_MAX_RADIUS)));
+  int radius = int(clamp(ceil(0.5 * (ISM_SPLAT_SHARE * sqrt(texels) - 1.0)), 0.0, float(ism_max_radius)));
   // Each texel takes the depth where its centre's direction meets the point's tangent plane, within
   // ism_plane_depth point spacings of its distance (reference tangent_plane_depth: an oriented
   // splat); 0: the point's own distance over the whole splat.

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..layouts import VSGL_TABLE
 from ..reference import ism as _reference_ism
-from ..reference.ism import EMPTY, GAP_MARGIN, GAP_REACH, SPLAT_MAX_RADIUS, SPLAT_SHARE
+from ..reference.ism import EMPTY, GAP_MARGIN, GAP_REACH, SPLAT_SHARE
 from ..shaders import ShaderInterface
 from .contract import GPUPass, ShaderSpec, Step
 from .gpu_util import read_texture, texture_from_array
@@ -49,7 +49,8 @@ _LEVEL_GROUP = (8, 8, 1)
 def _splat_interface() -> ShaderInterface:
     return ShaderInterface(
         # (points per set, map count, map side, tiles per atlas row)
-        push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_point_area"), ("FLOAT", "ism_plane_depth")],
+        push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_point_area"), ("FLOAT", "ism_plane_depth"),
+                        ("INT", "ism_max_radius")],
         # Inputs read as images, not samplers: on llvmpipe an imageLoad costs a fraction of a
         # texelFetch (benchmarks/light_build_profile.py), the same texels either way.
         images=[("R32UI", "UINT_2D", "ism_atlas"), ("RGBA32F", "FLOAT_2D", "scene_points"),
@@ -247,7 +248,8 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
     0 splats single texels. ``point_textures``: :func:`upload_points` of ``points``, when several
     atlases splat the same sets (uploaded here otherwise). ``timed``: the GPU is waited for after each stage, and the atlas's
     ``seconds`` holds the splat's and the pull-push's time (costs a few read-backs; benchmarks).
-    ``surfaces``: oriented splats (reference splat ``plane_depth`` = SPLAT_PLANE_DEPTH) and gap
+    ``surfaces``: oriented splats (reference splat ``plane_depth`` = SPLAT_PLANE_DEPTH, radius capped
+    at SURFACE_SPLAT_MAX_RADIUS instead of SPLAT_MAX_RADIUS) and gap
     sides continued as planes (close_gaps ``continued`` = GAP_EXTRAPOLATE); the atlas says so, and
     its lookups then take the normal offset (vsgl_shading)."""
     import time
@@ -286,6 +288,8 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         splat.uniform_int("ism_params", (points.points_per_set, count, size, columns))
         splat.uniform_float("ism_point_area", float(point_area))
         splat.uniform_float("ism_plane_depth", float(_reference_ism.SPLAT_PLANE_DEPTH) if surfaces else 0.0)
+        splat.uniform_int("ism_max_radius", int(_reference_ism.SURFACE_SPLAT_MAX_RADIUS if surfaces
+                                                else _reference_ism.SPLAT_MAX_RADIUS))
         splat.image("scene_points", point_texture)
         splat.image("scene_point_normals", normal_texture)
         splat.image("ism_origins", origin_texture)
@@ -366,8 +370,7 @@ PASS = GPUPass(
     shaders={"origins": ShaderSpec(_origins_interface, {"compute": "ism/ism_origins.comp.glsl"},
                                    code=lambda: {"compute": VSGL_TABLE.glsl("sampler_load")}),
              "splat": ShaderSpec(_splat_interface, {"compute": "ism/ism_splat.comp.glsl"},
-                                 defines=lambda: {"ISM_SPLAT_MAX_RADIUS": SPLAT_MAX_RADIUS,
-                                                  "ISM_SPLAT_SHARE": repr(float(SPLAT_SHARE))}),
+                                 defines=lambda: {"ISM_SPLAT_SHARE": repr(float(SPLAT_SHARE))}),
              "close": ShaderSpec(_close_interface, {"compute": "ism/ism_close.comp.glsl"},
                                  defines=lambda: {"ISM_GAP_REACH": GAP_REACH, "ISM_GAP_MARGIN": repr(float(GAP_MARGIN))}),
              "pull": ShaderSpec(_pull_interface, {"compute": "ism/ism_pull.comp.glsl"}),
