@@ -22,10 +22,10 @@ import numpy as np
 from .layouts import GBUFFER
 from .passes import (READ_BACK, UPLOAD, VPL_EXTRACTION, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg,
                      mrp_visibility, shading_inputs, vpl_culling, vsgl_shading)
-from .passes.contract import LIGHT_PASSES
+from .passes.contract import LIGHT_PASSES, run_stages
 from .passes.gpu_util import finish, read_texture
 from .passes.rsm import SceneGPU
-from .pipeline import build_visibility, render_scene_vsgls, view_receivers
+from .pipeline import build_visibility_stages, render_scene_vsgls, view_receivers
 from .planner import PROXY_CACHE, RECEIVER_ALPHA_RANGE, kept_proxies, plan_frame
 from .proxies import ProxyCache, describe_proxies
 from .reference.vsgl_shading import diffuse_mode_for_kernel
@@ -98,6 +98,15 @@ class _StageClock:
         yield
         self.paused += time.perf_counter() - paused
 
+    def through(self, stages):
+        """``yield from`` the staged build ``stages``, pausing at each of its yields; its result."""
+        while True:
+            try:
+                next(stages)
+            except StopIteration as done:
+                return done.value
+            yield from self.pause()
+
     def seconds(self) -> float:
         return time.perf_counter() - self.started - self.paused
 
@@ -138,12 +147,7 @@ class SceneLights:
         known, so the plan can skip the work no receiver in it needs and weigh the RSM texels by it
         (the view PDF); None: any view (the viewport). ``point_cache``: a passes.scene_gpu
         PointTextureCache that keeps the ISMs' point sets on the GPU across builds (the viewport's)."""
-        stages = cls.build_stages(scene, settings, proxy_cache, view, point_cache)
-        while True:
-            try:
-                next(stages)
-            except StopIteration as done:
-                return done.value
+        return run_stages(cls.build_stages(scene, settings, proxy_cache, view, point_cache))
 
     @classmethod
     def build_stages(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
@@ -186,7 +190,8 @@ class SceneLights:
                     # MRP-ASG off exactly.
                     start = starts[1] if index == 2 else first_map
                     starts.append(start)
-                    first_map = max(first_map, build_visibility(scene_gpu, table_set, settings, start))
+                    first_map = max(first_map, (yield from clock.through(
+                        build_visibility_stages(scene_gpu, table_set, settings, start))))
                     if table_set.isms:
                         _finish(table_set.isms[-1].texture)
                     yield from clock.pause()
