@@ -461,15 +461,17 @@ STAGES = 4
 
 
 class StagedBackend(FakeBackend):
-    """Builds the light passes in STAGES stages of LIGHT_SECONDS each (a build longer than the
-    budget: STAGES × LIGHT_SECONDS = 80 ms), each stage's partial result a GPU object that closing
-    the build frees."""
+    """Builds the light passes in stages of `costs` seconds (by default STAGES of LIGHT_SECONDS: a
+    build longer than the budget, 80 ms), each stage's partial result a GPU object that closing the
+    build frees."""
+
+    costs = (LIGHT_SECONDS,) * STAGES
 
     def scene_lights_stages(self, description, settings):
         parts = []
         try:
-            for _ in range(STAGES):
-                self.clock.now += LIGHT_SECONDS
+            for cost in self.costs:
+                self.clock.now += cost
                 parts.append(Thing())
                 yield
         finally:
@@ -479,9 +481,12 @@ class StagedBackend(FakeBackend):
         return Thing(seed=settings.seed, timings={}, scene=description)
 
 
-def _staged_pipeline():
+def _staged_pipeline(costs=None):
     clock = Clock()
-    pipeline = ViewPipeline(StagedBackend(clock), clock)
+    backend = StagedBackend(clock)
+    if costs is not None:
+        backend.costs = costs
+    pipeline = ViewPipeline(backend, clock)
     pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
     return pipeline
 
@@ -532,3 +537,17 @@ def test_a_new_seed_reuses_the_scene_description(pipeline):
             break
     assert pipeline.backend.light_builds == [5, 6, 7]
     assert len(calls) == 1
+
+
+def test_stages_of_unequal_cost_fit_the_budget_once_their_times_are_known():
+    """A short stage then a long one: the first build learns their times (the long one may follow the
+    short one in a step), the next seeds' builds run a stage only when its last time fits."""
+    Thing.alive = 0
+    staged = _staged_pipeline(costs=(0.02, 0.05, 0.02, 0.05))
+    run(staged, samples=4)
+    builds = [e for e in staged.history if "lights_complete" in e]
+    first_build_end = next(i for i, e in enumerate(builds) if e["lights_complete"])
+    later = builds[first_build_end + 1:]
+    assert later and max(e["seconds"] for e in later) <= STEP_BUDGET * 1.05, later
+    staged.free()
+    assert Thing.alive == 0

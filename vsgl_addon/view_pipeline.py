@@ -137,8 +137,9 @@ class ViewPipeline:
         self.preview_lights = preview_lights
         self.lights_preview = False  # the current light passes are preview_light_settings'
         self._lights_built = None  # the settings the current light passes were built with
-        # A staged build of the samples' light passes under way: (key, settings, generator).
+        # A staged build of the samples' light passes under way: [key, settings, generator, stages done].
         self._building = None
+        self._stage_seconds: dict = {}  # settings -> seconds of each stage of their last build
         self.renderer = None
         self.request: ViewRequest | None = None
         self.target = None  # accumulation images at the region's size
@@ -293,8 +294,8 @@ class ViewPipeline:
 
     def _advance_lights(self, describe_scene, settings: VSGLSettings, seed_offset: int, started: float):
         """The samples' light passes of ``seed_offset``, built in stages (the backend's
-        scene_lights_stages) over as many steps as the step budget needs: the stages of this step run
-        while the last one's time still fits in it, and the current light passes stay until the new
+        scene_lights_stages) over as many steps as the step budget needs: a step runs one stage and then
+        the next ones while each one's predicted time still fits in it, and the current light passes stay until the new
         ones are complete (a view change in between renders its coarse image with them). Returns
         (complete, seconds of this step's stages). A backend without stages builds them at once."""
         stages_of = getattr(self.backend, "scene_lights_stages", None)
@@ -305,9 +306,18 @@ class ViewPipeline:
         if self._building is None or self._building[0] != key:
             self._close_build()
             seeded = settings if seed_offset == 0 else settings.overridden(seed=settings.seed + seed_offset)
-            self._building = (key, seeded, stages_of(self._describe(describe_scene), seeded))
-        _, seeded, stages = self._building
+            self._building = [key, seeded, stages_of(self._describe(describe_scene), seeded), 0]
+        _, seeded, stages, _ = self._building
+        # Each stage's seconds in the last build of these settings (another seed's: the same work)
+        # predict whether the next one still fits in this step.
+        known = self._stage_seconds.get(settings, [])
+        last = None
         while True:
+            index = self._building[3]
+            if last is not None:
+                predicted = known[index] if index < len(known) else last
+                if self.clock() - started + predicted > self.step_budget:
+                    return False, self.clock() - clock
             stage_started = self.clock()
             try:
                 next(stages)
@@ -323,9 +333,10 @@ class ViewPipeline:
             except BaseException:
                 self._building = None
                 raise
-            now = self.clock()
-            if now - started + (now - stage_started) > self.step_budget:
-                return False, now - clock
+            last = self.clock() - stage_started
+            seconds = self._stage_seconds.setdefault(settings, [])
+            seconds[index:index + 1] = [last]
+            self._building[3] = index + 1
 
     def _close_build(self) -> None:
         """Abandon a staged light build (what it made so far is freed)."""
@@ -560,6 +571,7 @@ class ViewPipeline:
     def free(self) -> None:
         """Release every GPU resource; the next step starts from scratch."""
         self._close_build()
+        self._stage_seconds.clear()
         self._free_lights()
         for attribute in ("target", "sample_target", "guide"):
             target = getattr(self, attribute)
