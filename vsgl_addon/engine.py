@@ -121,6 +121,7 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         # The timer (and view_update) do the steps, in the window's GPU context: framebuffers belong
         # to the context that made them, and view_draw runs in the viewport's own.
         pipeline.step_args = _step_args(pipeline, properties)
+        samples = int(getattr(properties, "viewport_samples", 16))
         gpu.state.blend_set("ALPHA_PREMULT")
         self.bind_display_space_shader(scene)
         pipeline.draw(view_pass)
