@@ -137,7 +137,8 @@ class ViewPipeline:
         self.preview_lights = preview_lights
         self.lights_preview = False  # the current light passes are preview_light_settings'
         self._lights_built = None  # the settings the current light passes were built with
-        # A staged build of the samples' light passes under way: [key, settings, generator, stages done].
+        # A staged build of the samples' light passes under way: [key, settings, generator, stages
+        # done].
         self._building = None
         self._stage_seconds: dict = {}  # settings -> seconds of each stage of their last build
         self.renderer = None
@@ -294,10 +295,11 @@ class ViewPipeline:
 
     def _advance_lights(self, describe_scene, settings: VSGLSettings, seed_offset: int, started: float):
         """The samples' light passes of ``seed_offset``, built in stages (the backend's
-        scene_lights_stages) over as many steps as the step budget needs: a step runs one stage and then
-        the next ones while each one's predicted time still fits in it, and the current light passes stay until the new
-        ones are complete (a view change in between renders its coarse image with them). Returns
-        (complete, seconds of this step's stages). A backend without stages builds them at once."""
+        scene_lights_stages) over as many steps as the step budget needs: a step runs one stage,
+        then the next ones while each one's predicted time still fits in it; the current light
+        passes stay until the new ones are complete (a view change in between renders its coarse
+        image with them). Returns (complete, seconds of this step's stages). A backend without
+        stages builds them at once."""
         stages_of = getattr(self.backend, "scene_lights_stages", None)
         if stages_of is None:
             return True, self._rebuild_lights(describe_scene, settings, seed_offset)
