@@ -248,7 +248,7 @@ class ViewPipeline:
             self._free_lights()
             entry["error"] = self.error
             entry["traceback"] = traceback.format_exc()
-        entry["ended"] = self.clock()
+        entry["started"], entry["ended"] = started, self.clock()
         entry["seconds"] = entry["ended"] - started
         entry["samples"] = self.samples
         self.statistics = entry
