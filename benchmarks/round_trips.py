@@ -56,7 +56,7 @@ def measure(repo: Path, region, samples: int) -> dict:
             if work is None:
                 return builds, renders
             entry = pipeline.history[-1]
-            builds += work == "lights" or "light_seconds" in entry
+            builds += work == "lights" or bool(entry.get("lights_complete", "light_seconds" in entry))
             renders += bool(entry.get("level"))
 
     try:

@@ -455,3 +455,99 @@ def test_the_coarse_image_after_a_change_has_preview_light_passes_and_the_sample
     np.testing.assert_array_equal(image, plain_image)
     full_built, full_rendered, _, _, _ = record(True, 1.0)
     assert full_built[0] == settings and full_rendered[0] == settings
+
+
+STAGES = 4
+
+
+class StagedBackend(FakeBackend):
+    """Builds the light passes in stages of `costs` seconds (by default STAGES of LIGHT_SECONDS: a
+    build longer than the budget, 80 ms), each stage's partial result a GPU object that closing the
+    build frees."""
+
+    costs = (LIGHT_SECONDS,) * STAGES
+
+    def scene_lights_stages(self, description, settings):
+        parts = []
+        try:
+            for cost in self.costs:
+                self.clock.now += cost
+                parts.append(Thing())
+                yield
+        finally:
+            for part in parts:
+                part.free()
+        self.light_builds.append(settings.seed)
+        return Thing(seed=settings.seed, timings={}, scene=description)
+
+
+def _staged_pipeline(costs=None):
+    clock = Clock()
+    backend = StagedBackend(clock)
+    if costs is not None:
+        backend.costs = costs
+    pipeline = ViewPipeline(backend, clock)
+    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+    return pipeline
+
+
+def test_a_staged_build_spreads_the_samples_light_passes_over_steps_within_the_budget(pipeline):
+    Thing.alive = 0
+    staged = _staged_pipeline()
+    done = run(staged, samples=4)
+    run(pipeline, samples=4)
+    # The same samples of the same seeds: only the steps differ.
+    assert staged.backend.light_builds == pipeline.backend.light_builds == [5, 6, 7, 8]
+    staged.draw("combined")
+    pipeline.draw("combined")
+    np.testing.assert_array_equal(staged.backend.displayed[-1][0], pipeline.backend.displayed[-1][0])
+    assert max(seconds for _, seconds in done[1:]) <= STEP_BUDGET * 1.05, done
+    # A build of 80 ms takes more than one step, and the steps without rows are the build's.
+    partial = [e for e in staged.history if e.get("rows") == (0, 0, REGION[1])]
+    assert len(partial) >= 4
+    staged.free()
+    assert staged.gpu_resource_count() == 0
+
+
+def test_a_view_change_during_a_staged_build_abandons_it_and_frees_its_stages(pipeline):
+    Thing.alive = 0
+    staged = _staged_pipeline()
+    staged.step(describe, SETTINGS, 0.25, 4)  # light passes and the coarse image
+    while staged._building is None:  # the first sample, then the second one's light passes begun
+        staged.step(describe, SETTINGS, 0.25, 4)
+    assert staged.lights is not None and staged.samples == 1
+    alive = Thing.alive
+    staged.request_view(np.eye(4) * 2.0, np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+    assert staged.step(describe, SETTINGS, 0.25, 4) == COARSE  # with the light passes it had
+    assert staged._building is None and Thing.alive < alive
+    run(staged, samples=2)
+    staged.free()
+    assert staged.gpu_resource_count() == 0 and Thing.alive == 0
+
+
+def test_a_new_seed_reuses_the_scene_description(pipeline):
+    calls = []
+
+    def counting():
+        calls.append(1)
+        return describe()
+
+    for _ in range(200):
+        if pipeline.step(counting, SETTINGS, 0.25, 3) is None:
+            break
+    assert pipeline.backend.light_builds == [5, 6, 7]
+    assert len(calls) == 1
+
+
+def test_stages_of_unequal_cost_fit_the_budget_once_their_times_are_known():
+    """A short stage then a long one: the first build learns their times (the long one may follow the
+    short one in a step), the next seeds' builds run a stage only when its last time fits."""
+    Thing.alive = 0
+    staged = _staged_pipeline(costs=(0.02, 0.05, 0.02, 0.05))
+    run(staged, samples=4)
+    builds = [e for e in staged.history if "lights_complete" in e]
+    first_build_end = next(i for i, e in enumerate(builds) if e["lights_complete"])
+    later = builds[first_build_end + 1:]
+    assert later and max(e["seconds"] for e in later) <= STEP_BUDGET * 1.05, later
+    staged.free()
+    assert Thing.alive == 0

@@ -151,8 +151,8 @@ def test_a_light_change_reads_nothing_back_and_uploads_no_point_set(demo, vpl_sh
         steps = pipeline.steps
         _run(pipeline, describe, 0.25, 2, settings=settings)
         entries = list(pipeline.history)[-(pipeline.steps - steps):]
-        builds = sum(1 for entry in entries if entry.get("work") == "lights" or "light_seconds" in entry)
-        assert builds == 3  # the coarse image's preview passes, then one per sample's seed
+        builds = sum(1 for entry in entries if entry.get("work") == "lights" or entry.get("lights_complete"))
+        assert builds == 3  # the coarse image's preview passes, then one per sample's seed (in stages)
         assert pipeline.guide_builds == 1  # the triangles and the view stayed: the guide G-buffer too
         # The demo has a sharp reflector: the VPLs, and with VPL shadows their clusters' maps, are made.
         assert pipeline.lights.vpls is not None
@@ -347,3 +347,45 @@ def test_preview_light_passes_light_only_the_coarse_image_and_the_converged_imag
         np.testing.assert_array_equal(images[True][view_pass], images[False][view_pass], err_msg=view_pass)
     # The preview's coarse image is another one (fewer, wider VSGLs), not the same passes twice.
     assert not np.array_equal(images[True]["coarse"], images[False]["coarse"])
+
+
+def test_a_staged_light_build_with_other_gpu_work_between_its_stages_lights_the_frame_of_one_build(demo):
+    """The viewport spreads a light build over steps (SceneLights.build_stages), and Blender draws,
+    other viewports render, between them: with a view rendered and drawn after every stage, the
+    light passes give the frame of SceneLights.build exactly (the demo: three VSGL sets with shadow
+    maps, the VPLs)."""
+    from vsgl_addon.passes.scene_gpu import PointTextureCache
+    from vsgl_addon.renderer import SceneLights
+
+    settings = VSGLSettings(vsgl_count=32, rsm_size=64, pdf="light", seed=3)
+    camera = demo.camera
+    view, projection = camera.view_matrix(), camera.projection_matrix()
+    renderer = FrameRenderer()
+    cache = PointTextureCache()
+    whole = SceneLights.build(demo, settings, point_cache=cache)
+    other = SceneLights.build(demo, settings.overridden(seed=9, rsm_size=32), point_cache=cache)
+    staged = None
+    try:
+        stages = SceneLights.build_stages(demo, settings, point_cache=cache)
+        count = 0
+        while staged is None:
+            try:
+                next(stages)
+                count += 1
+            except StopIteration as done:
+                staged = done.value
+            # Other work in between: a view of other light passes, as another step would render.
+            renderer.render_view(other, settings.overridden(seed=9, rsm_size=32), 40, 30, view, projection)
+        assert count >= 5  # the sets' RSMs and tables, their shadow maps' parts, the VPLs
+        a = renderer.render_view(whole, settings, 80, 60, view, projection)
+        b = renderer.render_view(staged, settings, 80, 60, view, projection)
+        for name in ("direct_diffuse", "indirect_diffuse", "indirect_specular", "indirect_caustics",
+                     "indirect_glossy_reflectors"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+        assert float(a.indirect_diffuse.max()) > 0.0
+    finally:
+        for lights in (whole, other, staged):
+            if lights is not None:
+                lights.free()
+        cache.free()
+        renderer.free()

@@ -132,7 +132,7 @@ def test_a_vsgl_inside_a_closed_box_stays_finite():
 
 
 def test_maps_made_from_the_tables_on_the_gpu_give_the_frame_of_origins_made_on_the_cpu(monkeypatch):
-    """pipeline.build_visibility makes each map's origin from the VSGL table texture on the GPU; the
+    """pipeline.build_visibility(_stages) makes each map's origin from the VSGL table texture on the GPU; the
     frame equals that of origins computed from the tables read back (reference.ism.vsgl_map_origins),
     and the maps' build reads nothing back."""
     from vsgl_addon import pipeline, renderer
@@ -142,16 +142,16 @@ def test_maps_made_from_the_tables_on_the_gpu_give_the_frame_of_origins_made_on_
 
     description = _occluded_scene()
     settings = VSGLSettings(vsgl_count=48, rsm_size=32, ism_points=4096)
-    built = pipeline.build_visibility
+    built = pipeline.build_visibility_stages
     read_backs = []
 
     def counted(*args, **kwargs):
         before = RoundTrips.read_backs
-        result = built(*args, **kwargs)
+        result = yield from built(*args, **kwargs)
         read_backs.append(RoundTrips.read_backs - before)
         return result
 
-    monkeypatch.setattr(renderer, "build_visibility", counted)
+    monkeypatch.setattr(renderer, "build_visibility_stages", counted)
     on_gpu = sb.render_frame(description, settings, 32, 24)
     assert read_backs and not any(read_backs)
 
@@ -164,9 +164,10 @@ def test_maps_made_from_the_tables_on_the_gpu_give_the_frame_of_origins_made_on_
             size = ism_pass.fitting_size(len(origins), settings.ism_size)
             vsgls.isms.append(ism_pass.PASS.run(points, origins, sets, size, min_distance=distance, point_area=area))
             first_map += len(origins)
+            yield
         return first_map
 
-    monkeypatch.setattr(renderer, "build_visibility", from_read_back_tables)
+    monkeypatch.setattr(renderer, "build_visibility_stages", from_read_back_tables)
     on_cpu = sb.render_frame(description, settings, 32, 24)
     assert on_gpu.indirect.sum() > 0.0
     np.testing.assert_allclose(on_gpu.indirect, on_cpu.indirect, rtol=1e-3,

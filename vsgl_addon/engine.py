@@ -80,13 +80,27 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         return self._pipeline
 
     def view_update(self, context, depsgraph):
-        """Scene changes of a Rendered viewport: the light passes rerun on the next step when
-        something that changes the light changed (overlay._light_changed's rule)."""
+        """Scene changes of a Rendered viewport: the light passes rerun when something that changes
+        the light changed (overlay._light_changed's rule) or the pass settings did.
+
+        That step (light passes and coarse image) runs here, before Blender redraws the window for
+        the change, rather than in refine_timer after it: the redraw of the old image with Blender's
+        overlays costs about 100 ms on llvmpipe (benchmarks/results/latency.md), and the coarse image
+        then waited for it and for the next timer call. view_update runs on the main thread outside
+        any draw, as the timer does, and its depsgraph is the evaluated one of this change (Cycles
+        syncs from it here too)."""
         from .overlay import _light_changed
+        from .scene import extract_scene
+        from .view_pipeline import LIGHTS
 
         pipeline = self._view_pipeline()
         if pipeline.lights is None or _light_changed(depsgraph):
             pipeline.mark_scene_dirty()
+        if pipeline.step_args is not None and pipeline.has_image:
+            args = _step_args(pipeline, depsgraph.scene.vsgl)
+            if args is not None and pipeline.pending(*args) == LIGHTS:
+                pipeline.step_args = args
+                pipeline.step(lambda: extract_scene(depsgraph), *args)
         self.tag_redraw()
 
     def view_draw(self, context, depsgraph):
@@ -102,18 +116,12 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         properties = scene.vsgl
         pipeline.request_view(_matrix(rv3d.view_matrix), _matrix(rv3d.window_matrix),
                               (region.width, region.height))
-        scale = float(getattr(properties, "viewport_resolution_scale", 0.25))
-        samples = int(getattr(properties, "viewport_samples", 16))
         identifier = getattr(properties, "viewport_pass", "COMBINED")
         view_pass = next((c.name for c in VIEWPORT_PASSES if c.identifier == identifier), "combined")
-        try:
-            settings = VSGLSettings.from_properties(properties)
-        except ValueError as error:
-            pipeline.error = str(error)
-            settings = None
-        # The timer does the steps, in the window's GPU context: framebuffers belong to the context
-        # that made them, and view_draw runs in the viewport's own.
-        pipeline.step_args = None if settings is None else (settings, scale, samples)
+        # The timer (and view_update) do the steps, in the window's GPU context: framebuffers belong
+        # to the context that made them, and view_draw runs in the viewport's own.
+        pipeline.step_args = _step_args(pipeline, properties)
+        samples = int(getattr(properties, "viewport_samples", 16))
         gpu.state.blend_set("ALPHA_PREMULT")
         self.bind_display_space_shader(scene)
         pipeline.draw(view_pass)
@@ -182,6 +190,19 @@ class VSGLRenderEngine(bpy.types.RenderEngine):
         images, _, model = render_budgeted(renderer, description, settings, width, height, model)
         save_model(key, model)
         return images
+
+
+def _step_args(pipeline, properties):
+    """(settings, resolution scale, samples) of a viewport's steps from scene.vsgl; None (and the
+    pipeline's error set) when the settings are refused."""
+    scale = float(getattr(properties, "viewport_resolution_scale", 0.25))
+    samples = int(getattr(properties, "viewport_samples", 16))
+    try:
+        settings = VSGLSettings.from_properties(properties)
+    except ValueError as error:
+        pipeline.error = str(error)
+        return None
+    return settings, scale, samples
 
 
 def _rows(image: np.ndarray) -> np.ndarray:

@@ -367,7 +367,16 @@ def maps_keep_surfaces(lights) -> bool:
 
 def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSettings, first_map: int = 0,
                      timed: bool = False) -> int:
-    """The imperfect shadow maps of every VSGL of ``vsgls`` (000 §5), one per lobe position (two
+    """:func:`build_visibility_stages` at once."""
+    from .passes.contract import run_stages
+
+    return run_stages(build_visibility_stages(scene_gpu, vsgls, settings, first_map, timed))
+
+
+def build_visibility_stages(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSettings, first_map: int = 0,
+                            timed: bool = False):
+    """A generator yielding between the maps' stages (passes/ism.py build_ism_atlas_stages) that
+    returns what build_visibility does. The imperfect shadow maps of every VSGL of ``vsgls`` (000 §5), one per lobe position (two
     per VSGL with per-lobe positions), into ``vsgls.isms``; returns the next map's number, so
     another table set draws other point sets. ``timed``: each atlas's ``seconds`` holds its
     stages' times (passes/ism.py build_ism_atlas; benchmarks)."""
@@ -388,9 +397,9 @@ def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSetti
         origins = ism_pass.vsgl_map_origins(table.texture, table.count, MAPS_PER_VSGL, first_map, POINT_SETS,
                                             VSGL_OWN_REFLECTOR_SIGMAS)
         size = ism_pass.fitting_size(origins.count, settings.ism_size)
-        vsgls.isms.append(ism_pass.PASS.run(points, origins, None, size, point_area=point_area,
-                                            timed=timed, point_textures=textures,
-                                            surfaces=maps_keep_surfaces(its_lights)))
+        vsgls.isms.append((yield from ism_pass.build_ism_atlas_stages(
+            points, origins, None, size, point_area=point_area, timed=timed, point_textures=textures,
+            surfaces=maps_keep_surfaces(its_lights))))
         first_map += origins.count
     return first_map
 

@@ -22,10 +22,10 @@ import numpy as np
 from .layouts import GBUFFER
 from .passes import (READ_BACK, UPLOAD, VPL_EXTRACTION, direct_light, gbuffer as gbuffer_pass, ism, mrp_asg,
                      mrp_visibility, shading_inputs, vpl_culling, vsgl_shading)
-from .passes.contract import LIGHT_PASSES
+from .passes.contract import LIGHT_PASSES, run_stages
 from .passes.gpu_util import finish, read_texture
 from .passes.rsm import SceneGPU
-from .pipeline import build_visibility, render_scene_vsgls, view_receivers
+from .pipeline import build_visibility_stages, render_scene_vsgls, view_receivers
 from .planner import PROXY_CACHE, RECEIVER_ALPHA_RANGE, kept_proxies, plan_frame
 from .proxies import ProxyCache, describe_proxies
 from .reference.vsgl_shading import diffuse_mode_for_kernel
@@ -83,6 +83,34 @@ def _rgb(image: np.ndarray) -> np.ndarray:
     return np.nan_to_num(np.asarray(image[..., :3], np.float32), nan=0.0, posinf=0.0, neginf=0.0)
 
 
+class _StageClock:
+    """A stage's seconds in a staged light build (SceneLights.build_stages), without the pauses
+    between the viewport's steps, so its timings are the GPU work's alone as in one build."""
+
+    def __init__(self):
+        self.restart()
+
+    def restart(self) -> None:
+        self.started, self.paused = time.perf_counter(), 0.0
+
+    def pause(self):
+        paused = time.perf_counter()
+        yield
+        self.paused += time.perf_counter() - paused
+
+    def through(self, stages):
+        """``yield from`` the staged build ``stages``, pausing at each of its yields; its result."""
+        while True:
+            try:
+                next(stages)
+            except StopIteration as done:
+                return done.value
+            yield from self.pause()
+
+    def seconds(self) -> float:
+        return time.perf_counter() - self.started - self.paused
+
+
 @dataclass
 class SceneLights:
     """The view-independent part of a frame: the scene on the GPU, the RSM views and VSGL tables.
@@ -119,17 +147,26 @@ class SceneLights:
         known, so the plan can skip the work no receiver in it needs and weigh the RSM texels by it
         (the view PDF); None: any view (the viewport). ``point_cache``: a passes.scene_gpu
         PointTextureCache that keeps the ISMs' point sets on the GPU across builds (the viewport's)."""
+        return run_stages(cls.build_stages(scene, settings, proxy_cache, view, point_cache))
+
+    @classmethod
+    def build_stages(cls, scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = None,
+                     view=None, point_cache=None):
+        """:meth:`build` as a generator that yields between its stages (each VSGL set's RSM views
+        and tables, each set's shadow maps, the VPLs, the mirror maps), each finished on the GPU,
+        and returns the SceneLights: the viewport spreads a build over steps of its time budget.
+        Closing it early frees what it made."""
         view_projection = None if view is None else np.asarray(view[1]) @ np.asarray(view[0])
         plan = plan_frame(scene, settings, proxy_cache, view_projection)
-        clock = time.perf_counter()
+        clock = _StageClock()
         scene_gpu = SceneGPU(scene, point_cache)
-        timings = {UPLOAD.name: time.perf_counter() - clock}
+        timings = {UPLOAD.name: clock.seconds()}
         proxies = plan.proxies
         caustics = plan.runs("vpl_pass")
         sets = []
         vpls = mirror_maps = None
         try:
-            clock = time.perf_counter()
+            clock.restart()
             # The plan's VSGL sets (light-paths.md): one, or one per receiver lobe when the VPLs take
             # the sharp reflectors' specular flux from the diffuse receivers, MRP-ASG the proxies' from
             # the glossy ones, or Blender's ray visibility hides some object from one ray type; with
@@ -141,8 +178,9 @@ class SceneLights:
                 sets.append(render_scene_vsgls(scene_gpu, settings, lobe, cut_proxies, sharp_alpha, plan, receivers))
                 if sets[-1].generations:
                     _finish(sets[-1].generations[-1][2].table)
-            timings[LIGHT_PASSES.name] = time.perf_counter() - clock
-            clock = time.perf_counter()
+                yield from clock.pause()
+            timings[LIGHT_PASSES.name] = clock.seconds()
+            clock.restart()
             if plan.runs("visibility"):
                 first_map = 0  # each set's maps draw other point sets
                 starts = []
@@ -152,24 +190,27 @@ class SceneLights:
                     # MRP-ASG off exactly.
                     start = starts[1] if index == 2 else first_map
                     starts.append(start)
-                    first_map = max(first_map, build_visibility(scene_gpu, table_set, settings, start))
+                    first_map = max(first_map, (yield from clock.through(
+                        build_visibility_stages(scene_gpu, table_set, settings, start))))
                     if table_set.isms:
                         _finish(table_set.isms[-1].texture)
-            timings[ism.PASS.step.name] = time.perf_counter() - clock
-            clock = time.perf_counter()
+                    yield from clock.pause()
+            timings[ism.PASS.step.name] = clock.seconds()
+            clock.restart()
             if caustics:
                 # Made on the GPU, with their clusters' shadow maps when VPL shadows are on, with nothing
                 # read back: the viewport rebuilds them per change.
                 shadows = settings if settings.visibility and settings.vpl_visibility else None
                 vpls = vpl_culling.extract_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness, shadows)
                 _finish(vpls.table if vpls.isms is None else vpls.isms.texture)
-            timings[VPL_EXTRACTION.name] = time.perf_counter() - clock
-            clock = time.perf_counter()
+                yield from clock.pause()
+            timings[VPL_EXTRACTION.name] = clock.seconds()
+            clock.restart()
             if settings.visibility and proxies:
                 mirror_maps = mrp_visibility.PASS.run(scene_gpu, proxies, settings.rsm_size, settings.disk_radius)
                 for depth, _ in mirror_maps.atlases.values():
                     _finish(depth)
-            timings[mrp_visibility.PASS.step.name] = time.perf_counter() - clock
+            timings[mrp_visibility.PASS.step.name] = clock.seconds()
         except BaseException:
             for item in (*sets, vpls, mirror_maps):
                 if item is not None:

@@ -252,6 +252,16 @@ class GPUViewBackend:
             self.point_cache = PointTextureCache()
         return SceneLights.build(description, settings, point_cache=self.point_cache)
 
+    def scene_lights_stages(self, description, settings):
+        """scene_lights as a generator of its stages (renderer.SceneLights.build_stages), returning
+        the same SceneLights."""
+        from .passes.scene_gpu import PointTextureCache
+        from .renderer import SceneLights
+
+        if self.point_cache is None:
+            self.point_cache = PointTextureCache()
+        return SceneLights.build_stages(description, settings, point_cache=self.point_cache)
+
     def free(self) -> None:
         """Drop the point sets kept across builds."""
         if self.point_cache is not None:

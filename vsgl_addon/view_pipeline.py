@@ -137,6 +137,10 @@ class ViewPipeline:
         self.preview_lights = preview_lights
         self.lights_preview = False  # the current light passes are preview_light_settings'
         self._lights_built = None  # the settings the current light passes were built with
+        # A staged build of the samples' light passes under way: [key, settings, generator, stages
+        # done].
+        self._building = None
+        self._stage_seconds: dict = {}  # settings -> seconds of each stage of their last build
         self.renderer = None
         self.request: ViewRequest | None = None
         self.target = None  # accumulation images at the region's size
@@ -240,10 +244,11 @@ class ViewPipeline:
                 entry.update(self._refine(describe_scene, settings, started, max_samples))
         except Exception as error:  # noqa: BLE001 - shown in the header, never raised into Blender's loop
             self.error = f"{type(error).__name__}: {error}"
+            self._close_build()
             self._free_lights()
             entry["error"] = self.error
             entry["traceback"] = traceback.format_exc()
-        entry["ended"] = self.clock()
+        entry["started"], entry["ended"] = started, self.clock()
         entry["seconds"] = entry["ended"] - started
         entry["samples"] = self.samples
         self.statistics = entry
@@ -257,12 +262,24 @@ class ViewPipeline:
         full = tuple(self.request.region_size)
         return self.preview_lights and view_size(full, scale * self.coarse_factor) != full
 
+    def _describe(self, describe_scene):
+        """The scene description of the current scene state: the current light passes' own when
+        they are of it (a new seed or the preview's replacement changes nothing of the scene), else
+        describe_scene()'s."""
+        if self.lights is not None and self.lights_version == self.scene_version:
+            description = getattr(self.lights, "scene", None)
+            if description is not None:
+                return description
+        description = describe_scene()
+        self.warnings = tuple(description.warnings)
+        return description
+
     def _rebuild_lights(self, describe_scene, settings: VSGLSettings, seed_offset: int,
                         preview: bool = False) -> float:
         started = self.clock()
+        self._close_build()
+        description = self._describe(describe_scene)
         self._free_lights()
-        description = describe_scene()
-        self.warnings = tuple(description.warnings)
         if self.renderer is None:
             self.renderer = self.backend.frame_renderer()
         version = self.scene_version
@@ -275,6 +292,59 @@ class ViewPipeline:
         self.lights_version, self.lights_settings, self.lights_seed = version, settings, seed_offset
         self.lights_preview, self._lights_built = built is not seeded, built
         return self.clock() - started
+
+    def _advance_lights(self, describe_scene, settings: VSGLSettings, seed_offset: int, started: float):
+        """The samples' light passes of ``seed_offset``, built in stages (the backend's
+        scene_lights_stages) over as many steps as the step budget needs: a step runs one stage,
+        then the next ones while each one's predicted time still fits in it; the current light
+        passes stay until the new ones are complete (a view change in between renders its coarse
+        image with them). Returns (complete, seconds of this step's stages). A backend without
+        stages builds them at once."""
+        stages_of = getattr(self.backend, "scene_lights_stages", None)
+        if stages_of is None:
+            return True, self._rebuild_lights(describe_scene, settings, seed_offset)
+        clock = self.clock()
+        key = (self.scene_version, settings, seed_offset)
+        if self._building is None or self._building[0] != key:
+            self._close_build()
+            seeded = settings if seed_offset == 0 else settings.overridden(seed=settings.seed + seed_offset)
+            self._building = [key, seeded, stages_of(self._describe(describe_scene), seeded), 0]
+        _, seeded, stages, _ = self._building
+        # Each stage's seconds in the last build of these settings (another seed's: the same work)
+        # predict whether the next one still fits in this step.
+        known = self._stage_seconds.get(settings, [])
+        last = None
+        while True:
+            index = self._building[3]
+            if last is not None:
+                predicted = known[index] if index < len(known) else last
+                if self.clock() - started + predicted > self.step_budget:
+                    return False, self.clock() - clock
+            stage_started = self.clock()
+            try:
+                next(stages)
+            except StopIteration as done:
+                self._building = None
+                self._free_lights()
+                if self.renderer is None:
+                    self.renderer = self.backend.frame_renderer()
+                self.lights = done.value
+                self.lights_version, self.lights_settings, self.lights_seed = key
+                self.lights_preview, self._lights_built = False, seeded
+                return True, self.clock() - clock
+            except BaseException:
+                self._building = None
+                raise
+            last = self.clock() - stage_started
+            seconds = self._stage_seconds.setdefault(settings, [])
+            seconds[index:index + 1] = [last]
+            self._building[3] = index + 1
+
+    def _close_build(self) -> None:
+        """Abandon a staged light build (what it made so far is freed)."""
+        if self._building is not None:
+            building, self._building = self._building, None
+            building[2].close()
 
     def _ensure_target(self, attribute: str, size):
         target = getattr(self, attribute)
@@ -290,6 +360,8 @@ class ViewPipeline:
         return self._lights_built
 
     def _render_coarse(self, scale: float) -> dict:
+        # A new view restarts the samples: a build for the old ones is abandoned.
+        self._close_build()
         request = self.request
         full = request.region_size
         predicted = self._predict_coarse_factor(full, scale)
@@ -394,18 +466,14 @@ class ViewPipeline:
 
     def _refine(self, describe_scene, settings: VSGLSettings, started: float, max_samples: int) -> dict:
         entry: dict = {"level": SAMPLE}
-        if self._rows_done == 0 and self.lights_preview:
+        if self._rows_done == 0 and (self.lights_preview or self.lights_seed in self._seeds_used):
             # The preview's passes lit the coarse image only: the samples' are the settings' own,
-            # of the same seed.
-            entry["light_seconds"] = self._rebuild_lights(describe_scene, settings, self.lights_seed)
-            if self.clock() - started > self.step_budget / 2:
-                entry["rows"] = (0, 0, self.request.region_size[1])
-                return entry
-        elif self._rows_done == 0 and self.lights_seed in self._seeds_used:
-            # The next sample needs light passes of a seed this accumulation has not used yet.
-            offset = max(self._seeds_used) + 1
-            entry["light_seconds"] = self._rebuild_lights(describe_scene, settings, offset)
-            if self.clock() - started > self.step_budget / 2:
+            # of the same seed. Else the next sample needs light passes of a seed this accumulation
+            # has not used yet.
+            offset = self.lights_seed if self.lights_preview else max(self._seeds_used) + 1
+            complete, entry["light_seconds"] = self._advance_lights(describe_scene, settings, offset, started)
+            entry["lights_complete"] = complete
+            if not complete or self.clock() - started > self.step_budget / 2:
                 entry["rows"] = (0, 0, self.request.region_size[1])
                 return entry
         request = self.request
@@ -504,6 +572,8 @@ class ViewPipeline:
 
     def free(self) -> None:
         """Release every GPU resource; the next step starts from scratch."""
+        self._close_build()
+        self._stage_seconds.clear()
         self._free_lights()
         for attribute in ("target", "sample_target", "guide"):
             target = getattr(self, attribute)
@@ -581,6 +651,20 @@ class _SharedLightsBackend:
     def scene_lights(self, description, settings):
         return self._viewports._acquire_lights(self._backend, description, settings)
 
+    def scene_lights_stages(self, description, settings):
+        """scene_lights in the backend's stages; none when another viewport holds these passes
+        already, and the passes another viewport completed meanwhile are taken instead of its own."""
+        viewports = self._viewports
+        key = (viewports.scene_version, settings)
+        stages_of = getattr(self._backend, "scene_lights_stages", None)
+        if key not in viewports._lights and stages_of is not None:
+            built = yield from stages_of(description, settings)
+            if key in viewports._lights:
+                built.free()
+            else:
+                viewports._lights[key] = [built, 0]
+        return viewports._acquire_lights(self._backend, description, settings, key)
+
     def has_lights(self, settings: VSGLSettings) -> bool:
         """Whether another viewport holds light passes of this scene state and settings."""
         return (self._viewports.scene_version, settings) in self._viewports._lights
@@ -623,8 +707,8 @@ class ViewportSet:
                                                              self.step_budget)
         return pipeline
 
-    def _acquire_lights(self, backend, description, settings: VSGLSettings):
-        key = (self.scene_version, settings)
+    def _acquire_lights(self, backend, description, settings: VSGLSettings, key=None):
+        key = (self.scene_version, settings) if key is None else key
         entry = self._lights.get(key)
         if entry is None:
             entry = self._lights[key] = [backend.scene_lights(description, settings), 0]

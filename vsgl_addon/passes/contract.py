@@ -120,3 +120,13 @@ class GPUPass:
     def free(self, result) -> None:
         """Release what :attr:`run` returned (an object with ``free()``, or a list of them)."""
         _free_result(result)
+
+
+def run_stages(stages):
+    """Run a staged build (a generator that yields between its parts and returns its result, as
+    renderer.SceneLights.build_stages and ism.build_ism_atlas_stages) to its end; its result."""
+    while True:
+        try:
+            next(stages)
+        except StopIteration as done:
+            return done.value

@@ -34,7 +34,7 @@ from ..layouts import VSGL_TABLE
 from ..reference import ism as _reference_ism
 from ..reference.ism import EMPTY, GAP_MARGIN, GAP_REACH, SPLAT_SHARE
 from ..shaders import ShaderInterface
-from .contract import GPUPass, ShaderSpec, Step
+from .contract import GPUPass, ShaderSpec, Step, run_stages
 from .gpu_util import read_texture, texture_from_array
 
 #: Largest atlas side (llvmpipe's and most GPUs' texture limit), and the sides an ISM may have.
@@ -239,7 +239,16 @@ def vsgl_map_origins(table_texture, vsgl_count: int, maps_per_vsgl: int, first_m
 
 def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
                     timed: bool = False, point_textures=None, planes=None, surfaces: bool = False) -> ISMAtlas:
-    """The ISMs of ``origins`` (M, 3) (or a :class:`MapOrigins`, which holds the sets and minimum
+    """:func:`build_ism_atlas_stages` at once."""
+    return run_stages(build_ism_atlas_stages(points, origins, set_index, size, min_distance, point_area, timed,
+                                             point_textures, planes, surfaces))
+
+
+def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
+                           timed: bool = False, point_textures=None, planes=None, surfaces: bool = False):
+    """A generator that yields after the splat and after the gap closing (llvmpipe runs a dispatch
+    before it returns, so each part's work is done by then) and returns the ISMAtlas: the viewport
+    spreads a light build over steps of its time budget. The ISMs of ``origins`` (M, 3) (or a :class:`MapOrigins`, which holds the sets and minimum
     distances too: ``set_index``, ``min_distance`` and ``planes`` are then unused), map m splatting set ``set_index[m]`` of ``points`` (a
     :class:`vsgl_addon.scene_points.ScenePoints`), each ``size``² (a power of two), leaving out the
     points nearer than ``min_distance`` (a scalar, or one per map) and, with ``planes`` (M, 4), the
@@ -297,6 +306,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
         gpu.compute.dispatch(splat, _groups(points.points_per_set, _GROUP[0]), count, 1)
     if timed:
         clock = _finish_stage(atlas, clock, seconds, "splat")
+    yield
     # Gaps in near occluders closed (reference close_gaps), into a second atlas that pull-push reads.
     closed = gpu.types.GPUTexture((width, height), format="R32UI")
     close = PASS.shader("close")
@@ -309,6 +319,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
     atlas = closed
     if timed:
         clock = _finish_stage(atlas, clock, seconds, "close")
+    yield
     # Pull: level l of every tile from level l - 1 (level 0 is the splatted atlas itself).
     levels = int(math.log2(size))
     pulled = []
