@@ -330,17 +330,12 @@ def light_irradiance_at(light, point):
     return safe_ratio(intensity, d * d), direction, d
 
 
-def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, mode="asg",
-              visibility=1.0, spread_correction=True, peak_form="blender",
-              area_normalization="square", fit="energy", disk="lobe"):
-    """L_x(o) of one rectangle and one light at receivers (001 Eqs. 3–37; module documentation).
-
-    ``rect``: mapping with ``center``, ``normal``, ``axis_u``, ``axis_v``, ``half_u``, ``half_v``,
-    ``roughness``, ``f0``. ``light``: a ``scene_description.Light``-like object. ``visibility``:
-    the light's shadow at p_y (1 = lit). Per unit light colour and per colour channel of the F0s.
-    ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only). ``disk``: "lobe" (the
-    default) samples a disk of radius max(r_d, DISK_LOBE_SCALE ρ_lobe |p_y − p_x|), "fixed" 001's
-    r_d alone (``DISK_RULES``)."""
+def mrp_asg_light(position, rect, light, disk_radius, spread_correction=True, peak_form="blender",
+                  area_normalization="square", fit="energy", disk="lobe"):
+    """001's ASG light at receivers (steps 1-5 of the module documentation), as a dict: ``valid``,
+    ``peak``, ``cos_sigma``, ``radiance`` L_y, ``extent`` ρ, ``disk_integral`` E / L_y, ``area`` A,
+    ``total`` C = A E (Eq. 35), the frame ``m``, ``n``, ``z``, ``bandwidth_m``, ``bandwidth_n`` and
+    ``amplitude``; ``mrp_shade``'s arguments."""
     position = f64(position)
     n_r = f64(rect["normal"])
     if light.type == "SUN":
@@ -370,9 +365,28 @@ def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, m
     bandwidth_m = mrp_bandwidth(extent)
     bandwidth_n = mrp_bandwidth(extent * np.abs(cos_n))
     amplitude = np.sqrt(bandwidth_m) * np.sqrt(bandwidth_n) / np.pi * total
-    conv = mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amplitude, mode)
-    factor = mrp_receiver_factor(z, view, normal, roughness, f0)
-    return np.where(valid, f64(visibility) * factor * conv, 0.0)
+    return dict(valid=valid, peak=peak, cos_sigma=cos_sigma, radiance=radiance, extent=extent,
+                disk_integral=disk_integral, area=area, total=total, m=m, n=n, z=z,
+                bandwidth_m=bandwidth_m, bandwidth_n=bandwidth_n, amplitude=amplitude)
+
+
+def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, mode="asg",
+              visibility=1.0, spread_correction=True, peak_form="blender",
+              area_normalization="square", fit="energy", disk="lobe"):
+    """L_x(o) of one rectangle and one light at receivers (001 Eqs. 3–37; module documentation).
+
+    ``rect``: mapping with ``center``, ``normal``, ``axis_u``, ``axis_v``, ``half_u``, ``half_v``,
+    ``roughness``, ``f0``. ``light``: a ``scene_description.Light``-like object. ``visibility``:
+    the light's shadow at p_y (1 = lit). Per unit light colour and per colour channel of the F0s.
+    ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only). ``disk``: "lobe" (the
+    default) samples a disk of radius max(r_d, DISK_LOBE_SCALE ρ_lobe |p_y − p_x|), "fixed" 001's
+    r_d alone (``DISK_RULES``)."""
+    a = mrp_asg_light(position, rect, light, disk_radius, spread_correction, peak_form, area_normalization,
+                      fit, disk)
+    conv = mrp_convolve(view, normal, roughness, a["m"], a["n"], a["z"], a["bandwidth_m"], a["bandwidth_n"],
+                        a["amplitude"], mode)
+    factor = mrp_receiver_factor(a["z"], view, normal, roughness, f0)
+    return np.where(a["valid"], f64(visibility) * factor * conv, 0.0)
 
 
 def _refined_rule(half, points, order=12, smallest=1e-5, ratio=2.0):
