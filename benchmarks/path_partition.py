@@ -296,6 +296,49 @@ def _asg_exact_receiver(light_asg, position, normal, view, alpha, f0, size=801):
     return float(np.sum(values * brdf * cosine * solid_angle))
 
 
+def _gaussian_lobes_integral(axis, lobes):
+    """∫ Π_j exp(−η_j1 (ω·e_j1)² − η_j2 (ω·e_j2)²) dω in the tangent plane at the unit ``axis``
+    (lobes: (e1, e2, η1, η2)): with ω ≈ axis + u, u in the plane, the exponent is −uᵀPu + 2bᵀu − c,
+    so the integral is π / √det P · exp(bᵀP⁻¹b − c); also the product's peak direction. For an SG
+    and an ASG this is Eq. 11's small-angle form (000 app. C, after Xu et al. 2013)."""
+    from vsgl_addon.reference.asg import asg_any_tangent
+
+    t1 = asg_any_tangent(axis)
+    t2 = np.cross(axis, t1)
+    p_mat, b_vec, c = np.zeros((2, 2)), np.zeros(2), 0.0
+    for e1, e2, h1, h2 in lobes:
+        for e, h in ((e1, h1), (e2, h2)):
+            offset, g = float(e @ axis), np.array([e @ t1, e @ t2])
+            p_mat += h * np.outer(g, g)
+            b_vec -= h * offset * g
+            c += h * offset * offset
+    u = np.linalg.solve(p_mat, b_vec)
+    peak = axis + u[0] * t1 + u[1] * t2
+    return np.pi / np.sqrt(np.linalg.det(p_mat)) * np.exp(b_vec @ u - c), peak / np.linalg.norm(peak)
+
+
+def _asg_receiver_shade(light_asg, position, normal, view, alpha, f0):
+    """MRP-ASG with the receiver's NDF warped anisotropically (003's ASG lobe,
+    reference.asg.asg_specular_lobe: η = λ_h/(8 cos²θ_o) across the plane of incidence, λ_h/8 in
+    it, per SG of RECEIVER_NDF_LOBES) instead of Eq. 8's isotropic λ_h/(4 cos θ_o), convolved with
+    the ASG light in the tangent plane of the narrower lobe (``_gaussian_lobes_integral``), the
+    light's cosine max(ω·z, 0) at the product's peak; M of Eq. 10 as mrp_shade."""
+    from vsgl_addon.reference import mrp_asg as mrp
+    from vsgl_addon.reference.asg import asg_specular_lobe
+
+    a = light_asg
+    x, y, z, eta_x, eta_y = asg_specular_lobe(view, normal, alpha)
+    light_lobe = (a["m"], a["n"], float(a["bandwidth_m"]), float(a["bandwidth_n"]))
+    total = 0.0
+    for weight, scale in mrp.RECEIVER_NDF_LOBES:
+        receiver_lobe = (x, y, scale * float(eta_x), scale * float(eta_y))
+        axis = a["z"] if min(light_lobe[2:]) > min(receiver_lobe[2:]) else z
+        value, peak = _gaussian_lobes_integral(axis, [receiver_lobe, light_lobe])
+        total += weight * value * max(float(peak @ a["z"]), 0.0)
+    factor = float(mrp.mrp_receiver_factor(a["z"], view, normal, alpha, f0))
+    return factor * float(a["amplitude"]) * total / (np.pi * max(alpha, mrp.ALPHA_MIN) ** 2)
+
+
 def stage_values(position, normal, view, alpha, f0, lit, lights, disk_radius) -> dict:
     """One receiver's stages, RGB, summed over the lights and the lit proxies (``lit``: (proxy,
     lit-by mask) pairs), each light's colour × glossy factor, no shadows:
@@ -309,10 +352,11 @@ def stage_values(position, normal, view, alpha, f0, lit, lights, disk_radius) ->
       peak): against E L_y the disk integral's error alone, C_quad / C_plane what A should be;
     - ``asg_exact``: the ASG light against the exact receiver BRDF (``_asg_exact_receiver``): ref /
       asg_exact is the receiver's two-SG NDF, M and Eq. 11; asg_exact C_quad / C_ref / quad the
-      ASG's shape (its frame, extents, bandwidths) alone."""
+      ASG's shape (its frame, extents, bandwidths) alone;
+    - ``asg_receiver``: the candidate fix, the receiver lobe as 003's ASG (``_asg_receiver_shade``)."""
     from vsgl_addon.reference import mrp_asg as mrp
 
-    out = {key: np.zeros(3) for key in ("ref", "quad", "C_ref", "C_quad", "C_plane", "E_Ly", "asg_exact")}
+    out = {key: np.zeros(3) for key in ("ref", "quad", "C_ref", "C_quad", "C_plane", "E_Ly", "asg_exact", "asg_receiver")}
     for index, light in enumerate(lights):
         scale = np.asarray(light.color, np.float64) * float(light.specular_factor)
         for proxy, mask in lit:
@@ -337,6 +381,7 @@ def stage_values(position, normal, view, alpha, f0, lit, lights, disk_radius) ->
                     position, normal, view, alpha, f0[ch], plane, light, receiver_brdf=False,
                     order=STAGE_QUADRATURE["order"], smallest=STAGE_QUADRATURE["smallest"] / 1000.0)
                 out["asg_exact"][ch] += scale[ch] * _asg_exact_receiver(a, position, normal, view, alpha, f0[ch])
+                out["asg_receiver"][ch] += scale[ch] * _asg_receiver_shade(a, position, normal, view, alpha, f0[ch])
     return out
 
 
@@ -408,6 +453,7 @@ def stages(name, path, stride, materials=None) -> dict:
         "reference, C = A E L_y replaced by its quadrature": energy_exact,
         "ASG light x exact GGX receiver (A E L_y as is)": v["asg_exact"],
         "ASG light x exact GGX receiver, exact C (the ASG's shape alone)": shape_only,
+        "candidate: receiver NDF warped as 003's ASG (two lobes), ASG x ASG in the tangent plane": v["asg_receiver"],
         "texel brute force of the cell (light's shadows, RSM Rs)": texel}
     q = v["quad"] @ LUMINANCE
     mean = max(float(np.mean(q)), 1e-30)

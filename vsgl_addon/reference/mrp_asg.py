@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .asg import asg_any_tangent, sg_asg_convolution
+from .asg import asg_any_tangent, asg_specular_lobe, sg_asg_convolution
 from .ggx import fresnel_schlick, ggx_g1_denominator, microfacet_brdf
 from .lights import light_intensity
 from .numerics import dot, f64, norm, safe_normalize, safe_ratio
@@ -313,6 +313,49 @@ def mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amp
     return f64(amplitude) * sg_amplitude * value
 
 
+def gaussian_lobes_integral(axis, lobes):
+    """∫ Π_j exp(−η_j1 (ω·e_j1)² − η_j2 (ω·e_j2)²) dω in the tangent plane at the unit ``axis``,
+    ``lobes`` a list of (e1, e2, η1, η2) (arrays broadcasting together): with ω ≈ axis + u, u in the
+    plane, the exponent is −uᵀPu + 2bᵀu − c, so the integral is π/√det P · exp(bᵀP⁻¹b − c).
+    Returns ``(value, peak)``, peak the unit direction of the product's maximum. For an SG and an
+    ASG this is Eq. 11's small-angle form (000 app. C, after Xu et al. 2013)."""
+    axis = f64(axis)
+    t1 = asg_any_tangent(axis)
+    t2 = np.cross(axis, t1)
+    p11 = p12 = p22 = b1 = b2 = c = 0.0
+    for e1, e2, h1, h2 in lobes:
+        for e, h in ((f64(e1), f64(h1)), (f64(e2), f64(h2))):
+            offset, g1, g2 = dot(e, axis), dot(e, t1), dot(e, t2)
+            p11, p12, p22 = p11 + h * g1 * g1, p12 + h * g1 * g2, p22 + h * g2 * g2
+            b1, b2, c = b1 - h * offset * g1, b2 - h * offset * g2, c + h * offset * offset
+    det = np.maximum(p11 * p22 - p12 * p12, 1e-300)
+    u1 = (p22 * b1 - p12 * b2) / det
+    u2 = (p11 * b2 - p12 * b1) / det
+    value = np.pi / np.sqrt(det) * np.exp(np.minimum(b1 * u1 + b2 * u2 - c, 0.0))
+    peak = axis + u1[..., None] * t1 + u2[..., None] * t2
+    return value, peak / norm(peak)[..., None]
+
+
+def mrp_convolve_asg_receiver(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amplitude):
+    """``mrp_convolve`` with the receiver's NDF warped anisotropically, as 003's ASG lobe
+    (``asg.asg_specular_lobe``: η = λ_h/(8 cos²θ_o) across the plane of incidence, λ_h/8 in it)
+    per SG of RECEIVER_NDF_LOBES, instead of Eq. 8's isotropic λ_h/(4 cos θ_o) (their geometric
+    mean): ASG light × ASG receiver in the tangent plane of the narrower lobe
+    (``gaussian_lobes_integral``), the light's cosine max(ω·z, 0) at the product's peak.
+    Not the pass's: benchmarks/results/mrp_asg_stages.md measures it against quadrature."""
+    x, y, z_r, eta_x, eta_y = asg_specular_lobe(view, normal, roughness)
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
+    bandwidth_m, bandwidth_n = f64(bandwidth_m), f64(bandwidth_n)
+    light_narrower = np.minimum(bandwidth_m, bandwidth_n) > np.minimum(eta_x, eta_y)
+    axis = np.where(light_narrower[..., None], f64(z), z_r)
+    value = 0.0
+    for weight, scale in RECEIVER_NDF_LOBES:
+        integral, peak = gaussian_lobes_integral(axis, [(x, y, scale * eta_x, scale * eta_y),
+                                                        (m, n, bandwidth_m, bandwidth_n)])
+        value = value + weight * integral * np.maximum(dot(peak, f64(z)), 0.0)
+    return f64(amplitude) * value / (np.pi * alpha * alpha)
+
+
 def light_irradiance_at(light, point):
     """(E⊥ at ``point`` for a surface facing the light, unit direction from ``point`` to the
     light, distance d_l or inf): I/d² for point/spot/area (``lights.light_intensity``), S for a
@@ -372,7 +415,7 @@ def mrp_asg_light(position, rect, light, disk_radius, spread_correction=True, pe
 
 def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, mode="asg",
               visibility=1.0, spread_correction=True, peak_form="blender",
-              area_normalization="square", fit="energy", disk="lobe"):
+              area_normalization="square", fit="energy", disk="lobe", receiver="sg"):
     """L_x(o) of one rectangle and one light at receivers (001 Eqs. 3–37; module documentation).
 
     ``rect``: mapping with ``center``, ``normal``, ``axis_u``, ``axis_v``, ``half_u``, ``half_v``,
@@ -380,11 +423,18 @@ def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, m
     the light's shadow at p_y (1 = lit). Per unit light colour and per colour channel of the F0s.
     ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only). ``disk``: "lobe" (the
     default) samples a disk of radius max(r_d, DISK_LOBE_SCALE ρ_lobe |p_y − p_x|), "fixed" 001's
-    r_d alone (``DISK_RULES``)."""
+    r_d alone (``DISK_RULES``). ``receiver="asg"``: the receiver lobe of
+    ``mrp_convolve_asg_receiver`` (the reference's only; the GPU pass is ``"sg"``)."""
     a = mrp_asg_light(position, rect, light, disk_radius, spread_correction, peak_form, area_normalization,
                       fit, disk)
-    conv = mrp_convolve(view, normal, roughness, a["m"], a["n"], a["z"], a["bandwidth_m"], a["bandwidth_n"],
-                        a["amplitude"], mode)
+    if receiver == "asg":
+        conv = mrp_convolve_asg_receiver(view, normal, roughness, a["m"], a["n"], a["z"], a["bandwidth_m"],
+                                         a["bandwidth_n"], a["amplitude"])
+    elif receiver == "sg":
+        conv = mrp_convolve(view, normal, roughness, a["m"], a["n"], a["z"], a["bandwidth_m"], a["bandwidth_n"],
+                            a["amplitude"], mode)
+    else:
+        raise ValueError(f"receiver must be 'sg' or 'asg', got {receiver!r}")
     factor = mrp_receiver_factor(a["z"], view, normal, roughness, f0)
     return np.where(a["valid"], f64(visibility) * factor * conv, 0.0)
 
