@@ -343,7 +343,7 @@ def stage_values(position, normal, view, alpha, f0, lit, lights, disk_radius) ->
     """One receiver's stages, RGB, summed over the lights and the lit proxies (``lit``: (proxy,
     lit-by mask) pairs), each light's colour × glossy factor, no shadows:
 
-    - ``ref``: reference.mrp_asg.mrp_shade (the GPU pass's twin);
+    - ``ref``: reference.mrp_asg.mrp_shade with Eq. 8's receiver (two SGs, ``receiver="sg"``);
     - ``quad``: Eq. 3 by quadrature over the rectangle (brute_force_rectangle, exact GGX at both
       ends): the cell's truth;
     - ``C_ref``, ``C_quad``: the ASG light's energy C = A E L_y (Eqs. 17, 25–27, 35, 36) and its
@@ -368,7 +368,7 @@ def stage_values(position, normal, view, alpha, f0, lit, lights, disk_radius) ->
                 if not bool(a["valid"]):
                     continue
                 out["ref"][ch] += scale[ch] * float(mrp.mrp_shade(position, normal, view, alpha, f0[ch], rect, light,
-                                                                   disk_radius))
+                                                                   disk_radius, receiver="sg"))
                 out["quad"][ch] += scale[ch] * mrp.brute_force_rectangle(position, normal, view, alpha, f0[ch], rect,
                                                                         light, **STAGE_QUADRATURE)
                 out["C_ref"][ch] += scale[ch] * float(a["total"])
@@ -423,7 +423,7 @@ def stages(name, path, stride, materials=None) -> dict:
                     for ch in range(3):
                         ref[:, ch] += (light.color[ch] * light.specular_factor
                                        * mrp.mrp_shade(position[idx], normal[idx], view[idx], alpha[idx], f0[idx, ch],
-                                                       proxy.as_rect(ch), light, settings.disk_radius))
+                                                       proxy.as_rect(ch), light, settings.disk_radius, receiver="sg"))
         level = np.maximum(ref @ LUMINANCE, texel @ LUMINANCE)
         bright = level > 1e-3 * max(float(level.max()), 1e-30)
         left_out = {"pixels": int((~bright).sum()),
@@ -449,11 +449,11 @@ def stages(name, path, stride, materials=None) -> dict:
     energy_exact = v["ref"] * ratio(v["C_quad"], v["C_ref"])
     shape_only = v["asg_exact"] * ratio(v["C_quad"], v["C_ref"])
     variants = {
-        "GPU pass": gpu[idx], "reference (float64 twin)": v["ref"],
+        "GPU pass": gpu[idx], "reference, receiver NDF as Eq. 8's SGs (the pass before)": v["ref"],
         "reference, C = A E L_y replaced by its quadrature": energy_exact,
         "ASG light x exact GGX receiver (A E L_y as is)": v["asg_exact"],
         "ASG light x exact GGX receiver, exact C (the ASG's shape alone)": shape_only,
-        "candidate: receiver NDF warped as 003's ASG (two lobes), ASG x ASG in the tangent plane": v["asg_receiver"],
+        "reference, receiver NDF warped as 003's ASG (two lobes), ASG x ASG in the tangent plane": v["asg_receiver"],
         "texel brute force of the cell (light's shadows, RSM Rs)": texel}
     q = v["quad"] @ LUMINANCE
     mean = max(float(np.mean(q)), 1e-30)
@@ -464,7 +464,7 @@ def stages(name, path, stride, materials=None) -> dict:
         rows[label] = {"sum / quad": float(lum_image.sum() / max(q.sum(), 1e-30)),
                        "rel_rmse": float(np.sqrt(np.mean(error ** 2))) / mean,
                        "error2_over_ref": float(np.sum(error ** 2))}
-    ref_e2 = max(rows["reference (float64 twin)"]["error2_over_ref"], 1e-30)
+    ref_e2 = max(rows["reference, receiver NDF as Eq. 8's SGs (the pass before)"]["error2_over_ref"], 1e-30)
     for row in rows.values():
         row["error2_over_ref"] /= ref_e2
     # The energy C split: Eqs. 25-27 against the whole plane, A against clipping by the rectangle.

@@ -395,7 +395,7 @@ def test_asg_receiver_closer_to_quadrature_at_grazing_views(alpha_x):
         if o @ n < 0.05:
             continue
         truth.append(mrp.brute_force_rectangle(p, n, o, alpha_x, 0.9, rect, light, order=8, smallest=1e-3))
-        sg_mode.append(float(mrp.mrp_shade(p, n, o, alpha_x, 0.9, rect, light, 0.1)))
+        sg_mode.append(float(mrp.mrp_shade(p, n, o, alpha_x, 0.9, rect, light, 0.1, receiver="sg")))
         asg_mode.append(float(mrp.mrp_shade(p, n, o, alpha_x, 0.9, rect, light, 0.1, receiver="asg")))
     truth, sg_mode, asg_mode = map(np.array, (truth, sg_mode, asg_mode))
     assert len(truth) >= 8 and truth.max() > 0.0

@@ -313,6 +313,10 @@ def mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amp
     return f64(amplitude) * sg_amplitude * value
 
 
+#: Largest tangent-plane offset of gaussian_lobes_integral's peak (a nearly singular P).
+TANGENT_MAX = 1e4
+
+
 def gaussian_lobes_integral(axis, lobes):
     """∫ Π_j exp(−η_j1 (ω·e_j1)² − η_j2 (ω·e_j2)²) dω in the tangent plane at the unit ``axis``,
     ``lobes`` a list of (e1, e2, η1, η2) (arrays broadcasting together): with ω ≈ axis + u, u in the
@@ -322,16 +326,32 @@ def gaussian_lobes_integral(axis, lobes):
     axis = f64(axis)
     t1 = asg_any_tangent(axis)
     t2 = np.cross(axis, t1)
-    p11 = p12 = p22 = b1 = b2 = c = 0.0
-    for e1, e2, h1, h2 in lobes:
-        for e, h in ((f64(e1), f64(h1)), (f64(e2), f64(h2))):
-            offset, g1, g2 = dot(e, axis), dot(e, t1), dot(e, t2)
-            p11, p12, p22 = p11 + h * g1 * g1, p12 + h * g1 * g2, p22 + h * g2 * g2
-            b1, b2, c = b1 - h * offset * g1, b2 - h * offset * g2, c + h * offset * offset
-    det = np.maximum(p11 * p22 - p12 * p12, 1e-300)
-    u1 = (p22 * b1 - p12 * b2) / det
-    u2 = (p11 * b2 - p12 * b1) / det
-    value = np.pi / np.sqrt(det) * np.exp(np.minimum(b1 * u1 + b2 * u2 - c, 0.0))
+    terms = [(f64(e), f64(h)) for e1, e2, h1, h2 in lobes for e, h in ((e1, h1), (e2, h2))]
+    g = [(dot(e, t1), dot(e, t2), dot(e, axis), h) for e, h in terms]
+    # P = Σ h g gᵀ, b = −Σ h c g (c = e·axis). Cauchy–Binet: det P = Σ_{k<l} h_k h_l (g_k × g_l)², and
+    # adj(P) b = −Σ_{k≠l} h_k h_l c_l (g_k⊥·g_l) g_k⊥ (the k = l terms vanish): sums without the
+    # cancellation of p11 p22 − p12² when one bandwidth is ~1e8 times another (float32 twin).
+    det = 0.0
+    a1 = a2 = 0.0
+    for k, (gk1, gk2, ck, hk) in enumerate(g):
+        for l, (gl1, gl2, cl, hl) in enumerate(g):
+            if l == k:
+                continue
+            cross = gk1 * gl2 - gk2 * gl1  # g_k⊥·g_l with g⊥ = (−g2, g1)
+            if l > k:
+                det = det + hk * hl * cross * cross
+            a1 = a1 + hk * hl * cl * cross * gk2
+            a2 = a2 - hk * hl * cl * cross * gk1
+    det = np.maximum(det, 1e-300)
+    # Tangent offsets beyond TANGENT_MAX are far outside either lobe: clamped to stay finite.
+    u1 = np.clip(a1 / det, -TANGENT_MAX, TANGENT_MAX)
+    u2 = np.clip(a2 / det, -TANGENT_MAX, TANGENT_MAX)
+    # c − bᵀP⁻¹b is the quadratic's minimum: summed as the lobes' own squares at it.
+    exponent = 0.0
+    for gk1, gk2, ck, hk in g:
+        residual = ck + gk1 * u1 + gk2 * u2
+        exponent = exponent + hk * residual * residual
+    value = np.pi / np.sqrt(det) * np.exp(-exponent)
     peak = axis + u1[..., None] * t1 + u2[..., None] * t2
     return value, peak / norm(peak)[..., None]
 
@@ -342,7 +362,9 @@ def mrp_convolve_asg_receiver(view, normal, roughness, m, n, z, bandwidth_m, ban
     per SG of RECEIVER_NDF_LOBES, instead of Eq. 8's isotropic λ_h/(4 cos θ_o) (their geometric
     mean): ASG light × ASG receiver in the tangent plane of the narrower lobe
     (``gaussian_lobes_integral``), the light's cosine max(ω·z, 0) at the product's peak.
-    Not the pass's: benchmarks/results/mrp_asg_stages.md measures it against quadrature."""
+    The tangent-plane product is accurate for two narrow lobes (sharp receivers); for a wide light
+    (grazing σ, a rough receiver's tangent plane) it is not: benchmarks/results/mrp_asg_stages.md
+    (path_partition --stages) and tests/test_reference_mrp_asg.py measure it against quadrature."""
     x, y, z_r, eta_x, eta_y = asg_specular_lobe(view, normal, roughness)
     alpha = np.maximum(f64(roughness), ALPHA_MIN)
     bandwidth_m, bandwidth_n = f64(bandwidth_m), f64(bandwidth_n)
@@ -423,8 +445,10 @@ def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, m
     the light's shadow at p_y (1 = lit). Per unit light colour and per colour channel of the F0s.
     ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only). ``disk``: "lobe" (the
     default) samples a disk of radius max(r_d, DISK_LOBE_SCALE ρ_lobe |p_y − p_x|), "fixed" 001's
-    r_d alone (``DISK_RULES``). ``receiver="asg"``: the receiver lobe of
-    ``mrp_convolve_asg_receiver`` (the reference's only; the GPU pass is ``"sg"``)."""
+    r_d alone (``DISK_RULES``). ``receiver``: ``"sg"`` (the default, the GPU pass's) Eq. 8's NDF
+    as two SGs; ``"asg"`` the receiver lobe of ``mrp_convolve_asg_receiver`` (ASG mode only,
+    measured in benchmarks/results/mrp_asg_stages.md: closer on the demo's sharp gold sphere,
+    further on the occluded reflector's α 0.2 wall and at grazing light, so not the pass's)."""
     a = mrp_asg_light(position, rect, light, disk_radius, spread_correction, peak_form, area_normalization,
                       fit, disk)
     if receiver == "asg":
