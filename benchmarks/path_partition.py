@@ -29,6 +29,9 @@ reflector is in the RSM either way), the VPL pass without its denoise filter, in
    as luminance ratios of the pixel sums, served (MRP-ASG's receiver range) and unserved pixels.
 
 Writes ``path_partition.{md,json}`` in the results directory.
+
+``--stages``: instead, MRP-ASG's own error on the pixels it serves, stage by stage (:func:`stages`),
+written to ``mrp_asg_stages.{md,json}``.
 """
 
 from __future__ import annotations
@@ -257,6 +260,274 @@ def check(name, path, stride) -> dict:
     return result
 
 
+STAGE_QUADRATURE = dict(order=8, smallest=1e-3)  # 1e-9 of the default rule's value on the accuracy base
+
+
+def _asg_exact_receiver(light_asg, position, normal, view, alpha, f0, size=801):
+    """∫ ASG(ω) f_x(ω, o) (ω·n_x) dω, MRP-ASG's ASG light (001 Eqs. 18, 28–35) against the
+    receiver's exact GGX BRDF, on a tangent-plane grid around the narrower of the two lobes: the
+    ASG's axis (6 / √bandwidth wide) or the receiver's mirror direction (12 α / √(o·n) wide, the
+    GGX tail beyond it under 1 %), at most 1.5 (56°) either way."""
+    from vsgl_addon.reference import ggx
+    from vsgl_addon.reference.asg import asg_any_tangent, asg_evaluate
+
+    m, n, z = light_asg["m"], light_asg["n"], light_asg["z"]
+    lam, mu = float(light_asg["bandwidth_m"]), float(light_asg["bandwidth_n"])
+    asg_half = 6.0 / np.sqrt(max(min(lam, mu), 1e-6))
+    cos_o = max(float(view @ normal), 1e-3)
+    receiver_half = 12.0 * alpha / np.sqrt(cos_o)
+    if asg_half <= receiver_half:
+        axis, t1, half = z, m, asg_half
+    else:
+        axis = 2.0 * cos_o * normal - view
+        axis = axis / np.linalg.norm(axis)
+        t1, half = asg_any_tangent(axis), receiver_half
+    t2 = np.cross(axis, t1)
+    half = min(half, 1.5)
+    t = np.linspace(-half, half, size)
+    a, b = np.meshgrid(t, t, indexing="ij")
+    w = axis + a[..., None] * t1 + b[..., None] * t2
+    length = np.linalg.norm(w, axis=-1)
+    w = w / length[..., None]
+    solid_angle = (t[1] - t[0]) ** 2 / length ** 3
+    values = float(light_asg["amplitude"]) * asg_evaluate(w, m, n, z, lam, mu)
+    brdf = ggx.microfacet_brdf(w, np.broadcast_to(view, w.shape), np.broadcast_to(normal, w.shape), alpha, f0)
+    cosine = np.maximum(w @ normal, 0.0)
+    return float(np.sum(values * brdf * cosine * solid_angle))
+
+
+def _gaussian_lobes_integral(axis, lobes):
+    """∫ Π_j exp(−η_j1 (ω·e_j1)² − η_j2 (ω·e_j2)²) dω in the tangent plane at the unit ``axis``
+    (lobes: (e1, e2, η1, η2)): with ω ≈ axis + u, u in the plane, the exponent is −uᵀPu + 2bᵀu − c,
+    so the integral is π / √det P · exp(bᵀP⁻¹b − c); also the product's peak direction. For an SG
+    and an ASG this is Eq. 11's small-angle form (000 app. C, after Xu et al. 2013)."""
+    from vsgl_addon.reference.asg import asg_any_tangent
+
+    t1 = asg_any_tangent(axis)
+    t2 = np.cross(axis, t1)
+    p_mat, b_vec, c = np.zeros((2, 2)), np.zeros(2), 0.0
+    for e1, e2, h1, h2 in lobes:
+        for e, h in ((e1, h1), (e2, h2)):
+            offset, g = float(e @ axis), np.array([e @ t1, e @ t2])
+            p_mat += h * np.outer(g, g)
+            b_vec -= h * offset * g
+            c += h * offset * offset
+    u = np.linalg.solve(p_mat, b_vec)
+    peak = axis + u[0] * t1 + u[1] * t2
+    return np.pi / np.sqrt(np.linalg.det(p_mat)) * np.exp(b_vec @ u - c), peak / np.linalg.norm(peak)
+
+
+def _asg_receiver_shade(light_asg, position, normal, view, alpha, f0):
+    """MRP-ASG with the receiver's NDF warped anisotropically (003's ASG lobe,
+    reference.asg.asg_specular_lobe: η = λ_h/(8 cos²θ_o) across the plane of incidence, λ_h/8 in
+    it, per SG of RECEIVER_NDF_LOBES) instead of Eq. 8's isotropic λ_h/(4 cos θ_o), convolved with
+    the ASG light in the tangent plane of the narrower lobe (``_gaussian_lobes_integral``), the
+    light's cosine max(ω·z, 0) at the product's peak; M of Eq. 10 as mrp_shade."""
+    from vsgl_addon.reference import mrp_asg as mrp
+    from vsgl_addon.reference.asg import asg_specular_lobe
+
+    a = light_asg
+    x, y, z, eta_x, eta_y = asg_specular_lobe(view, normal, alpha)
+    light_lobe = (a["m"], a["n"], float(a["bandwidth_m"]), float(a["bandwidth_n"]))
+    total = 0.0
+    for weight, scale in mrp.RECEIVER_NDF_LOBES:
+        receiver_lobe = (x, y, scale * float(eta_x), scale * float(eta_y))
+        axis = a["z"] if min(light_lobe[2:]) > min(receiver_lobe[2:]) else z
+        value, peak = _gaussian_lobes_integral(axis, [receiver_lobe, light_lobe])
+        total += weight * value * max(float(peak @ a["z"]), 0.0)
+    factor = float(mrp.mrp_receiver_factor(a["z"], view, normal, alpha, f0))
+    return factor * float(a["amplitude"]) * total / (np.pi * max(alpha, mrp.ALPHA_MIN) ** 2)
+
+
+def stage_values(position, normal, view, alpha, f0, lit, lights, disk_radius) -> dict:
+    """One receiver's stages, RGB, summed over the lights and the lit proxies (``lit``: (proxy,
+    lit-by mask) pairs), each light's colour × glossy factor, no shadows:
+
+    - ``ref``: reference.mrp_asg.mrp_shade with Eq. 8's receiver (two SGs, ``receiver="sg"``);
+    - ``quad``: Eq. 3 by quadrature over the rectangle (brute_force_rectangle, exact GGX at both
+      ends): the cell's truth;
+    - ``C_ref``, ``C_quad``: the ASG light's energy C = A E L_y (Eqs. 17, 25–27, 35, 36) and its
+      truth, the solid-angle integral at x of R's reflected radiance (Eq. 13) by quadrature;
+    - ``C_plane``: that integral over the whole plane (a rectangle of 1000× the proxy around the
+      peak): against E L_y the disk integral's error alone, C_quad / C_plane what A should be;
+    - ``asg_exact``: the ASG light against the exact receiver BRDF (``_asg_exact_receiver``): ref /
+      asg_exact is the receiver's two-SG NDF, M and Eq. 11; asg_exact C_quad / C_ref / quad the
+      ASG's shape (its frame, extents, bandwidths) alone;
+    - ``asg_receiver``: the candidate fix, the receiver lobe as 003's ASG (``_asg_receiver_shade``)."""
+    from vsgl_addon.reference import mrp_asg as mrp
+
+    out = {key: np.zeros(3) for key in ("ref", "quad", "C_ref", "C_quad", "C_plane", "E_Ly", "asg_exact", "asg_receiver")}
+    for index, light in enumerate(lights):
+        scale = np.asarray(light.color, np.float64) * float(light.specular_factor)
+        for proxy, mask in lit:
+            if not mask[index]:
+                continue
+            for ch in range(3):
+                rect = proxy.as_rect(ch)
+                a = mrp.mrp_asg_light(position, rect, light, disk_radius)
+                if not bool(a["valid"]):
+                    continue
+                out["ref"][ch] += scale[ch] * float(mrp.mrp_shade(position, normal, view, alpha, f0[ch], rect, light,
+                                                                   disk_radius, receiver="sg"))
+                out["quad"][ch] += scale[ch] * mrp.brute_force_rectangle(position, normal, view, alpha, f0[ch], rect,
+                                                                        light, **STAGE_QUADRATURE)
+                out["C_ref"][ch] += scale[ch] * float(a["total"])
+                out["E_Ly"][ch] += scale[ch] * float(a["disk_integral"] * a["radiance"])
+                out["C_quad"][ch] += scale[ch] * mrp.brute_force_rectangle(position, normal, view, alpha, f0[ch], rect,
+                                                                          light, receiver_brdf=False, **STAGE_QUADRATURE)
+                plane = dict(rect, center=a["peak"], half_u=1000.0 * max(rect["half_u"], rect["half_v"]),
+                             half_v=1000.0 * max(rect["half_u"], rect["half_v"]))
+                out["C_plane"][ch] += scale[ch] * mrp.brute_force_rectangle(
+                    position, normal, view, alpha, f0[ch], plane, light, receiver_brdf=False,
+                    order=STAGE_QUADRATURE["order"], smallest=STAGE_QUADRATURE["smallest"] / 1000.0)
+                out["asg_exact"][ch] += scale[ch] * _asg_exact_receiver(a, position, normal, view, alpha, f0[ch])
+                out["asg_receiver"][ch] += scale[ch] * _asg_receiver_shade(a, position, normal, view, alpha, f0[ch])
+    return out
+
+
+def stages(name, path, stride, materials=None) -> dict:
+    """MRP-ASG's error on the pixels it serves, by stage, against quadrature of the same cell
+    (``stage_values``) and against the texel brute force of path_partition's cell "specular, sharp,
+    on a proxy" (which has the light's shadows at the reflector; the quadrature has none)."""
+    from vsgl_addon.passes.gpu_util import read_texture
+    from vsgl_addon.reference.path_partition import brute_force_one_bounce as brute_force, cell_fluxes, set_texels
+    from vsgl_addon.renderer import FrameRenderer, SceneLights
+
+    width, height = RESOLUTION
+    settings, truth, description = scene_with_truth(name, path, width, height)
+    settings = partition_settings(settings)
+    camera = description.camera
+    view_matrix, projection = camera.view_matrix(), camera.projection_matrix()
+    bench = Bench(description, width, height)
+    renderer = FrameRenderer()
+    lights = SceneLights.build(description, settings, view=(view_matrix, projection))
+    try:
+        pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride, materials)
+        frame = renderer.render_view(lights, settings, width, height, view_matrix, projection)
+        if frame.indirect_glossy_reflectors is None:
+            raise RuntimeError(f"{name}: MRP-ASG did not run")
+        gpu = frame.indirect_glossy_reflectors[pick].astype(np.float64)
+        served = read_texture(renderer._mrp.texture, width, height)[..., 3][pick] > 0.0
+        whole = set_texels(lights.whole_vsgls if lights.whole_vsgls is not None else lights.vsgls, description.lights)
+        cell = cell_fluxes(whole, lights.proxies, settings.caustic_roughness)["specular, sharp, on a proxy"]
+        idx = np.flatnonzero(served)
+        receivers = (position[idx], normal[idx], view[idx], rd[idx], f0[idx], alpha[idx])
+        texel = brute_force(whole, *cell, *receivers)[1]
+        # The quadratures only where the cell or MRP-ASG is above 1e-3 of the brightest (either one's
+        # light elsewhere is reported as the share left out).
+        from vsgl_addon.reference import mrp_asg as mrp
+        ref = np.zeros((len(idx), 3))
+        for index, light in enumerate(description.lights):
+            for proxy, mask in lights.proxies:
+                if mask[index]:
+                    for ch in range(3):
+                        ref[:, ch] += (light.color[ch] * light.specular_factor
+                                       * mrp.mrp_shade(position[idx], normal[idx], view[idx], alpha[idx], f0[idx, ch],
+                                                       proxy.as_rect(ch), light, settings.disk_radius, receiver="sg"))
+        level = np.maximum(ref @ LUMINANCE, texel @ LUMINANCE)
+        bright = level > 1e-3 * max(float(level.max()), 1e-30)
+        left_out = {"pixels": int((~bright).sum()),
+                    "texel share": float((texel @ LUMINANCE)[~bright].sum() / max(float((texel @ LUMINANCE).sum()), 1e-30)),
+                    "reference share": float((ref @ LUMINANCE)[~bright].sum() / max(float((ref @ LUMINANCE).sum()), 1e-30))}
+        idx, texel = idx[bright], texel[bright]
+        start = time.perf_counter()
+        values = []
+        for count, i in enumerate(idx):
+            values.append(stage_values(position[i], normal[i], view[i], alpha[i], f0[i], lights.proxies,
+                                       description.lights, settings.disk_radius))
+            if count % 25 == 0:
+                log(f"{name}: {count}/{len(idx)} pixels, {time.perf_counter() - start:.0f} s")
+        log(f"{name}: stages at {len(idx)} served pixels, {time.perf_counter() - start:.0f} s")
+        v = {key: np.array([value[key] for value in values]) for key in values[0]}
+        materials_index = np.asarray(bench.material_index[pick])[idx]
+        material_names = list(bench.materials)
+    finally:
+        lights.free()
+        renderer.free()
+        bench.free()
+    ratio = lambda a, b: np.divide(a, b, out=np.zeros_like(a), where=np.abs(b) > 0)
+    energy_exact = v["ref"] * ratio(v["C_quad"], v["C_ref"])
+    shape_only = v["asg_exact"] * ratio(v["C_quad"], v["C_ref"])
+    variants = {
+        "GPU pass": gpu[idx], "reference, receiver NDF as Eq. 8's SGs (the pass before)": v["ref"],
+        "reference, C = A E L_y replaced by its quadrature": energy_exact,
+        "ASG light x exact GGX receiver (A E L_y as is)": v["asg_exact"],
+        "ASG light x exact GGX receiver, exact C (the ASG's shape alone)": shape_only,
+        "reference, receiver NDF warped as 003's ASG (two lobes), ASG x ASG in the tangent plane": v["asg_receiver"],
+        "texel brute force of the cell (light's shadows, RSM Rs)": texel}
+    q = v["quad"] @ LUMINANCE
+    mean = max(float(np.mean(q)), 1e-30)
+    rows = {}
+    for label, image in variants.items():
+        lum_image = image @ LUMINANCE
+        error = lum_image - q
+        rows[label] = {"sum / quad": float(lum_image.sum() / max(q.sum(), 1e-30)),
+                       "rel_rmse": float(np.sqrt(np.mean(error ** 2))) / mean,
+                       "error2_over_ref": float(np.sum(error ** 2))}
+    ref_e2 = max(rows["reference, receiver NDF as Eq. 8's SGs (the pass before)"]["error2_over_ref"], 1e-30)
+    for row in rows.values():
+        row["error2_over_ref"] /= ref_e2
+    # The energy C split: Eqs. 25-27 against the whole plane, A against clipping by the rectangle.
+    c_ref, c_quad, c_plane, e_ly = (v[k] @ LUMINANCE for k in ("C_ref", "C_quad", "C_plane", "E_Ly"))
+    energy = {"C_ref / C_quad (sum)": float(c_ref.sum() / max(c_quad.sum(), 1e-30)),
+              "E L_y / C_plane (sum): disk integral, Eqs. 25-27": float(e_ly.sum() / max(c_plane.sum(), 1e-30)),
+              "A (C-weighted) / (C_quad / C_plane): area ratio, Eq. 36": float(c_ref.sum() / max(e_ly.sum(), 1e-30))
+              / float(c_quad.sum() / max(c_plane.sum(), 1e-30))}
+    for key, (a, b) in {"C_ref / C_quad": (c_ref, c_quad), "E L_y / C_plane": (e_ly, c_plane),
+                        "ref / asg_exact (receiver SGs, M, Eq. 11)": (v["ref"] @ LUMINANCE, v["asg_exact"] @ LUMINANCE),
+                        "asg_exact C_quad/C_ref / quad (ASG shape)": (shape_only @ LUMINANCE, q)}.items():
+        r = np.divide(a, b, out=np.full_like(a, np.nan), where=b > 1e-6 * max(float(b.max()), 1e-30))
+        r = r[np.isfinite(r)]
+        if r.size:
+            energy[f"per pixel {key}: median / 10th / 90th pct"] = [float(np.median(r)), float(np.percentile(r, 10)),
+                                                                    float(np.percentile(r, 90))]
+    per_material = {}
+    for index in np.unique(materials_index):
+        here = materials_index == index
+        e_ref = (v["ref"] @ LUMINANCE - q)[here]
+        per_material[material_names[index]] = {
+            "pixels": int(here.sum()), "quad": float(q[here].sum()),
+            "ref / quad": float((v["ref"] @ LUMINANCE)[here].sum() / max(q[here].sum(), 1e-30)),
+            "GPU / quad": float((gpu[idx] @ LUMINANCE)[here].sum() / max(q[here].sum(), 1e-30)),
+            "texel / quad": float((texel @ LUMINANCE)[here].sum() / max(q[here].sum(), 1e-30)),
+            "C_ref / C_quad": float(c_ref[here].sum() / max(c_quad[here].sum(), 1e-30)),
+            "share_of_ref_error2": float(np.sum(e_ref ** 2)) / ref_e2}
+    return {"scene": name, "stride": stride, "served": int(len(idx)), "left_out": left_out, "variants": rows, "energy": energy,
+            "materials": per_material,
+            "pixels": {key: value.tolist() for key, value in v.items()} | {"gpu": gpu[idx].tolist(),
+                                                                          "texel": texel.tolist()},
+            "receivers": {key: value[idx].tolist() for key, value in (("position", position), ("normal", normal),
+                                                                       ("view", view), ("f0", f0), ("alpha", alpha))}}
+
+
+def stages_markdown(results, command) -> str:
+    lines = ["# MRP-ASG's error by stage, on the pixels it serves", "",
+             f"`{command}` (benchmarks/path_partition.py's `stages`: visibility off, 240x180). The truth is "
+             "Eq. 3 by quadrature over each lit proxy side for each light (reference.mrp_asg.brute_force_rectangle, "
+             "exact GGX at both ends, no shadows); luminance.", ""]
+    for r in results:
+        lo = r["left_out"]
+        lines += [f"## {r['scene']}", "", f"{r['served']} served pixels (every {r['stride']}th both ways) where the cell's "
+                  f"texel brute force or MRP-ASG is above 1e-3 of its brightest; {lo['pixels']} served pixels below "
+                  f"that left out (their share of the texel brute force {lo['texel share']:.2e}, of MRP-ASG's "
+                  f"{lo['reference share']:.2e}).", "",
+                  "| variant | sum / quadrature | rel. RMSE | error² / reference's |", "|---|---|---|---|"]
+        for key, value in r["variants"].items():
+            lines.append(f"| {key} | {value['sum / quad']:.3f} | {value['rel_rmse']:.3f} | {value['error2_over_ref']:.3f} |")
+        lines += ["", "The ASG light's energy C = A E L_y:", ""]
+        for key, value in r["energy"].items():
+            shown = " / ".join(f"{x:.3f}" for x in value) if isinstance(value, list) else f"{value:.3f}"
+            lines.append(f"- {key}: {shown}")
+        lines += ["", "| material | pixels | quadrature | ref / quad | GPU / quad | texel / quad | C_ref / C_quad | share of ref's error² |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for key, value in r["materials"].items():
+            lines.append(f"| {key} | {value['pixels']} | {value['quad']:.4g} | {value['ref / quad']:.3f} | "
+                         f"{value['GPU / quad']:.3f} | {value['texel / quad']:.3f} | {value['C_ref / C_quad']:.3f} | "
+                         f"{value['share_of_ref_error2']:.3f} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
 def markdown(results, command) -> str:
     lines = ["# Path partition: is any light path counted twice or dropped?", "",
              f"`{command}` (benchmarks/path_partition.py's documentation: visibility off, δ 1e-6, "
@@ -299,6 +570,9 @@ def main(argv=None) -> int:
     parser.add_argument("--only", nargs="+", default=list(SCENES))
     parser.add_argument("--stride", type=int, default=6)
     parser.add_argument("--results-dir", type=Path, default=RESULTS_DIR)
+    parser.add_argument("--stages", action="store_true", help="MRP-ASG's error by stage (mrp_asg_stages.md)")
+    parser.add_argument("--materials", nargs="+", default=None, help="with --stages: these receivers only")
+    parser.add_argument("--results-name", default=None, help="file stem of the results (default by mode)")
     args = parser.parse_args(argv)
     from vsgl_addon import register, unregister
     from vsgl_addon.gpu_context import ensure_gpu_context
@@ -307,14 +581,16 @@ def main(argv=None) -> int:
     register()
     ensure_gpu_context()
     try:
-        results = [check(name, paths[name], args.stride) for name in args.only]
+        results = [stages(name, paths[name], args.stride, args.materials) if args.stages
+                   else check(name, paths[name], args.stride) for name in args.only]
     finally:
         unregister()
     command = "benchmarks/path_partition.py " + " ".join(sys.argv[1:] if argv is None else argv)
-    text = markdown(results, command.strip())
+    text = (stages_markdown if args.stages else markdown)(results, command.strip())
+    stem = args.results_name or ("mrp_asg_stages" if args.stages else "path_partition")
     args.results_dir.mkdir(parents=True, exist_ok=True)
-    (args.results_dir / "path_partition.md").write_text(text + "\n")
-    (args.results_dir / "path_partition.json").write_text(json.dumps({"command": command.strip(), "results": results},
+    (args.results_dir / f"{stem}.md").write_text(text + "\n")
+    (args.results_dir / f"{stem}.json").write_text(json.dumps({"command": command.strip(), "results": results},
                                                                      indent=1, default=float) + "\n")
     print(text)
     return 0

@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .asg import asg_any_tangent, sg_asg_convolution
+from .asg import asg_any_tangent, asg_specular_lobe, sg_asg_convolution
 from .ggx import fresnel_schlick, ggx_g1_denominator, microfacet_brdf
 from .lights import light_intensity
 from .numerics import dot, f64, norm, safe_normalize, safe_ratio
@@ -313,6 +313,71 @@ def mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amp
     return f64(amplitude) * sg_amplitude * value
 
 
+#: Largest tangent-plane offset of gaussian_lobes_integral's peak (a nearly singular P).
+TANGENT_MAX = 1e4
+
+
+def gaussian_lobes_integral(axis, lobes):
+    """∫ Π_j exp(−η_j1 (ω·e_j1)² − η_j2 (ω·e_j2)²) dω in the tangent plane at the unit ``axis``,
+    ``lobes`` a list of (e1, e2, η1, η2) (arrays broadcasting together): with ω ≈ axis + u, u in the
+    plane, the exponent is −uᵀPu + 2bᵀu − c, so the integral is π/√det P · exp(bᵀP⁻¹b − c).
+    Returns ``(value, peak)``, peak the unit direction of the product's maximum. For an SG and an
+    ASG this is Eq. 11's small-angle form (000 app. C, after Xu et al. 2013)."""
+    axis = f64(axis)
+    t1 = asg_any_tangent(axis)
+    t2 = np.cross(axis, t1)
+    terms = [(f64(e), f64(h)) for e1, e2, h1, h2 in lobes for e, h in ((e1, h1), (e2, h2))]
+    g = [(dot(e, t1), dot(e, t2), dot(e, axis), h) for e, h in terms]
+    # P = Σ h g gᵀ, b = −Σ h c g (c = e·axis). Cauchy–Binet: det P = Σ_{k<l} h_k h_l (g_k × g_l)², and
+    # adj(P) b = −Σ_{k≠l} h_k h_l c_l (g_k⊥·g_l) g_k⊥ (the k = l terms vanish): sums without the
+    # cancellation of p11 p22 − p12² when one bandwidth is ~1e8 times another (float32 twin).
+    det = 0.0
+    a1 = a2 = 0.0
+    for k, (gk1, gk2, ck, hk) in enumerate(g):
+        for l, (gl1, gl2, cl, hl) in enumerate(g):
+            if l == k:
+                continue
+            cross = gk1 * gl2 - gk2 * gl1  # g_k⊥·g_l with g⊥ = (−g2, g1)
+            if l > k:
+                det = det + hk * hl * cross * cross
+            a1 = a1 + hk * hl * cl * cross * gk2
+            a2 = a2 - hk * hl * cl * cross * gk1
+    det = np.maximum(det, 1e-300)
+    # Tangent offsets beyond TANGENT_MAX are far outside either lobe: clamped to stay finite.
+    u1 = np.clip(a1 / det, -TANGENT_MAX, TANGENT_MAX)
+    u2 = np.clip(a2 / det, -TANGENT_MAX, TANGENT_MAX)
+    # c − bᵀP⁻¹b is the quadratic's minimum: summed as the lobes' own squares at it.
+    exponent = 0.0
+    for gk1, gk2, ck, hk in g:
+        residual = ck + gk1 * u1 + gk2 * u2
+        exponent = exponent + hk * residual * residual
+    value = np.pi / np.sqrt(det) * np.exp(-exponent)
+    peak = axis + u1[..., None] * t1 + u2[..., None] * t2
+    return value, peak / norm(peak)[..., None]
+
+
+def mrp_convolve_asg_receiver(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amplitude):
+    """``mrp_convolve`` with the receiver's NDF warped anisotropically, as 003's ASG lobe
+    (``asg.asg_specular_lobe``: η = λ_h/(8 cos²θ_o) across the plane of incidence, λ_h/8 in it)
+    per SG of RECEIVER_NDF_LOBES, instead of Eq. 8's isotropic λ_h/(4 cos θ_o) (their geometric
+    mean): ASG light × ASG receiver in the tangent plane of the narrower lobe
+    (``gaussian_lobes_integral``), the light's cosine max(ω·z, 0) at the product's peak.
+    The tangent-plane product is accurate for two narrow lobes (sharp receivers); for a wide light
+    (grazing σ, a rough receiver's tangent plane) it is not: benchmarks/results/mrp_asg_stages.md
+    (path_partition --stages) and tests/test_reference_mrp_asg.py measure it against quadrature."""
+    x, y, z_r, eta_x, eta_y = asg_specular_lobe(view, normal, roughness)
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
+    bandwidth_m, bandwidth_n = f64(bandwidth_m), f64(bandwidth_n)
+    light_narrower = np.minimum(bandwidth_m, bandwidth_n) > np.minimum(eta_x, eta_y)
+    axis = np.where(light_narrower[..., None], f64(z), z_r)
+    value = 0.0
+    for weight, scale in RECEIVER_NDF_LOBES:
+        integral, peak = gaussian_lobes_integral(axis, [(x, y, scale * eta_x, scale * eta_y),
+                                                        (m, n, bandwidth_m, bandwidth_n)])
+        value = value + weight * integral * np.maximum(dot(peak, f64(z)), 0.0)
+    return f64(amplitude) * value / (np.pi * alpha * alpha)
+
+
 def light_irradiance_at(light, point):
     """(E⊥ at ``point`` for a surface facing the light, unit direction from ``point`` to the
     light, distance d_l or inf): I/d² for point/spot/area (``lights.light_intensity``), S for a
@@ -330,17 +395,12 @@ def light_irradiance_at(light, point):
     return safe_ratio(intensity, d * d), direction, d
 
 
-def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, mode="asg",
-              visibility=1.0, spread_correction=True, peak_form="blender",
-              area_normalization="square", fit="energy", disk="lobe"):
-    """L_x(o) of one rectangle and one light at receivers (001 Eqs. 3–37; module documentation).
-
-    ``rect``: mapping with ``center``, ``normal``, ``axis_u``, ``axis_v``, ``half_u``, ``half_v``,
-    ``roughness``, ``f0``. ``light``: a ``scene_description.Light``-like object. ``visibility``:
-    the light's shadow at p_y (1 = lit). Per unit light colour and per colour channel of the F0s.
-    ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only). ``disk``: "lobe" (the
-    default) samples a disk of radius max(r_d, DISK_LOBE_SCALE ρ_lobe |p_y − p_x|), "fixed" 001's
-    r_d alone (``DISK_RULES``)."""
+def mrp_asg_light(position, rect, light, disk_radius, spread_correction=True, peak_form="blender",
+                  area_normalization="square", fit="energy", disk="lobe"):
+    """001's ASG light at receivers (steps 1-5 of the module documentation), as a dict: ``valid``,
+    ``peak``, ``cos_sigma``, ``radiance`` L_y, ``extent`` ρ, ``disk_integral`` E / L_y, ``area`` A,
+    ``total`` C = A E (Eq. 35), the frame ``m``, ``n``, ``z``, ``bandwidth_m``, ``bandwidth_n`` and
+    ``amplitude``; ``mrp_shade``'s arguments."""
     position = f64(position)
     n_r = f64(rect["normal"])
     if light.type == "SUN":
@@ -370,9 +430,37 @@ def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, m
     bandwidth_m = mrp_bandwidth(extent)
     bandwidth_n = mrp_bandwidth(extent * np.abs(cos_n))
     amplitude = np.sqrt(bandwidth_m) * np.sqrt(bandwidth_n) / np.pi * total
-    conv = mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amplitude, mode)
-    factor = mrp_receiver_factor(z, view, normal, roughness, f0)
-    return np.where(valid, f64(visibility) * factor * conv, 0.0)
+    return dict(valid=valid, peak=peak, cos_sigma=cos_sigma, radiance=radiance, extent=extent,
+                disk_integral=disk_integral, area=area, total=total, m=m, n=n, z=z,
+                bandwidth_m=bandwidth_m, bandwidth_n=bandwidth_n, amplitude=amplitude)
+
+
+def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, mode="asg",
+              visibility=1.0, spread_correction=True, peak_form="blender",
+              area_normalization="square", fit="energy", disk="lobe", receiver="sg"):
+    """L_x(o) of one rectangle and one light at receivers (001 Eqs. 3–37; module documentation).
+
+    ``rect``: mapping with ``center``, ``normal``, ``axis_u``, ``axis_v``, ``half_u``, ``half_v``,
+    ``roughness``, ``f0``. ``light``: a ``scene_description.Light``-like object. ``visibility``:
+    the light's shadow at p_y (1 = lit). Per unit light colour and per colour channel of the F0s.
+    ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only). ``disk``: "lobe" (the
+    default) samples a disk of radius max(r_d, DISK_LOBE_SCALE ρ_lobe |p_y − p_x|), "fixed" 001's
+    r_d alone (``DISK_RULES``). ``receiver``: ``"sg"`` (the default, the GPU pass's) Eq. 8's NDF
+    as two SGs; ``"asg"`` the receiver lobe of ``mrp_convolve_asg_receiver`` (ASG mode only,
+    measured in benchmarks/results/mrp_asg_stages.md: closer on the demo's sharp gold sphere,
+    further on the occluded reflector's α 0.2 wall and at grazing light, so not the pass's)."""
+    a = mrp_asg_light(position, rect, light, disk_radius, spread_correction, peak_form, area_normalization,
+                      fit, disk)
+    if receiver == "asg":
+        conv = mrp_convolve_asg_receiver(view, normal, roughness, a["m"], a["n"], a["z"], a["bandwidth_m"],
+                                         a["bandwidth_n"], a["amplitude"])
+    elif receiver == "sg":
+        conv = mrp_convolve(view, normal, roughness, a["m"], a["n"], a["z"], a["bandwidth_m"], a["bandwidth_n"],
+                            a["amplitude"], mode)
+    else:
+        raise ValueError(f"receiver must be 'sg' or 'asg', got {receiver!r}")
+    factor = mrp_receiver_factor(a["z"], view, normal, roughness, f0)
+    return np.where(a["valid"], f64(visibility) * factor * conv, 0.0)
 
 
 def _refined_rule(half, points, order=12, smallest=1e-5, ratio=2.0):
