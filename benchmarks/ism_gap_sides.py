@@ -11,7 +11,7 @@ to the shadow origin ray-cast (visibility_diagnosis.exact_visibility); and per v
 maps of the tables whose maps do not keep their surfaces rebuilt by reference/ism.py from the GPU's
 point sets: splat ``plane_depth`` P (0: the point's distance), radius cap R, close_gaps
 ``continued`` G (0/1) with ``unknown_sides`` U (GAP_UNKNOWN_SIDES), then pull-push; the lookup is the
-slope-scaled depth bias (``surfaces`` False). Tables whose maps keep their surfaces (sun lights) keep
+slope-scaled depth bias (``surfaces`` False). Tables whose lookups take the normal offset (sun lights) keep
 the GPU's maps. Per scene and per material: Σ light / Cycles' there; rel RMSE against Cycles is
 noise-corrected (its two seeds) over the subset. Writes ``benchmarks/results/ism_gap_sides[_TAG].md``
 (+ .json).
@@ -78,7 +78,7 @@ def run_scene(name, path, stride, variants):
         try:
             build_visibility(bench.scene_gpu, vsgls, settings)
             tables = [{k: np.asarray(v, np.float64) for k, v in t.items()} for t in vsgls.table_arrays()]
-            atlases = [(atlas.count, atlas.size, atlas.read(), atlas.surfaces) for atlas in vsgls.isms]
+            atlases = [(atlas.count, atlas.size, atlas.read(), atlas.surfaces, atlas.normal_offset) for atlas in vsgls.isms]
         finally:
             vsgls.free()
         points = bench.scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
@@ -87,7 +87,7 @@ def run_scene(name, path, stride, variants):
         bench.free()
     light = {}
     first_map = 0
-    for table, (count, size, depths, surfaces) in zip(tables, atlases):
+    for table, (count, size, depths, surfaces, offset) in zip(tables, atlases):
         maps = count // len(table["diffuse_variance"])
         _, _, terms = shade(table, position, normal, view, rd, f0, alpha,
                             diffuse_mode=diffuse_mode_for_kernel(settings.kernel), per_term=True)
@@ -95,11 +95,11 @@ def run_scene(name, path, stride, variants):
         origins, sets, near = ism.vsgl_map_origins(table, maps, first_map, POINT_SETS, VSGL_OWN_REFLECTOR_SIGMAS)
         first_map += count
         v = {"off": np.ones_like(weight),
-             "gpu": vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=surfaces),
+             "gpu": vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=offset),
              "exact": exact_visibility(table, maps, position, triangles, VSGL_OWN_REFLECTOR_SIGMAS)}
         for text in variants:
-            rebuilt = depths if surfaces else rebuild(points, origins, sets, near, size, point_area, parse(text))
-            v[text] = vsgl_visibility(rebuilt, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=surfaces)
+            rebuilt = depths if offset else rebuild(points, origins, sets, near, size, point_area, parse(text))
+            v[text] = vsgl_visibility(rebuilt, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=offset)
         for key, value in v.items():
             light[key] = light.get(key, 0.0) + (weight * value).sum(axis=(1, 2))
     cycles = truth["indirect"][pick].astype(np.float64) @ LUMINANCE
@@ -142,7 +142,12 @@ def main(argv=None):
     parser.add_argument("--tag", default="")
     args = parser.parse_args(argv)
     argv_text = ".venv/bin/python benchmarks/ism_gap_sides.py " + " ".join(sys.argv[1:] if argv is None else argv)
-    scenes = dict((n, p) for n, p in suite())
+    from vsgl_addon import register
+    from vsgl_addon.gpu_context import ensure_gpu_context
+
+    register()
+    ensure_gpu_context()
+    scenes = {n: p for n, p, _ in suite()}
     results = {}
     start = time.perf_counter()
     for name in args.only:

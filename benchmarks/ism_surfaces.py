@@ -14,7 +14,8 @@ the gap closing of concave corners). A variant TYPES/P:G:O:D makes the maps of t
 reference.ism.SPLAT_PLANE_DEPTH = P (0: a splat writes its point's distance; > 0: where each
 texel's ray meets the point's tangent plane, within P point spacings), GAP_EXTRAPOLATE = G (0/1:
 each side's surface continued as a plane before the gap test), SURFACE_NORMAL_OFFSET = O and
-SURFACE_NORMAL_OFFSET_DEPTH = D (O = 0 the slope-scaled depth bias), their splats capped at
+SURFACE_NORMAL_OFFSET_DEPTH = D (O = 0 the slope-scaled depth bias; the lookups of the lights of
+pipeline.NORMAL_OFFSET_LIGHT_TYPES among them only, the others' the slope-scaled bias), their splats capped at
 reference.ism.SURFACE_SPLAT_MAX_RADIUS as it is; "none": no light's. Per scene of benchmarks/validation_suite.py
 (suite_sweep: its settings, 240x180, cached Cycles truths), per variant: visibility on, the second of
 two frames, mean ours / Cycles, noise-corrected and robust relative RMSE, each the mean over the
