@@ -10,7 +10,7 @@ Per scene (one RSM view, the scene's settings, visibility on), on every S-th pix
 to the shadow origin ray-cast (visibility_diagnosis.exact_visibility); and per variant P:R:G:U the
 maps of the tables whose maps do not keep their surfaces rebuilt by reference/ism.py from the GPU's
 point sets: splat ``plane_depth`` P (0: the point's distance), radius cap R, close_gaps
-``continued`` G (0/1) with ``unknown_sides`` U (GAP_UNKNOWN_SIDES), then pull-push; the lookup is the
+``continued`` G (0/1) with a side whose plane is unknown taken as U (plane_continued_unknown), then pull-push; the lookup is the
 slope-scaled depth bias (``surfaces`` False). Tables whose lookups take the normal offset (sun lights) keep
 the GPU's maps. Per scene and per material: Σ light / Cycles' there; rel RMSE against Cycles is
 noise-corrected (its two seeds) over the subset. Writes ``benchmarks/results/ism_gap_sides[_TAG].md``
@@ -41,15 +41,43 @@ from visibility_diagnosis import exact_visibility  # noqa: E402
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
+def plane_continued_unknown(unknown_sides):
+    """reference.ism._plane_continued where a side's plane is unknown: U = 0 as the reference (the
+    texel is no gap); 1, the side's nearest depth stands where the texel beyond it is empty or the
+    plane turns away; 2, also where the texel beyond lies more than GAP_MARGIN off the side's nearest
+    depth (another surface: the two texels give no plane)."""
+    from vsgl_addon.reference import ism
+
+    def continued(depth, scale, columns, rows, dx, dy, at, size):
+        column, row = ism.octahedral_wrap(columns + at * dx, rows + at * dy, size)
+        near_w = scale[row, column] / depth[row, column]
+        column, row = ism.octahedral_wrap(columns + (at + 1) * dx, rows + (at + 1) * dy, size)
+        beyond_w = scale[row, column] / depth[row, column]
+        w = near_w + at * (near_w - beyond_w)
+        known = (w > 0.0) & (beyond_w > 0.0) & (near_w > 0.0)
+        if unknown_sides >= 2:
+            known &= np.abs(near_w - beyond_w) <= ism.GAP_MARGIN * near_w
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(known, scale / np.where(known, w, 1.0), 0.0 if unknown_sides else ism.EMPTY)
+
+    return continued
+
+
 def rebuild(points, origins, sets, near, size, point_area, variant):
     from vsgl_addon.reference import ism
 
     plane, radius, continued, unknown = variant
-    maps = []
-    for origin, index, dist in zip(origins, sets, near):
-        depth = ism.splat(points.positions[index], origin, size, dist, points.normals[index], point_area,
-                          plane_depth=plane, max_radius=radius)
-        maps.append(ism.pull_push(ism.close_gaps(depth, bool(continued), unknown)))
+    saved = ism._plane_continued
+    if unknown:
+        ism._plane_continued = plane_continued_unknown(unknown)
+    try:
+        maps = []
+        for origin, index, dist in zip(origins, sets, near):
+            depth = ism.splat(points.positions[index], origin, size, dist, points.normals[index], point_area,
+                              plane_depth=plane, max_radius=radius)
+            maps.append(ism.pull_push(ism.close_gaps(depth, bool(continued))))
+    finally:
+        ism._plane_continued = saved
     return np.stack(maps)
 
 
@@ -123,7 +151,7 @@ def markdown(results, argv_text, variants):
              f"`{argv_text}`", "",
              "The module documentation of `benchmarks/ism_gap_sides.py` defines every figure. Variant "
              "P:R:G:U = splat plane depth, radius cap, continued gap sides, unknown sides "
-             "(reference.ism.GAP_UNKNOWN_SIDES); 0:3:0:0 is the GPU's non-sun maps. Each cell: "
+             "(plane_continued_unknown); 0:3:0:0 is the point maps (the GPU's before SURFACE_LIGHT_TYPES took every light), 1:8:1:0 the maps that keep their surfaces. Each cell: "
              "Σ light / Cycles, noise-corrected rel RMSE.", "",
              "| scene / material | px | " + " | ".join(keys) + " |", "|" + "---|" * (len(keys) + 2)]
     for name, r in results.items():

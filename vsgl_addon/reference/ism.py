@@ -219,14 +219,9 @@ GAP_DIRECTIONS = ((1, 0), (0, 1), (1, 1), (1, -1))
 #: SURFACE_LIGHT_TYPES): each side's surface continued to the texel as a plane (close_gaps
 #: ``continued``); False: the side's nearest depth as it is.
 GAP_EXTRAPOLATE = True
-#: With continued sides (close_gaps ``continued``), a side whose plane is unknown (close_gaps
-#: ``unknown_sides``): 0, the texel is no gap (the sun's maps); 1, its nearest depth stands where the
-#: texel beyond it is empty or the plane turns away; 2, also where the texel beyond lies more than
-#: GAP_MARGIN off the side's nearest depth (another surface, so the two texels give no plane).
-GAP_UNKNOWN_SIDES = 0
 
 
-def close_gaps(depth, continued: bool = False, unknown_sides: int = 0) -> np.ndarray:
+def close_gaps(depth, continued: bool = False) -> np.ndarray:
     """The splatted map with its gaps closed before pull-push: a texel (empty or not) whose nearest
     depths within GAP_REACH texels on *both* sides along a row, column or diagonal are nearer than
     (1 − GAP_MARGIN) × its own takes the farther of those two (the least over the four lines),
@@ -259,7 +254,7 @@ def close_gaps(depth, continued: bool = False, unknown_sides: int = 0) -> np.nda
             sides.append(nearest)
             if continued:
                 surfaces.append(np.maximum(nearest, _plane_continued(depth, scale, columns, rows, sign * dx,
-                                                                     sign * dy, at, size, unknown_sides)))
+                                                                     sign * dy, at, size)))
             else:
                 surfaces.append(nearest)
         farther = np.maximum(sides[0], sides[1])
@@ -268,25 +263,19 @@ def close_gaps(depth, continued: bool = False, unknown_sides: int = 0) -> np.nda
     return np.minimum(depth, best)
 
 
-def _plane_continued(depth, scale, columns, rows, dx, dy, at, size, unknown_sides=0):
+def _plane_continued(depth, scale, columns, rows, dx, dy, at, size):
     """The depth at each texel of the surface seen ``at`` and at + 1 texels away along (dx, dy),
     continued as a plane: a plane n · x = h seen from the origin has depth t = h |q| / (n · q) along
     the octahedron's point q of a direction, and q is linear in the texel coordinates on each face,
     so |q| / t is too. EMPTY where the continued plane turns away (|q| / t ≤ 0) or the texel beyond
-    is empty, so that the side's nearest depth stands."""
+    is empty: a side whose surface is not known makes the texel no gap."""
     column, row = octahedral_wrap(columns + at * dx, rows + at * dy, size)
     near_w = scale[row, column] / depth[row, column]
     column, row = octahedral_wrap(columns + (at + 1) * dx, rows + (at + 1) * dy, size)
     beyond_w = scale[row, column] / depth[row, column]
     w = near_w + at * (near_w - beyond_w)
-    known = (w > 0.0) & (beyond_w > 0.0) & (near_w > 0.0)
-    unknown = EMPTY
-    if unknown_sides:
-        unknown = 0.0  # the side's nearest depth stands (close_gaps takes the larger)
-        if unknown_sides >= 2:
-            known &= np.abs(near_w - beyond_w) <= GAP_MARGIN * near_w
     with np.errstate(divide="ignore", invalid="ignore"):
-        continued = np.where(known, scale / np.where(known, w, 1.0), unknown)
+        continued = np.where((w > 0.0) & (beyond_w > 0.0) & (near_w > 0.0), scale / w, EMPTY)
     return continued
 
 
