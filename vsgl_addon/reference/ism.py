@@ -379,7 +379,8 @@ BACK_OFFSET = 1.0
 SPREAD_BIAS = 0.0
 
 
-#: The lookup of the maps that keep their surfaces (vsgl_addon/pipeline.py SURFACE_LIGHT_TYPES):
+#: The lookup of the maps that keep their surfaces and take the normal offset (the sun's:
+#: vsgl_addon/pipeline.py NORMAL_OFFSET_LIGHT_TYPES; the others' keep the slope-scaled depth bias):
 #: NORMAL_OFFSET and NORMAL_OFFSET_DEPTH for them (lookup_offsets ``surfaces``). The GPU's twins are
 #: the defines ISM_SURFACE_OFFSET and ISM_SURFACE_OFFSET_DEPTH of glsl/lib/ism.glsl.
 SURFACE_NORMAL_OFFSET = 1.0
