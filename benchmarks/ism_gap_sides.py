@@ -10,7 +10,7 @@ Per scene (one RSM view, the scene's settings, visibility on), on every S-th pix
 to the shadow origin ray-cast (visibility_diagnosis.exact_visibility); and per variant P:R:G:U the
 maps of the tables whose maps do not keep their surfaces rebuilt by reference/ism.py from the GPU's
 point sets: splat ``plane_depth`` P (0: the point's distance), radius cap R, close_gaps
-``continued`` G (0/1) with a side whose plane is unknown taken as U (plane_continued_unknown), then pull-push; the lookup is the
+``continued`` G (0/1; −1 no gap closing) with a side whose plane is unknown taken as U (plane_continued_unknown), then pull-push; the lookup is the
 slope-scaled depth bias (``surfaces`` False). Tables whose lookups take the normal offset (sun lights) keep
 the GPU's maps. Per scene and per material: Σ light / Cycles' there; rel RMSE against Cycles is
 noise-corrected (its two seeds) over the subset. Writes ``benchmarks/results/ism_gap_sides[_TAG].md``
@@ -75,7 +75,7 @@ def rebuild(points, origins, sets, near, size, point_area, variant):
         for origin, index, dist in zip(origins, sets, near):
             depth = ism.splat(points.positions[index], origin, size, dist, points.normals[index], point_area,
                               plane_depth=plane, max_radius=radius)
-            maps.append(ism.pull_push(ism.close_gaps(depth, bool(continued))))
+            maps.append(ism.pull_push(depth if continued < 0 else ism.close_gaps(depth, bool(continued))))
     finally:
         ism._plane_continued = saved
     return np.stack(maps)
