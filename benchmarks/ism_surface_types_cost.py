@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What the maps that keep their surfaces cost when every light's maps do (not a test): the maps'
-build (pipeline.build_visibility) with pipeline.SURFACE_LIGHT_TYPES as given against the sun's
-alone, alternating in one run.
+build (pipeline.build_visibility) with pipeline.SURFACE_LIGHT_TYPES and the surface splats' cap
+(reference.ism.SURFACE_SPLAT_MAX_RADIUS) per VARIANTS, alternating in one run.
 
     .venv/bin/python benchmarks/ism_surface_types_cost.py [--only NAME ...] [--repeats R]
 
@@ -28,13 +28,16 @@ from validation_suite import scene_with_truth, suite  # noqa: E402
 from build_validation_scenes import RESOLUTION  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
 
-VARIANTS = {"sun only (before)": ("SUN",), "every light": ("POINT", "SPOT", "SUN", "AREA")}
+#: label: (pipeline.SURFACE_LIGHT_TYPES, reference.ism.SURFACE_SPLAT_MAX_RADIUS).
+VARIANTS = {"sun only, cap 8 (before)": (("SUN",), 8), "every light, cap 8": (("POINT", "SPOT", "SUN", "AREA"), 8),
+            "every light, cap 12": (("POINT", "SPOT", "SUN", "AREA"), 12)}
 
 
 def measure(name, path, repeats):
     from vsgl_addon import pipeline
+    from vsgl_addon.reference import ism
 
-    saved_types = pipeline.SURFACE_LIGHT_TYPES
+    saved_types, saved_cap = pipeline.SURFACE_LIGHT_TYPES, ism.SURFACE_SPLAT_MAX_RADIUS
     saved, _, description = scene_with_truth(name, path, *RESOLUTION)
     settings = saved.overridden(visibility=True)
     bench = Bench(description, *RESOLUTION)
@@ -44,8 +47,8 @@ def measure(name, path, repeats):
         vsgls, _ = bench.vsgls(settings)
         try:
             for k in range(repeats + 1):
-                for key, types in VARIANTS.items():
-                    pipeline.SURFACE_LIGHT_TYPES = types
+                for key, (types, cap) in VARIANTS.items():
+                    pipeline.SURFACE_LIGHT_TYPES, ism.SURFACE_SPLAT_MAX_RADIUS = types, cap
                     for atlas in vsgls.isms:
                         atlas.free()
                     vsgls.isms.clear()
@@ -61,7 +64,7 @@ def measure(name, path, repeats):
                         stages[key].append(split)
         finally:
             vsgls.free()
-            pipeline.SURFACE_LIGHT_TYPES = saved_types
+            pipeline.SURFACE_LIGHT_TYPES, ism.SURFACE_SPLAT_MAX_RADIUS = saved_types, saved_cap
     finally:
         bench.free()
     return {key: {"cpu": statistics.median(cpu[key]),
@@ -87,7 +90,7 @@ def main(argv=None):
              "| scene | variant | CPU s | / before | splat ms | close ms | pull-push ms |", "|---|---|---|---|---|---|---|"]
     for name in args.only:
         rows = measure(name, scenes[name], args.repeats)
-        base = rows["sun only (before)"]["cpu"]
+        base = rows["sun only, cap 8 (before)"]["cpu"]
         for key, row in rows.items():
             s = row["stages"]
             lines.append(f"| {name} | {key} | {row['cpu']:.3f} | {row['cpu'] / base:.3f} | "
