@@ -98,7 +98,11 @@ SPLAT_MAX_RADIUS = 3
 #: of texels), so the splat of SPLAT_MAX_RADIUS leaves holes through which the ground behind shows:
 #: the sun courtyard's maps give 1.132 of Cycles' light with 3, 1.110 with 6, 1.102 with 8 and 1.101
 #: with 12, exact depth maps 1.085 (float64 lookups; texels written per point 1.39 with 3, 1.42 with 8).
-SURFACE_SPLAT_MAX_RADIUS = 8
+#: With every light's maps keeping their surfaces, the VSGLs on the occluder scene's floor by its low
+#: wall see the wall as sparsely: whole frames (seeds 0-1) give its relative RMSE 0.836 with point
+#: maps, 0.850 with 8 and 0.834 with 12, the courtyard's 0.260 with 8 and 0.251 with 12, the rest of
+#: the suite within 0.001 (benchmarks/results/ism_surfaces_cap12.md).
+SURFACE_SPLAT_MAX_RADIUS = 12
 #: The splat's width over the mean spacing of the points seen from the map's origin (splat_radius).
 SPLAT_SHARE = 0.7071067811865476
 
