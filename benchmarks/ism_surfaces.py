@@ -44,6 +44,11 @@ def _parse(variant: str):
             int(cap[0]) if cap else None)
 
 
+#: reference.ism.SURFACE_SPLAT_MAX_RADIUS as the module has it (measure), for the variants without R:
+#: one variant's cap does not carry over into the next.
+_DEFAULT_CAP = [None]
+
+
 def _apply(variant: str) -> None:
     from vsgl_addon import pipeline
     from vsgl_addon.reference import ism
@@ -52,8 +57,7 @@ def _apply(variant: str) -> None:
     types, plane, gaps, offset, depth, cap = _parse(variant)
     pipeline.SURFACE_LIGHT_TYPES = LIGHT_TYPES if types is None else types
     ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE = plane, gaps
-    if cap is not None:
-        ism.SURFACE_SPLAT_MAX_RADIUS = cap
+    ism.SURFACE_SPLAT_MAX_RADIUS = _DEFAULT_CAP[0] if cap is None else cap
     ism.SURFACE_NORMAL_OFFSET, ism.SURFACE_NORMAL_OFFSET_DEPTH = offset, depth
 
 
@@ -63,6 +67,7 @@ def measure(name, path, variants, width: int, height: int, seeds=None) -> dict:
 
     saved = (pipeline.SURFACE_LIGHT_TYPES, ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE, ism.SURFACE_NORMAL_OFFSET,
              ism.SURFACE_NORMAL_OFFSET_DEPTH, ism.SURFACE_SPLAT_MAX_RADIUS)
+    _DEFAULT_CAP[0] = ism.SURFACE_SPLAT_MAX_RADIUS
 
     def restore():
         (pipeline.SURFACE_LIGHT_TYPES, ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE, ism.SURFACE_NORMAL_OFFSET,
