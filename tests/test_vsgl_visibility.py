@@ -172,3 +172,22 @@ def test_maps_made_from_the_tables_on_the_gpu_give_the_frame_of_origins_made_on_
     assert on_gpu.indirect.sum() > 0.0
     np.testing.assert_allclose(on_gpu.indirect, on_cpu.indirect, rtol=1e-3,
                                atol=1e-4 * float(np.abs(on_cpu.indirect).max()))
+
+
+def test_a_table_takes_the_normal_offset_only_when_all_its_lights_are_suns():
+    """Every light type's maps keep their surfaces (pipeline.SURFACE_LIGHT_TYPES); a table's lookups
+    take the normal offset only when every light whose VSGLs it holds is a sun
+    (NORMAL_OFFSET_LIGHT_TYPES): a merged table of a sun and a spot keeps the slope-scaled bias, as
+    the spot's light at concave corners needs it (benchmarks/results/ism_surfaces.md)."""
+    from types import SimpleNamespace
+
+    from vsgl_addon import pipeline
+    from vsgl_addon.scene_description import LIGHT_TYPES
+
+    lights = {kind: SimpleNamespace(type=kind) for kind in LIGHT_TYPES}
+    for kind, light in lights.items():
+        assert pipeline.maps_keep_surfaces([light])
+        assert pipeline.maps_take_normal_offset([light]) == (kind == "SUN")
+    assert pipeline.maps_keep_surfaces([lights["SUN"], lights["SPOT"]])
+    assert not pipeline.maps_take_normal_offset([lights["SUN"], lights["SPOT"]])
+    assert not pipeline.maps_keep_surfaces([]) and not pipeline.maps_take_normal_offset([])
