@@ -177,8 +177,9 @@ def test_maps_made_from_the_tables_on_the_gpu_give_the_frame_of_origins_made_on_
 def test_a_table_takes_the_normal_offset_only_when_all_its_lights_are_suns():
     """Every light type's maps keep their surfaces (pipeline.SURFACE_LIGHT_TYPES); a table's lookups
     take the normal offset only when every light whose VSGLs it holds is a sun
-    (NORMAL_OFFSET_LIGHT_TYPES): a merged table of a sun and a spot keeps the slope-scaled bias, as
-    the spot's light at concave corners needs it (benchmarks/results/ism_surfaces.md)."""
+    (NORMAL_OFFSET_LIGHT_TYPES): a merged table of a sun and a spot keeps the slope-scaled bias,
+    which the closed scenes' lights need (the normal offset darkens their receivers at concave
+    corners, benchmarks/results/ism_surfaces.md)."""
     from types import SimpleNamespace
 
     from vsgl_addon import pipeline
