@@ -198,7 +198,7 @@ def analyse(name, path, stride, vsgl_count, seed=None, extra=None, generation="g
             saved_slope = ism.ISM_MAX_SLOPE
             try:
                 ism.ISM_MAX_SLOPE = saved_slope if max_slope is None else max_slope
-                v_maps = vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=atlas.surfaces)
+                v_maps = vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=atlas.normal_offset)
             finally:
                 ism.ISM_MAX_SLOPE = saved_slope
             v_exact = exact_visibility(table, maps, position, triangles, VSGL_OWN_REFLECTOR_SIGMAS)

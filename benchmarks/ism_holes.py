@@ -99,7 +99,7 @@ def analyse(name, path, stride, overrides, internals=None):
         try:
             build_visibility(bench.scene_gpu, vsgls, settings)
             tables = [{k: np.asarray(v, np.float64) for k, v in t.items()} for t in vsgls.table_arrays()]
-            atlases = [(atlas.count, atlas.size, atlas.read(), atlas.surfaces) for atlas in vsgls.isms]
+            atlases = [(atlas.count, atlas.size, atlas.read(), atlas.surfaces, atlas.normal_offset) for atlas in vsgls.isms]
         finally:
             vsgls.free()
         points = bench.scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
@@ -107,7 +107,7 @@ def analyse(name, path, stride, overrides, internals=None):
         per_table = []
         first_map = 0
         start = time.perf_counter()
-        for table, (atlas_count, size, depths, surfaces) in zip(tables, atlases):
+        for table, (atlas_count, size, depths, surfaces, offset) in zip(tables, atlases):
             count = len(table["diffuse_variance"])
             maps = atlas_count // count
             _, _, terms = shade(table, position, normal, view, rd, f0, alpha,
@@ -129,8 +129,8 @@ def analyse(name, path, stride, overrides, internals=None):
             per_table.append(dict(
                 table=table, maps=maps, count=count, size=size, weight=weight, depths=depths, ideal=ideal,
                 hit_object=hit_object, raw=raw, origins=origins, sets=sets, near=near, surfaces=surfaces,
-                v_maps=vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=surfaces),
-                v_ideal=vsgl_visibility(ideal, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=surfaces),
+                v_maps=vsgl_visibility(depths, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=offset),
+                v_ideal=vsgl_visibility(ideal, maps, table, position, normal, ISM_MAX_RADIUS, surfaces=offset),
                 v_exact=exact_visibility(table, maps, position, triangles, VSGL_OWN_REFLECTOR_SIGMAS)))
         log(f"  {name}: {first_map} maps and their ideal maps in {time.perf_counter() - start:.0f} s")
     finally:

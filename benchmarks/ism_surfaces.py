@@ -14,8 +14,9 @@ the gap closing of concave corners). A variant TYPES/P:G:O:D makes the maps of t
 reference.ism.SPLAT_PLANE_DEPTH = P (0: a splat writes its point's distance; > 0: where each
 texel's ray meets the point's tangent plane, within P point spacings), GAP_EXTRAPOLATE = G (0/1:
 each side's surface continued as a plane before the gap test), SURFACE_NORMAL_OFFSET = O and
-SURFACE_NORMAL_OFFSET_DEPTH = D (O = 0 the slope-scaled depth bias), their splats capped at
-reference.ism.SURFACE_SPLAT_MAX_RADIUS as it is; "none": no light's. Per scene of benchmarks/validation_suite.py
+SURFACE_NORMAL_OFFSET_DEPTH = D (O = 0 the slope-scaled depth bias; the lookups of the lights of
+pipeline.NORMAL_OFFSET_LIGHT_TYPES among them only, the others' the slope-scaled bias), their splats capped at
+reference.ism.SURFACE_SPLAT_MAX_RADIUS as it is (TYPES/P:G:O:D:R: at R); "none": no light's. Per scene of benchmarks/validation_suite.py
 (suite_sweep: its settings, 240x180, cached Cycles truths), per variant: visibility on, the second of
 two frames, mean ours / Cycles, noise-corrected and robust relative RMSE, each the mean over the
 seeds with its range, and per material the mean ratio. Writes
@@ -36,10 +37,16 @@ def _parse(variant: str):
     """(light types or None for all, SPLAT_PLANE_DEPTH, GAP_EXTRAPOLATE, SURFACE_NORMAL_OFFSET and
     _DEPTH); "none": no light's maps keep their surfaces."""
     if variant == "none":
-        return (), 0.0, False, 0.0, 0.5
+        return (), 0.0, False, 0.0, 0.5, None
     types, values = variant.split("/")
-    plane, gaps, offset, depth = (float(p) for p in values.split(":"))
-    return (None if types == "all" else tuple(types.split(","))), plane, bool(gaps), offset, depth
+    plane, gaps, offset, depth, *cap = (float(p) for p in values.split(":"))
+    return ((None if types == "all" else tuple(types.split(","))), plane, bool(gaps), offset, depth,
+            int(cap[0]) if cap else None)
+
+
+#: reference.ism.SURFACE_SPLAT_MAX_RADIUS as the module has it (measure), for the variants without R:
+#: one variant's cap does not carry over into the next.
+_DEFAULT_CAP = [None]
 
 
 def _apply(variant: str) -> None:
@@ -47,9 +54,10 @@ def _apply(variant: str) -> None:
     from vsgl_addon.reference import ism
     from vsgl_addon.scene_description import LIGHT_TYPES
 
-    types, plane, gaps, offset, depth = _parse(variant)
+    types, plane, gaps, offset, depth, cap = _parse(variant)
     pipeline.SURFACE_LIGHT_TYPES = LIGHT_TYPES if types is None else types
     ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE = plane, gaps
+    ism.SURFACE_SPLAT_MAX_RADIUS = _DEFAULT_CAP[0] if cap is None else cap
     ism.SURFACE_NORMAL_OFFSET, ism.SURFACE_NORMAL_OFFSET_DEPTH = offset, depth
 
 
@@ -58,11 +66,12 @@ def measure(name, path, variants, width: int, height: int, seeds=None) -> dict:
     from vsgl_addon.reference import ism
 
     saved = (pipeline.SURFACE_LIGHT_TYPES, ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE, ism.SURFACE_NORMAL_OFFSET,
-             ism.SURFACE_NORMAL_OFFSET_DEPTH)
+             ism.SURFACE_NORMAL_OFFSET_DEPTH, ism.SURFACE_SPLAT_MAX_RADIUS)
+    _DEFAULT_CAP[0] = ism.SURFACE_SPLAT_MAX_RADIUS
 
     def restore():
         (pipeline.SURFACE_LIGHT_TYPES, ism.SPLAT_PLANE_DEPTH, ism.GAP_EXTRAPOLATE, ism.SURFACE_NORMAL_OFFSET,
-         ism.SURFACE_NORMAL_OFFSET_DEPTH) = saved
+         ism.SURFACE_NORMAL_OFFSET_DEPTH, ism.SURFACE_SPLAT_MAX_RADIUS) = saved
 
     return suite_sweep.measure_scene(
         name, path, width, height, seeds, variants, field="variants", key=str, label=lambda v: f"variant {v}",
@@ -72,11 +81,12 @@ def measure(name, path, variants, width: int, height: int, seeds=None) -> dict:
 def _head(variant: str) -> str:
     if variant == "none":
         return "no maps keep their surfaces (before)"
-    types, plane, gaps, offset, depth = _parse(variant)
+    types, plane, gaps, offset, depth, cap = _parse(variant)
     return ((("every light" if types is None else "/".join(types)) + "'s maps: ")
             + ("point distance" if plane == 0.0 else f"tangent plane ({plane:g} spacings)")
             + (", gaps continued" if gaps else ", gaps as nearest")
-            + (", depth bias" if offset == 0.0 else f", normal offset {offset:g}, depth {depth:g}"))
+            + (", depth bias" if offset == 0.0 else f", normal offset {offset:g}, depth {depth:g}")
+            + ("" if cap is None else f", splats up to {cap} texels"))
 
 
 def markdown(rows, variants, command: str, seconds: float) -> str:

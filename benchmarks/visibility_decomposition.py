@@ -126,7 +126,7 @@ def decompose(name, path, stride, samples, overrides, vpls_too=True, knobs=None,
                 try:
                     ism.ISM_MAX_SLOPE = knobs.get("max_slope", saved_slope)
                     v_maps = vsgl_visibility(atlas.read(), maps, table, position, normal, filter_radius,
-                                             surfaces=atlas.surfaces)
+                                             surfaces=atlas.normal_offset)
                     ism.ISM_MAX_SLOPE = saved_slope
                     ism.SHADOW_ORIGIN_SIGMAS = knobs.get("origin_sigmas", saved_origin)
                     v_exact = exact_visibility(table, maps, position, triangles, VSGL_OWN_REFLECTOR_SIGMAS)

@@ -18,7 +18,7 @@ tools/build_validation_scenes.py; tests/test_validation_scenes.py checks they st
   front (the VSGLs there sit a wall's thickness away). Visibility must take at least half of the
   excess off, and the front must get Cycles' light within 20 % (met: 1.08× with visibility, 1.82×
   without, since the sun's maps keep their surfaces, pipeline.SURFACE_LIGHT_TYPES: oriented splats
-  of up to 8 texels, gap sides continued as planes and the normal-offset lookup, which stops the light of the VSGLs on
+  of up to 12 texels, gap sides continued as planes and the normal-offset lookup, which stops the light of the VSGLs on
   the ground outside the courtyard that the slope-scaled depth bias of the grazed inner wall faces
   let through the side walls, benchmarks/results/ism_holes.md; 1.22× before, since the sun's kernels
   descend off the RSM's depth discontinuities, pipeline.SPLIT_LIGHT_TYPES; 1.51× and 2.16× before,

@@ -129,11 +129,13 @@ def test_visibility_off_reproduces_today_s_images_exactly():
         np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.parametrize("surfaces", [False, True])
-def test_a_table_whose_maps_keep_their_surfaces_takes_their_lookup(surfaces):
-    """Sized maps that keep their surfaces or not (passes/ism.py ISMAtlas.surfaces): the shading
-    pass's lookups take the surface normal offset for the first (reference vsgl_visibility
-    ``surfaces``), and the images match the reference's; the two lookups differ on this scene."""
+@pytest.mark.parametrize("surfaces, normal_offset", [(False, None), (True, None), (True, False)])
+def test_a_table_whose_maps_keep_their_surfaces_takes_their_lookup(surfaces, normal_offset):
+    """Sized maps that keep their surfaces or not (passes/ism.py ISMAtlas.surfaces), their lookups
+    with the normal offset or not (ISMAtlas.normal_offset; None: as ``surfaces``, the sun's maps):
+    the shading pass's lookups take the surface normal offset where the atlas says so (reference
+    vsgl_visibility ``surfaces``), and the images match the reference's; the two lookups differ on
+    this scene."""
     vsgls = _vsgls(count=8, seed=5)
     g, _ = _gbuffer()
     points = sp.scene_point_sets(SCENE, 4096, 8, seed=1)
@@ -141,7 +143,10 @@ def test_a_table_whose_maps_keep_their_surfaces_takes_their_lookup(surfaces):
     origins = np.stack([vsgls["diffuse_mean"], vsgls["specular_mean"]], 1).reshape(-1, 3)
     sigma = np.sqrt(np.stack([vsgls["diffuse_variance"], vsgls["specular_variance"]], 1).reshape(-1))
     atlas = ism_pass.PASS.run(points, origins, sp.set_index(np.arange(len(origins)), 8), 16,
-                              min_distance=2.0 * sigma, point_area=area, surfaces=surfaces)
+                              min_distance=2.0 * sigma, point_area=area, surfaces=surfaces,
+                              normal_offset=normal_offset)
+    offset = surfaces if normal_offset is None else normal_offset
+    assert (atlas.surfaces, atlas.normal_offset) == (surfaces, offset)
     table = shading_pass.upload_vsgl_table(vsgls)
     seen = shading_pass.VSGLTable(table.texture, table.count, False, atlas)
     gbuffer = shading_pass.upload_gbuffer(**g)
@@ -159,7 +164,7 @@ def test_a_table_whose_maps_keep_their_surfaces_takes_their_lookup(surfaces):
                for s in (False, True)}
     assert not np.allclose(lookups[False], lookups[True])
     ref_d, _ = vs.shade(f32, position, normal, view, g["diffuse_reflectance"].reshape(-1, 3),
-                        g["specular_f0"].reshape(-1, 3), g["roughness"].reshape(-1), visibility=lookups[surfaces],
+                        g["specular_f0"].reshape(-1, 3), g["roughness"].reshape(-1), visibility=lookups[offset],
                         diffuse_mode="cosine")
     got_d = gpu_d[..., :3].reshape(-1, 3)
     assert np.isfinite(got_d).all()

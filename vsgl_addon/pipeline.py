@@ -22,6 +22,7 @@ from .passes.rsm import SceneGPU, render_rsm_views
 from .passes.vsgl_generation import VSGLGeneration
 from .planner import DeferredPowers, plan_frame, share_counts, view_power
 from .reference.vsgl import LUMINANCE_WEIGHTS
+from .scene_description import LIGHT_TYPES
 from .scene_points import triangle_areas
 from .settings import VSGLSettings
 
@@ -348,14 +349,22 @@ VSGL_OWN_REFLECTOR_SIGMAS = 0.3
 MAPS_PER_VSGL = 1
 
 
-#: The lights whose VSGLs' maps keep their surfaces' depth (reference/ism.py: oriented splats,
-#: gap sides continued as planes, the normal-offset lookup). A sun's RSM spans open ground whose
-#: VSGLs light the far faces of thin walls at grazing incidence, where the slope-scaled depth bias
-#: reaches through the wall (the sun courtyard: 1.19 of Cycles' light, 1.10 with these maps,
-#: exact ray-cast visibility from the same origins 1.08; benchmarks/ism_holes.py). In the closed
-#: scenes the normal offset shadows receivers at concave corners and on the demo's glossy floor
-#: (the demo's relative RMSE 0.374 to 0.438; benchmarks/results/ism_surfaces.md).
-SURFACE_LIGHT_TYPES = ("SUN",)
+#: The lights whose VSGLs' maps keep their surfaces' depth (reference/ism.py: oriented splats
+#: capped at SURFACE_SPLAT_MAX_RADIUS, gap sides continued as planes). Point maps close a room's
+#: concave folds as gaps and grow every outline by their rounded-up square splats, and hide about
+#: twice the light exact visibility from the same origins hides (many_lights 0.860 of Cycles' light,
+#: exact 0.903). Whole frames, seeds 0-1 (benchmarks/results/ism_surfaces_cap12.md): many_lights
+#: 0.860 -> 0.881 (relative RMSE 0.193 -> 0.179), the Cornell box's and the closed room's RMSE
+#: 0.210 -> 0.197 and 0.134 -> 0.123, the occluder's 0.836 -> 0.834, the demo's 0.374 -> 0.375.
+SURFACE_LIGHT_TYPES = LIGHT_TYPES
+#: The lights whose maps' lookups take the normal offset (reference/ism.py lookup_offsets
+#: ``surfaces``) instead of the slope-scaled depth bias. A sun's RSM spans open ground whose VSGLs
+#: light the far faces of thin walls at grazing incidence, where the slope-scaled depth bias reaches
+#: through the wall (the sun courtyard: 1.19 of Cycles' light, 1.10 with these maps, exact ray-cast
+#: visibility from the same origins 1.08; benchmarks/ism_holes.py). In the closed scenes the normal
+#: offset shadows receivers at concave corners and on the demo's glossy floor (the demo's relative
+#: RMSE 0.374 to 0.438; benchmarks/results/ism_surfaces.md).
+NORMAL_OFFSET_LIGHT_TYPES = ("SUN",)
 
 
 def maps_keep_surfaces(lights) -> bool:
@@ -363,6 +372,13 @@ def maps_keep_surfaces(lights) -> bool:
     VSGLs it holds is of those types."""
     lights = list(lights)
     return bool(lights) and all(light.type in SURFACE_LIGHT_TYPES for light in lights)
+
+
+def maps_take_normal_offset(lights) -> bool:
+    """Whether a shading table's lookups take the normal offset: its maps keep their surfaces and
+    every light whose VSGLs it holds is of NORMAL_OFFSET_LIGHT_TYPES."""
+    lights = list(lights)
+    return maps_keep_surfaces(lights) and all(light.type in NORMAL_OFFSET_LIGHT_TYPES for light in lights)
 
 
 def build_visibility(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VSGLSettings, first_map: int = 0,
@@ -399,7 +415,7 @@ def build_visibility_stages(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VS
         size = ism_pass.fitting_size(origins.count, settings.ism_size)
         vsgls.isms.append((yield from ism_pass.build_ism_atlas_stages(
             points, origins, None, size, point_area=point_area, timed=timed, point_textures=textures,
-            surfaces=maps_keep_surfaces(its_lights))))
+            surfaces=maps_keep_surfaces(its_lights), normal_offset=maps_take_normal_offset(its_lights))))
         first_map += origins.count
     return first_map
 

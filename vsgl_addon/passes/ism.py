@@ -128,9 +128,12 @@ class ISMAtlas:
     columns: int
     rows: int
     seconds: dict = field(default_factory=dict)
-    #: The maps keep their surfaces' depth (oriented splats, continued gap sides) and their lookups
-    #: take the normal offset (reference.ism SPLAT_PLANE_DEPTH, GAP_EXTRAPOLATE, SURFACE_NORMAL_OFFSET).
+    #: The maps keep their surfaces' depth (oriented splats, continued gap sides; reference.ism
+    #: SPLAT_PLANE_DEPTH, SURFACE_SPLAT_MAX_RADIUS, GAP_EXTRAPOLATE).
     surfaces: bool = False
+    #: Their lookups take the surface normal offset (reference.ism SURFACE_NORMAL_OFFSET; the
+    #: reference vsgl_visibility ``surfaces``), else the slope-scaled depth bias.
+    normal_offset: bool = False
 
     def read(self) -> np.ndarray:
         """(count, size, size) float64 depths [map, row, column]; EMPTY where the map has nothing."""
@@ -238,14 +241,16 @@ def vsgl_map_origins(table_texture, vsgl_count: int, maps_per_vsgl: int, first_m
 
 
 def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
-                    timed: bool = False, point_textures=None, planes=None, surfaces: bool = False) -> ISMAtlas:
+                    timed: bool = False, point_textures=None, planes=None, surfaces: bool = False,
+                    normal_offset=None) -> ISMAtlas:
     """:func:`build_ism_atlas_stages` at once."""
     return run_stages(build_ism_atlas_stages(points, origins, set_index, size, min_distance, point_area, timed,
-                                             point_textures, planes, surfaces))
+                                             point_textures, planes, surfaces, normal_offset))
 
 
 def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
-                           timed: bool = False, point_textures=None, planes=None, surfaces: bool = False):
+                           timed: bool = False, point_textures=None, planes=None, surfaces: bool = False,
+                           normal_offset=None):
     """A generator that yields after the splat and after the gap closing (llvmpipe runs a dispatch
     before it returns, so each part's work is done by then) and returns the ISMAtlas: the viewport
     spreads a light build over steps of its time budget. The ISMs of ``origins`` (M, 3) (or a :class:`MapOrigins`, which holds the sets and minimum
@@ -259,8 +264,8 @@ def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_dista
     ``seconds`` holds the splat's and the pull-push's time (costs a few read-backs; benchmarks).
     ``surfaces``: oriented splats (reference splat ``plane_depth`` = SPLAT_PLANE_DEPTH, radius capped
     at SURFACE_SPLAT_MAX_RADIUS instead of SPLAT_MAX_RADIUS) and gap
-    sides continued as planes (close_gaps ``continued`` = GAP_EXTRAPOLATE); the atlas says so, and
-    its lookups then take the normal offset (vsgl_shading)."""
+    sides continued as planes (close_gaps ``continued`` = GAP_EXTRAPOLATE); the atlas says so.
+    ``normal_offset``: its lookups take the surface normal offset (vsgl_shading; None: ``surfaces``)."""
     import time
 
     import gpu
@@ -362,7 +367,8 @@ def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_dista
         filled = target
     if timed:
         _finish_stage(filled, clock, seconds, "pull_push")
-    return ISMAtlas(filled, size, count, columns, rows, seconds, surfaces=bool(surfaces))
+    return ISMAtlas(filled, size, count, columns, rows, seconds, surfaces=bool(surfaces),
+                    normal_offset=bool(surfaces if normal_offset is None else normal_offset))
 
 
 def _unknown(width: int, height: int):

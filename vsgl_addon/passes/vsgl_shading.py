@@ -335,7 +335,7 @@ class VSGLShading:
                     program.image("vsgl_table", table.texture)
                     if visibility:
                         program.uniform_int("ism_params", (table.ism.size, table.ism.columns,
-                                                           int(getattr(table.ism, "surfaces", False)), 0))
+                                                           int(getattr(table.ism, "normal_offset", False)), 0))
                         program.uniform_sampler("ism_atlas", table.ism.texture)
                     batch.draw(program)
         finally:

@@ -98,7 +98,11 @@ SPLAT_MAX_RADIUS = 3
 #: of texels), so the splat of SPLAT_MAX_RADIUS leaves holes through which the ground behind shows:
 #: the sun courtyard's maps give 1.132 of Cycles' light with 3, 1.110 with 6, 1.102 with 8 and 1.101
 #: with 12, exact depth maps 1.085 (float64 lookups; texels written per point 1.39 with 3, 1.42 with 8).
-SURFACE_SPLAT_MAX_RADIUS = 8
+#: With every light's maps keeping their surfaces, the VSGLs on the occluder scene's floor by its low
+#: wall see the wall as sparsely: whole frames (seeds 0-1) give its relative RMSE 0.836 with point
+#: maps, 0.850 with 8 and 0.834 with 12, the courtyard's 0.260 with 8 and 0.251 with 12, the rest of
+#: the suite within 0.001 (benchmarks/results/ism_surfaces_cap12.md).
+SURFACE_SPLAT_MAX_RADIUS = 12
 #: The splat's width over the mean spacing of the points seen from the map's origin (splat_radius).
 SPLAT_SHARE = 0.7071067811865476
 
@@ -268,7 +272,7 @@ def _plane_continued(depth, scale, columns, rows, dx, dy, at, size):
     continued as a plane: a plane n · x = h seen from the origin has depth t = h |q| / (n · q) along
     the octahedron's point q of a direction, and q is linear in the texel coordinates on each face,
     so |q| / t is too. EMPTY where the continued plane turns away (|q| / t ≤ 0) or the texel beyond
-    is empty, so that the side's nearest depth stands."""
+    is empty: a side whose surface is not known makes the texel no gap."""
     column, row = octahedral_wrap(columns + at * dx, rows + at * dy, size)
     near_w = scale[row, column] / depth[row, column]
     column, row = octahedral_wrap(columns + (at + 1) * dx, rows + (at + 1) * dy, size)
@@ -379,7 +383,8 @@ BACK_OFFSET = 1.0
 SPREAD_BIAS = 0.0
 
 
-#: The lookup of the maps that keep their surfaces (vsgl_addon/pipeline.py SURFACE_LIGHT_TYPES):
+#: The lookup of the maps that keep their surfaces and take the normal offset (the sun's:
+#: vsgl_addon/pipeline.py NORMAL_OFFSET_LIGHT_TYPES; the others' keep the slope-scaled depth bias):
 #: NORMAL_OFFSET and NORMAL_OFFSET_DEPTH for them (lookup_offsets ``surfaces``). The GPU's twins are
 #: the defines ISM_SURFACE_OFFSET and ISM_SURFACE_OFFSET_DEPTH of glsl/lib/ism.glsl.
 SURFACE_NORMAL_OFFSET = 1.0

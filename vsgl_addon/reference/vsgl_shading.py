@@ -435,8 +435,8 @@ def vsgl_visibility(depths, maps_per_vsgl, vsgls, position, normal, max_radius, 
     bilinear filter of about two texels (reference.ism.ism_pcf_bilinear). ``reflector_side``: the
     diffuse lobe's times :func:`vsgl_reflector_side`, which the shader no longer applies
     (pipeline.VSGL_OWN_REFLECTOR_SIGMAS says why; benchmarks/visibility_diagnosis.py measures it).
-    ``surfaces``: maps that keep their surfaces' depth, whose lookups take the surface normal offset
-    (reference.ism.lookup_offsets; passes/ism.py ISMAtlas.surfaces)."""
+    ``surfaces``: maps that keep their surfaces' depth and whose lookups take the surface normal
+    offset (reference.ism.lookup_offsets; passes/ism.py ISMAtlas.normal_offset)."""
     from . import ism
 
     position, normal = f64(position).reshape(-1, 3), f64(normal).reshape(-1, 3)
