@@ -1,0 +1,247 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Where the VSGLs lose light against the SG-lobe VPLs of their own texels (not a test), per VSGL,
+without visibility, on a pixel subset of the suite's camera G-buffer.
+
+    .venv/bin/python benchmarks/vsgl_aggregation.py [--only NAME ...] [--stride S]
+
+For every VSGL i of the scene's frame (its N, its kernels, the GPU's table), the texels of its
+cluster and their weights c_ij: 000 Eq. 5's estimate is M F̄(x_i, l_i) / (N p̄(x_i, l_i)) with F̄
+the trilinear filter of the moments, so c_ij = M w_ij(x_i, l_i) / (N p̄(x_i, l_i)) with w_ij the
+trilinear weight of texel j (read from the GPU's own PDF mip chain; the reconstructed cluster
+powers are checked against the table's). Then, at the receivers (the receivers' exact Lambert +
+GGX BRDF in every stage but the last), the luminance of the light of the cluster's reflector
+diffuse lobes as
+
+* texels: Σ_j c_ij · the texel's own 000 Eq. 6 SG, hemisphere-normalized (energy_budget.py's "VPL
+  SG lobes (hemisphere)"), at y_j — what the VSGL stands for;
+* lobe: Σ_j c_ij Φ_j Rd_j · the VSGL's aggregated lobe (its ξ_v, λ_v, c_v / Σ ΦRd, 000 app. B.1) at
+  y_j — the aggregation of the lobes alone; "lobe, front only": the same with each texel's lobe cut
+  to its own front hemisphere (the part of "lobe" sent from directions behind a texel's surface is
+  light the texels cannot give);
+* point: the VSGL's diffuse lobe as a point light at its µ_v (far-field limit of 000 Eq. 12):
+  the positions collapsed;
+* VSGL: the reference's separable shading of the VSGL's diffuse lobe (vsgl_shading.shade, 000
+  Eqs. 10-11, the default), receivers' BRDF as the GPU shades it (SG×ASG for the glossy lobe).
+
+The sum over i of "texels" against every texel's lobe once ("all texels"): the kernels' coverage
+(000 Eq. 5's overlaps and gaps). Splits: by the cluster's |ξ̄_v| against a flat cluster's 2/3
+(corner clusters), by the light's VSGL count, by the receivers' distance to µ_v in σ_v.
+
+Writes ``benchmarks/results/vsgl_aggregation.md`` and ``.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
+    sys.path.insert(0, str(folder))
+
+from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
+from build_validation_scenes import RESOLUTION  # noqa: E402
+from tradeoff.bench import Bench  # noqa: E402
+from tradeoff.demo import log  # noqa: E402
+from energy_budget import LUMINANCE, view_vpls  # noqa: E402
+
+FLAT_LENGTH = 2.0 / 3.0  # |ξ̄| of a flat cluster: λ_d/(λ_d + 1), λ_d = 2 (000 Eq. 6, app. B.1)
+STAGES = ("texels", "lobe", "lobe_front", "point", "vsgl")
+
+
+def cluster_weights(pdf_chain, center, level, vsgl_count_total, size):
+    """(N, M) c_ij = M w_ij / (N p̄(x_i, l_i)) of 000 Eq. 5 (trilinear weights of the level-0 texels)."""
+    from vsgl_addon.reference import mipmap
+
+    m = size * size
+    one_hot = np.eye(m).reshape(size, size, m)
+    chain = mipmap.build_mip_chain(one_hot)
+    weights = mipmap.trilinear(chain, center, level)
+    denominator = vsgl_count_total * mipmap.trilinear(pdf_chain, center, level)
+    return m * weights / np.maximum(denominator, 1e-300)[:, None]
+
+
+def receiver_brdf_lum(omega, view, normal, rd, f0, alpha):
+    """(P, M, 3) receivers' exact Lambert + GGX BRDF toward directions omega (P, M, 3)."""
+    from vsgl_addon.reference.vsgl_shading import _ggx_rgb
+
+    out = np.empty(omega.shape)
+    for p in range(len(view)):
+        out[p] = rd[p] / np.pi + _ggx_rgb(omega[p], view[p], normal[p], alpha[p], f0[p])
+    return out
+
+
+def view_stages(v, table, c, position, normal, view, rd, f0, alpha):
+    """(N, P) luminance of each stage for each VSGL of one view."""
+    from vsgl_addon.reference.sg import diffuse_lobe_hemisphere, sg_evaluate
+    from vsgl_addon.reference.vsgl_shading import shade
+
+    y, n = v["position"], v["normal"]
+    phi_rd = v["flux"] * v["rd"]  # (M, 3)
+    r = y[None] - position[:, None]  # receiver → texel
+    d2 = np.einsum("pmk,pmk->pm", r, r)
+    ok = d2 > 1e-12
+    dist = np.sqrt(np.where(ok, d2, 1.0))
+    omega = r / dist[..., None]
+    cos_p = np.maximum(np.einsum("pmk,pk->pm", omega, normal), 0.0)
+    geometry = np.where(ok, cos_p / np.where(ok, d2, 1.0), 0.0)  # (P, M)
+    brdf = receiver_brdf_lum(omega, view, normal, rd, f0, alpha)  # (P, M, 3)
+    out_dir = -omega
+    own = diffuse_lobe_hemisphere(out_dir, n[None])  # (P, M)
+    texel_light = ((phi_rd[None] * own[..., None] * brdf) @ LUMINANCE) * geometry  # (P, M)
+    front = np.einsum("pmk,mk->pm", out_dir, n) > 0.0
+    count = len(c)
+    stages = {k: np.zeros((count, len(position))) for k in STAGES}
+    stages["texels"] = c @ texel_light.T
+    axis = np.asarray(table["diffuse_axis"]).reshape(-1, 3)
+    sharp = np.asarray(table["diffuse_sharpness"]).reshape(-1)
+    amp = np.asarray(table["diffuse_amplitude"]).reshape(-1, 3)
+    mean = np.asarray(table["diffuse_mean"]).reshape(-1, 3)
+    for i in range(count):
+        w = c[i]
+        power = (w[:, None] * phi_rd).sum(axis=0)  # Σ c ΦRd (3)
+        if not np.any(power > 0.0):
+            continue
+        lobe = sg_evaluate(out_dir, axis[i], sharp[i])  # (P, M)
+        # amplitude c_v per unit of the cluster's power: the texel's share of c_v.
+        per_power = amp[i] / np.maximum(power, 1e-300)
+        emitted = (w[:, None] * phi_rd)[None] * per_power * lobe[..., None]  # (P, M, 3)
+        lit = ((emitted * brdf) @ LUMINANCE) * geometry
+        stages["lobe"][i] = lit.sum(axis=1)
+        stages["lobe_front"][i] = (lit * front).sum(axis=1)
+        rp = mean[i][None] - position
+        dp2 = np.einsum("pk,pk->p", rp, rp)
+        wp = rp / np.sqrt(np.maximum(dp2, 1e-24))[:, None]
+        cosp = np.maximum(np.einsum("pk,pk->p", wp, normal), 0.0)
+        brdf_p = receiver_brdf_lum(wp[:, None], view, normal, rd, f0, alpha)[:, 0]
+        ip = amp[i][None] * sg_evaluate(-wp, axis[i], sharp[i])[:, None]
+        stages["point"][i] = ((ip * brdf_p) @ LUMINANCE) * cosp / np.maximum(dp2, 1e-24)
+    diffuse_only = {k: np.asarray(table[k], np.float64) for k in table}
+    diffuse_only["specular_amplitude"] = np.zeros_like(diffuse_only["specular_amplitude"])
+    d, s, terms = shade(diffuse_only, position, normal, view, rd, f0, alpha, diffuse_mode="separable",
+                        per_term=True)
+    stages["vsgl"] = ((terms[:, :, 0, 0] + terms[:, :, 0, 1]) @ LUMINANCE).T
+    return stages, texel_light.sum(axis=1)
+
+
+def aggregation(name, path, stride):
+    from vsgl_addon.reference.vsgl import luminance
+
+    width, height = RESOLUTION
+    settings, truth, description = scene_with_truth(name, path, width, height)
+    bench = Bench(description, width, height)
+    rows = []
+    try:
+        pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride)
+        cycles = float((truth["indirect"][pick] @ LUMINANCE).sum())
+        vsgls, _ = bench.vsgls(settings.overridden(visibility=False))
+        total_n = settings.vsgl_count
+        per_light = {}
+        for light_index, _, generation in vsgls.generations:
+            per_light[light_index] = per_light.get(light_index, 0) + generation.vsgl_count
+        all_texels = 0.0
+        check = []
+        try:
+            for light_index, view_index, generation in vsgls.generations:
+                rsm_view = vsgls.views_by_light[light_index][view_index]
+                a = rsm_view.to_numpy()
+                v = view_vpls(a, rsm_view.light)
+                table = generation.read_table()
+                _, pdf = generation.read_mip_chains()
+                size = pdf[0].shape[0]
+                count = generation.vsgl_count
+                c_full = cluster_weights(pdf, np.asarray(table["kernel_center"]).reshape(-1, 2),
+                                         np.asarray(table["kernel_level"]).reshape(-1), count, size)
+                c = c_full[:, v["texel"]]
+                rebuilt = luminance(c @ (v["flux"] * (v["rd"] + v["rs"])))
+                check.append((rebuilt.sum(), luminance(np.asarray(table["power"]).reshape(-1, 3)).sum()))
+                stages, every = view_stages(v, table, c, position, normal, view, rd, f0, alpha)
+                all_texels += float(every.sum())
+                length = np.asarray(table["diffuse_sharpness"]).reshape(-1)
+                length = length / (1.0 + length)
+                mean = np.asarray(table["diffuse_mean"]).reshape(-1, 3)
+                sigma = np.sqrt(np.asarray(table["diffuse_variance"]).reshape(-1))
+                for i in range(count):
+                    weight = stages["texels"][i]
+                    dist = np.linalg.norm(mean[i][None] - position, axis=-1)
+                    near = float((weight * (dist < 3.0 * sigma[i])).sum())
+                    rows.append({"light": light_index, "view": view_index, "light_count": per_light[light_index],
+                                 "length_ratio": float(length[i] / FLAT_LENGTH),
+                                 "level": float(np.asarray(table["kernel_level"]).reshape(-1)[i]),
+                                 "sigma": float(sigma[i]), "near_3sigma": near,
+                                 **{k: float(stages[k][i].sum()) for k in STAGES}})
+        finally:
+            vsgls.free()
+    finally:
+        bench.free()
+    return {"name": name, "cycles": cycles, "all_texels": all_texels, "vsgls": rows, "pixels": int(pick.sum()),
+            "vsgl_count": total_n, "power_check": [float(sum(x for x, _ in check)), float(sum(y for _, y in check))]}
+
+
+def summarize(result):
+    rows = result["vsgls"]
+    cyc = result["cycles"]
+    total = {k: sum(r[k] for r in rows) for k in STAGES}
+    lines = [f"## {result['name']} (N = {result['vsgl_count']}, {len(rows)} VSGLs, {result['pixels']} pixels)\n",
+             f"All texels' SG lobes once / Cycles: {result['all_texels'] / cyc:.3f}; the clusters' texels "
+             f"(Σ_i Σ_j c_ij): {total['texels'] / cyc:.3f} (coverage {total['texels'] / result['all_texels']:.3f}).\n",
+             "| VSGLs | share of the clusters' light | texels | lobe / texels | lobe, front only / texels | "
+             "point / texels | VSGL / texels |", "|---|---|---|---|---|---|---|"]
+
+    def line(label, chosen):
+        t = sum(r["texels"] for r in chosen)
+        if t <= 0.0:
+            return
+        lines.append(f"| {label} ({len(chosen)}) | {t / total['texels']:.3f} | {t / cyc:.3f} | "
+                     + " | ".join(f"{sum(r[k] for r in chosen) / t:.3f}" for k in STAGES[1:]) + " |")
+
+    line("all", rows)
+    line("flat (|ξ̄| ≥ 0.97 of 2/3)", [r for r in rows if r["length_ratio"] >= 0.97])
+    line("bent (0.85-0.97)", [r for r in rows if 0.85 <= r["length_ratio"] < 0.97])
+    line("corner (< 0.85)", [r for r in rows if r["length_ratio"] < 0.85])
+    for lo, hi in ((0, 4), (4, 8), (8, 16), (16, 10 ** 6)):
+        line(f"light with {lo}-{hi - 1} VSGLs", [r for r in rows if lo <= r["light_count"] < hi])
+    near = [r for r in rows if r["texels"] > 0 and r["near_3sigma"] / r["texels"] > 0.5]
+    line("most light to receivers within 3 σ_v", near)
+    line("most light to receivers beyond 3 σ_v", [r for r in rows if r not in near])
+    for lo, hi in ((0, 1), (1, 2), (2, 3), (3, 6)):
+        line(f"kernel level {lo}-{hi}", [r for r in rows if lo <= r["level"] < hi])
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", nargs="+", default=["many_lights"])
+    parser.add_argument("--stride", type=int, default=12)
+    parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
+    args = parser.parse_args(argv)
+    from vsgl_addon import register
+
+    register()
+    from vsgl_addon.gpu_context import ensure_gpu_context
+
+    ensure_gpu_context()
+    results = []
+    for name, path, _ in suite():
+        if name in args.only:
+            start = time.perf_counter()
+            results.append(aggregation(name, path, args.stride))
+            log(f"{name} ({time.perf_counter() - start:.0f} s): power check {results[-1]['power_check']}")
+    text = (f"# VSGL aggregation against the clusters' own texels, no visibility\n\n`.venv/bin/python "
+            f"benchmarks/vsgl_aggregation.py --only {' '.join(args.only)} --stride {args.stride}`: the reflectors' "
+            "diffuse lobes only; the stages are defined in the module documentation (ratios of summed "
+            "luminance over the pixel subset).\n\n" + "\n".join(summarize(r) for r in results))
+    args.results_dir.mkdir(parents=True, exist_ok=True)
+    (args.results_dir / "vsgl_aggregation.md").write_text(text)
+    (args.results_dir / "vsgl_aggregation.json").write_text(json.dumps(results, indent=1))
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
