@@ -21,7 +21,9 @@ diffuse lobes as
 * point: the VSGL's diffuse lobe as a point light at its µ_v (far-field limit of 000 Eq. 12):
   the positions collapsed;
 * VSGL: the reference's separable shading of the VSGL's diffuse lobe (vsgl_shading.shade, 000
-  Eqs. 10-11, the default), receivers' BRDF as the GPU shades it (SG×ASG for the glossy lobe).
+  Eqs. 10-11, the default), receivers' BRDF as the GPU shades it (SG×ASG for the glossy lobe);
+* what-if, VSGL with its lobe normalized over the hemisphere around its own axis ξ_v: c_v scaled by
+  (1 + e^-λv) / (1 + e^-λd), which is 1 for a flat cluster (λv = λd).
 
 The sum over i of "texels" against every texel's lobe once ("all texels"): the kernels' coverage
 (000 Eq. 5's overlaps and gaps). Splits: by the cluster's |ξ̄_v| against a flat cluster's 2/3
@@ -49,9 +51,10 @@ from build_validation_scenes import RESOLUTION  # noqa: E402
 from tradeoff.bench import Bench  # noqa: E402
 from tradeoff.demo import log  # noqa: E402
 from energy_budget import LUMINANCE, view_vpls  # noqa: E402
+from vsgl_addon.reference.sg import DIFFUSE_HEMISPHERE_SCALE  # noqa: E402
 
 FLAT_LENGTH = 2.0 / 3.0  # |ξ̄| of a flat cluster: λ_d/(λ_d + 1), λ_d = 2 (000 Eq. 6, app. B.1)
-STAGES = ("texels", "lobe", "lobe_front", "point", "vsgl")
+STAGES = ("texels", "lobe", "lobe_front", "point", "vsgl", "vsgl_axis_hemisphere")
 
 
 def cluster_weights(pdf_chain, center, level, vsgl_count_total, size):
@@ -126,6 +129,9 @@ def view_stages(v, table, c, position, normal, view, rd, f0, alpha):
     d, s, terms = shade(diffuse_only, position, normal, view, rd, f0, alpha, diffuse_mode="separable",
                         per_term=True)
     stages["vsgl"] = ((terms[:, :, 0, 0] + terms[:, :, 0, 1]) @ LUMINANCE).T
+    # What-if: the aggregated lobe normalized over the hemisphere around its own axis, as each
+    # texel's lobe is around its normal: (1 + e^-λv) in place of (1 + e^-λd), the same for a flat cluster.
+    stages["vsgl_axis_hemisphere"] = stages["vsgl"] * ((1.0 + np.exp(-sharp)) / DIFFUSE_HEMISPHERE_SCALE)[:, None]
     return stages, texel_light.sum(axis=1)
 
 
@@ -191,7 +197,8 @@ def summarize(result):
              f"All texels' SG lobes once / Cycles: {result['all_texels'] / cyc:.3f}; the clusters' texels "
              f"(Σ_i Σ_j c_ij): {total['texels'] / cyc:.3f} (coverage {total['texels'] / result['all_texels']:.3f}).\n",
              "| VSGLs | share of the clusters' light | texels | lobe / texels | lobe, front only / texels | "
-             "point / texels | VSGL / texels |", "|---|---|---|---|---|---|---|"]
+             "point / texels | VSGL / texels | VSGL, lobe normalized over its axis' hemisphere / texels |",
+             "|---|---|---|---|---|---|---|---|"]
 
     def line(label, chosen):
         t = sum(r["texels"] for r in chosen)
