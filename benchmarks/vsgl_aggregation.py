@@ -2,7 +2,7 @@
 """Where the VSGLs lose light against the SG-lobe VPLs of their own texels (not a test), per VSGL,
 without visibility, on a pixel subset of the suite's camera G-buffer.
 
-    .venv/bin/python benchmarks/vsgl_aggregation.py [--only NAME ...] [--stride S]
+    .venv/bin/python benchmarks/vsgl_aggregation.py [--only NAME ...] [--stride S] [--count N] [--name STEM]
 
 For every VSGL i of the scene's frame (its N, its kernels, the GPU's table), the texels of its
 cluster and their weights c_ij: 000 Eq. 5's estimate is M F̄(x_i, l_i) / (N p̄(x_i, l_i)) with F̄
@@ -22,6 +22,10 @@ diffuse lobes as
   the positions collapsed;
 * VSGL: the reference's separable shading of the VSGL's diffuse lobe (vsgl_shading.shade, 000
   Eqs. 10-11, the default), receivers' BRDF as the GPU shades it (SG×ASG for the glossy lobe);
+* what-if, split: the cluster's VSGL as two, its texels split in two groups by normal (2-means),
+  each group's VSGL from its own c_ij-weighted moments (000 app. B.1-B.2), shaded as "VSGL"
+  (twice the VSGLs); "one per plane": up to six, the texels binned by their normal's dominant axis
+  and sign (the suite's rooms are axis-aligned): what clusters kept to one plane would give;
 * what-if, VSGL with its lobe normalized over the hemisphere around its own axis ξ_v: c_v scaled by
   (1 + e^-λv) / (1 + e^-λd), which is 1 for a flat cluster (λv = λd).
 
@@ -29,7 +33,7 @@ The sum over i of "texels" against every texel's lobe once ("all texels"): the k
 (000 Eq. 5's overlaps and gaps). Splits: by the cluster's |ξ̄_v| against a flat cluster's 2/3
 (corner clusters), by the light's VSGL count, by the receivers' distance to µ_v in σ_v.
 
-Writes ``benchmarks/results/vsgl_aggregation.md`` and ``.json``.
+Writes ``benchmarks/results/STEM.md`` and ``.json`` (STEM: vsgl_aggregation).
 """
 
 from __future__ import annotations
@@ -54,7 +58,63 @@ from energy_budget import LUMINANCE, view_vpls  # noqa: E402
 from vsgl_addon.reference.sg import DIFFUSE_HEMISPHERE_SCALE  # noqa: E402
 
 FLAT_LENGTH = 2.0 / 3.0  # |ξ̄| of a flat cluster: λ_d/(λ_d + 1), λ_d = 2 (000 Eq. 6, app. B.1)
-STAGES = ("texels", "lobe", "lobe_front", "point", "vsgl", "vsgl_axis_hemisphere")
+STAGES = ("texels", "lobe", "lobe_front", "point", "vsgl", "vsgl_axis_hemisphere", "vsgl_split", "vsgl_planes")
+
+
+def split_by_normal(normal, weight):
+    """(M,) bool: two groups of texels by normal (2-means on the unit normals weighted by
+    ``weight``, started from the mean normal's farthest texel)."""
+    live = weight > 0.0
+    mean = (weight[:, None] * normal).sum(axis=0)
+    first = normal[np.argmin(np.where(live, normal @ mean, np.inf))]
+    second = mean / max(np.linalg.norm(mean), 1e-30)
+    group = np.zeros(len(normal), bool)
+    for _ in range(8):
+        group = normal @ first > normal @ second
+        for g, target in ((True, "first"), (False, "second")):
+            w = weight * (group == g)
+            if w.sum() > 0.0:
+                centre = (w[:, None] * normal).sum(axis=0)
+                centre /= max(np.linalg.norm(centre), 1e-30)
+                if target == "first":
+                    first = centre
+                else:
+                    second = centre
+    return group
+
+
+def split_vsgls(v, c, table, planes=False):
+    """What-if: each cluster's diffuse VSGL as two, its texels split by normal (split_by_normal),
+    each part's VSGL from its own moments (000 app. B.1-B.2 on the part's c_ij-weighted texels);
+    ``planes``: as six, the texels binned by their normal's dominant axis and sign."""
+    from vsgl_addon.reference import vsgl as ref
+
+    phi_rd = v["flux"] * v["rd"]
+    w = ref.luminance(phi_rd)
+    y, n = v["position"], v["normal"]
+    moments = np.zeros((len(w), ref.MOMENT_CHANNELS))
+    moments[:, ref.CH_DIFFUSE] = phi_rd
+    moments[:, ref.CH_DIFFUSE_DIRECTION] = w[:, None] * FLAT_LENGTH * n
+    moments[:, ref.CH_DIFFUSE_POSITION] = w[:, None] * y
+    moments[:, ref.CH_DIFFUSE_POSITION_SQUARED] = w * np.einsum("ij,ij->i", y, y)
+    parts = 6 if planes else 2
+    totals = np.zeros((len(c), parts, ref.MOMENT_CHANNELS))
+    dominant = np.argmax(np.abs(n), axis=1)
+    bins = 2 * dominant + (n[np.arange(len(n)), dominant] < 0.0)
+    for i in range(len(c)):
+        if planes:
+            for b in range(6):
+                totals[i, b] = (c[i] * (bins == b)) @ moments
+        else:
+            group = split_by_normal(n, c[i] * w)
+            totals[i, 0] = (c[i] * group) @ moments
+            totals[i, 1] = (c[i] * ~group) @ moments
+    mean = np.asarray(table["mean"]).reshape(-1, 3)
+    variance = np.asarray(table["variance"]).reshape(-1)
+    params = ref.vsgl_parameters(totals.reshape(-1, ref.MOMENT_CHANNELS), np.repeat(mean, parts, axis=0),
+                                 np.repeat(variance, parts))
+    return params
+
 
 
 def cluster_weights(pdf_chain, center, level, vsgl_count_total, size):
@@ -132,10 +192,22 @@ def view_stages(v, table, c, position, normal, view, rd, f0, alpha):
     # What-if: the aggregated lobe normalized over the hemisphere around its own axis, as each
     # texel's lobe is around its normal: (1 + e^-λv) in place of (1 + e^-λd), the same for a flat cluster.
     stages["vsgl_axis_hemisphere"] = stages["vsgl"] * ((1.0 + np.exp(-sharp)) / DIFFUSE_HEMISPHERE_SCALE)[:, None]
-    return stages, texel_light.sum(axis=1)
+    split = split_vsgls(v, c, table)
+    _, _, terms = shade(split, position, normal, view, rd, f0, alpha, diffuse_mode="separable", per_term=True)
+    per_part = ((terms[:, :, 0, 0] + terms[:, :, 0, 1]) @ LUMINANCE).T  # (2N, P)
+    stages["vsgl_split"] = per_part[0::2] + per_part[1::2]
+    split = split_vsgls(v, c, table, planes=True)
+    _, _, terms = shade(split, position, normal, view, rd, f0, alpha, diffuse_mode="separable", per_term=True)
+    stages["vsgl_planes"] = ((terms[:, :, 0, 0] + terms[:, :, 0, 1]) @ LUMINANCE).T.reshape(len(c), 6, -1).sum(axis=1)
+    dominant = np.argmax(np.abs(n), axis=1)
+    bins = 2 * dominant + (n[np.arange(len(n)), dominant] < 0.0)
+    w = (phi_rd @ LUMINANCE)
+    per_bin = np.stack([(c * (bins == b)) @ w for b in range(6)], axis=1)  # (N, 6)
+    planes = (per_bin > 0.02 * np.maximum(per_bin.sum(axis=1, keepdims=True), 1e-300)).sum(axis=1)
+    return stages, texel_light.sum(axis=1), planes
 
 
-def aggregation(name, path, stride):
+def aggregation(name, path, stride, count=None):
     from vsgl_addon.reference.vsgl import luminance
 
     width, height = RESOLUTION
@@ -145,6 +217,8 @@ def aggregation(name, path, stride):
     try:
         pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride)
         cycles = float((truth["indirect"][pick] @ LUMINANCE).sum())
+        if count is not None:
+            settings = settings.overridden(vsgl_count=count)
         vsgls, _ = bench.vsgls(settings.overridden(visibility=False))
         total_n = settings.vsgl_count
         per_light = {}
@@ -166,7 +240,7 @@ def aggregation(name, path, stride):
                 c = c_full[:, v["texel"]]
                 rebuilt = luminance(c @ (v["flux"] * (v["rd"] + v["rs"])))
                 check.append((rebuilt.sum(), luminance(np.asarray(table["power"]).reshape(-1, 3)).sum()))
-                stages, every = view_stages(v, table, c, position, normal, view, rd, f0, alpha)
+                stages, every, planes = view_stages(v, table, c, position, normal, view, rd, f0, alpha)
                 all_texels += float(every.sum())
                 length = np.asarray(table["diffuse_sharpness"]).reshape(-1)
                 length = length / (1.0 + length)
@@ -180,6 +254,7 @@ def aggregation(name, path, stride):
                                  "length_ratio": float(length[i] / FLAT_LENGTH),
                                  "level": float(np.asarray(table["kernel_level"]).reshape(-1)[i]),
                                  "sigma": float(sigma[i]), "near_3sigma": near,
+                                 "planes": int(planes[i]),
                                  **{k: float(stages[k][i].sum()) for k in STAGES}})
         finally:
             vsgls.free()
@@ -197,8 +272,8 @@ def summarize(result):
              f"All texels' SG lobes once / Cycles: {result['all_texels'] / cyc:.3f}; the clusters' texels "
              f"(Σ_i Σ_j c_ij): {total['texels'] / cyc:.3f} (coverage {total['texels'] / result['all_texels']:.3f}).\n",
              "| VSGLs | share of the clusters' light | texels | lobe / texels | lobe, front only / texels | "
-             "point / texels | VSGL / texels | VSGL, lobe normalized over its axis' hemisphere / texels |",
-             "|---|---|---|---|---|---|---|---|"]
+             "point / texels | VSGL / texels | VSGL, lobe normalized over its axis' hemisphere / texels | split by normal (2 VSGLs) / texels | one per plane / texels |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
 
     def line(label, chosen):
         t = sum(r["texels"] for r in chosen)
@@ -207,6 +282,9 @@ def summarize(result):
         lines.append(f"| {label} ({len(chosen)}) | {t / total['texels']:.3f} | {t / cyc:.3f} | "
                      + " | ".join(f"{sum(r[k] for r in chosen) / t:.3f}" for k in STAGES[1:]) + " |")
 
+    lines.insert(2, f"Planes per cluster (normal bins holding over 2 % of its diffuse power): mean "
+                    f"{np.mean([r['planes'] for r in rows]):.2f}, weighted by the clusters' light "
+                    f"{sum(r['planes'] * r['texels'] for r in rows) / max(total['texels'], 1e-300):.2f}.\n")
     line("all", rows)
     line("flat (|ξ̄| ≥ 0.97 of 2/3)", [r for r in rows if r["length_ratio"] >= 0.97])
     line("bent (0.85-0.97)", [r for r in rows if 0.85 <= r["length_ratio"] < 0.97])
@@ -225,6 +303,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="+", default=["many_lights"])
     parser.add_argument("--stride", type=int, default=12)
+    parser.add_argument("--count", type=int, default=None, help="N (default: the scene's)")
+    parser.add_argument("--name", default="vsgl_aggregation", help="results file stem")
     parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
     args = parser.parse_args(argv)
     from vsgl_addon import register
@@ -237,15 +317,16 @@ def main(argv=None):
     for name, path, _ in suite():
         if name in args.only:
             start = time.perf_counter()
-            results.append(aggregation(name, path, args.stride))
+            results.append(aggregation(name, path, args.stride, args.count))
             log(f"{name} ({time.perf_counter() - start:.0f} s): power check {results[-1]['power_check']}")
     text = (f"# VSGL aggregation against the clusters' own texels, no visibility\n\n`.venv/bin/python "
-            f"benchmarks/vsgl_aggregation.py --only {' '.join(args.only)} --stride {args.stride}`: the reflectors' "
+            f"benchmarks/vsgl_aggregation.py --only {' '.join(args.only)} --stride {args.stride}"
+            + (f" --count {args.count} --name {args.name}" if args.count else "") + "`: the reflectors' "
             "diffuse lobes only; the stages are defined in the module documentation (ratios of summed "
             "luminance over the pixel subset).\n\n" + "\n".join(summarize(r) for r in results))
     args.results_dir.mkdir(parents=True, exist_ok=True)
-    (args.results_dir / "vsgl_aggregation.md").write_text(text)
-    (args.results_dir / "vsgl_aggregation.json").write_text(json.dumps(results, indent=1))
+    (args.results_dir / f"{args.name}.md").write_text(text)
+    (args.results_dir / f"{args.name}.json").write_text(json.dumps(results, indent=1))
     print(text)
     return 0
 
