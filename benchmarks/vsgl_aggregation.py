@@ -25,7 +25,9 @@ diffuse lobes as
 * what-if, split: the cluster's VSGL as two, its texels split in two groups by normal (2-means),
   each group's VSGL from its own c_ij-weighted moments (000 app. B.1-B.2), shaded as "VSGL"
   (twice the VSGLs); "one per plane": up to six, the texels binned by their normal's dominant axis
-  and sign (the suite's rooms are axis-aligned): what clusters kept to one plane would give;
+  and sign (the suite's rooms are axis-aligned): what clusters kept to one plane would give; its
+  light split by receiver: where the receiver's plane passes within 2 σ_v of the plane VSGL's mean
+  (the VSGL's isotropic Gaussian reaches behind the receiver's horizon) and elsewhere;
 * what-if, VSGL with its lobe normalized over the hemisphere around its own axis ξ_v: c_v scaled by
   (1 + e^-λv) / (1 + e^-λd), which is 1 for a flat cluster (λv = λd).
 
@@ -198,7 +200,20 @@ def view_stages(v, table, c, position, normal, view, rd, f0, alpha):
     stages["vsgl_split"] = per_part[0::2] + per_part[1::2]
     split = split_vsgls(v, c, table, planes=True)
     _, _, terms = shade(split, position, normal, view, rd, f0, alpha, diffuse_mode="separable", per_term=True)
-    stages["vsgl_planes"] = ((terms[:, :, 0, 0] + terms[:, :, 0, 1]) @ LUMINANCE).T.reshape(len(c), 6, -1).sum(axis=1)
+    per_plane = ((terms[:, :, 0, 0] + terms[:, :, 0, 1]) @ LUMINANCE).T.reshape(len(c), 6, -1)  # (N, 6, P)
+    stages["vsgl_planes"] = per_plane.sum(axis=1)
+    # The per-plane VSGLs' near field: receivers whose own plane passes within 2 σ_v of the plane
+    # VSGL's mean (its isotropic Gaussian reaches behind the receiver's horizon) against the rest.
+    dominant = np.argmax(np.abs(n), axis=1)
+    bins = 2 * dominant + (n[np.arange(len(n)), dominant] < 0.0)
+    plane_texels = np.stack([(c * (bins == b)) @ texel_light.T for b in range(6)], axis=1)  # (N, 6, P)
+    plane_mean = np.asarray(split["diffuse_mean"]).reshape(len(c), 6, 3)
+    plane_sigma = np.sqrt(np.asarray(split["diffuse_variance"]).reshape(len(c), 6))
+    height = np.einsum("nbpk,pk->nbp", plane_mean[:, :, None] - position[None, None], normal)
+    straddle = height < 2.0 * plane_sigma[..., None]
+    for key, values in (("planes_texels", plane_texels), ("planes_vsgl", per_plane)):
+        stages[key + "_straddle"] = (values * straddle).sum(axis=1)
+        stages[key + "_clear"] = (values * ~straddle).sum(axis=1)
     dominant = np.argmax(np.abs(n), axis=1)
     bins = 2 * dominant + (n[np.arange(len(n)), dominant] < 0.0)
     w = (phi_rd @ LUMINANCE)
@@ -255,7 +270,7 @@ def aggregation(name, path, stride, count=None):
                                  "level": float(np.asarray(table["kernel_level"]).reshape(-1)[i]),
                                  "sigma": float(sigma[i]), "near_3sigma": near,
                                  "planes": int(planes[i]),
-                                 **{k: float(stages[k][i].sum()) for k in STAGES}})
+                                 **{k: float(stages[k][i].sum()) for k in stages}})
         finally:
             vsgls.free()
     finally:
@@ -296,6 +311,12 @@ def summarize(result):
     line("most light to receivers beyond 3 σ_v", [r for r in rows if r not in near])
     for lo, hi in ((0, 1), (1, 2), (2, 3), (3, 6)):
         line(f"kernel level {lo}-{hi}", [r for r in rows if lo <= r["level"] < hi])
+    near = {k: sum(r[k] for r in rows) for k in ("planes_texels_straddle", "planes_vsgl_straddle",
+                                                   "planes_texels_clear", "planes_vsgl_clear")}
+    lines.append(f"\nOne VSGL per plane, by receiver: where the receiver's plane passes within 2 σ_v of the plane "
+                 f"VSGL's mean (share {near['planes_texels_straddle'] / total['texels']:.3f} of the texels' light) "
+                 f"VSGL / texels {near['planes_vsgl_straddle'] / max(near['planes_texels_straddle'], 1e-300):.3f}; "
+                 f"elsewhere {near['planes_vsgl_clear'] / max(near['planes_texels_clear'], 1e-300):.3f}.")
     return "\n".join(lines) + "\n"
 
 
