@@ -1,0 +1,383 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Where and why the imperfect shadow maps hide more light than exact visibility from the same
+shadow origin (not a test), per receiver and per VSGL.
+
+    .venv/bin/python benchmarks/ism_over_occlusion.py [--only NAME ...] [--stride S] [--traced-sizes S ...]
+        [--variants POINTS:SIZE ...] [--results-dir DIR]
+
+On every S-th pixel (both ways) of the suite's 240x180 camera G-buffer, each VSGL's light is the
+float64 reference shading (reference/vsgl_shading.shade, per term, luminance, both lobes), weighted by:
+
+* maps: the GPU's imperfect shadow maps with the scene's settings, looked up by the shader's
+  float64 twin (reference/vsgl_shading.vsgl_visibility);
+* exact: the segment from the receiver to the map's shadow origin ray-cast (hits within
+  pipeline.VSGL_OWN_REFLECTOR_SIGMAS σ_v of the origin left out, as the maps leave those points out;
+  visibility_diagnosis.exact_visibility);
+* traced S: a map of side S whose every texel holds the exact first hit of the ray from the origin
+  through its centre (past the own-reflector radius), looked up by the same twin (same bias, same
+  filter): a perfect point set, so traced − exact is the octahedral projection's resolution, the
+  lookup's bias and its filter footprint, and maps − traced (at the maps' side) the point set, its
+  splat, the gap closing and pull-push;
+* POINTS:SIZE variants: the GPU's maps rebuilt with that many points per map and that side.
+
+The light each hides (Σ w·(v_exact − v), as a share of the light exact visibility keeps) is then
+split by the receiver's material, its distance from the origin in σ_v, its incidence from the
+origin, the VSGL's σ_v, and the origin's clearance (its nearest surface, in σ_v: the traced map's
+least depth); and, for the point-set part, by what the maps hold at the receiver's texel against the
+traced map (nearer by more than the bias: a surface in front that is not there; an empty texel
+filled by pull-push). Writes ``benchmarks/results/ism_over_occlusion.md`` (+ .json).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
+    sys.path.insert(0, str(folder))
+
+from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
+from build_validation_scenes import RESOLUTION  # noqa: E402
+from tradeoff.bench import Bench  # noqa: E402
+from tradeoff.demo import log  # noqa: E402
+from visibility_diagnosis import exact_visibility  # noqa: E402
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def nearest_hits(origin, directions, triangles, t_min, chunk_rays=4096, chunk_triangles=64):
+    """(R,) distance along each unit direction (R, 3) from ``origin`` to the nearest triangle hit
+    past ``t_min`` (Möller–Trumbore); inf where none."""
+    v0, e1, e2 = triangles[:, 0], triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
+    best = np.full(len(directions), np.inf)
+    s = origin[None] - v0  # (T, 3)
+    for r0 in range(0, len(directions), chunk_rays):
+        dd = directions[r0:r0 + chunk_rays]
+        nearest = np.full(len(dd), np.inf)
+        for t0 in range(0, len(v0), chunk_triangles):
+            a1, a2, st = e1[t0:t0 + chunk_triangles], e2[t0:t0 + chunk_triangles], s[t0:t0 + chunk_triangles]
+            p = np.cross(dd[:, None, :], a2[None])
+            det = np.einsum("rtk,tk->rt", p, a1)
+            inv = 1.0 / np.where(np.abs(det) > 1e-14, det, np.inf)
+            u = np.einsum("tk,rtk->rt", st, p) * inv
+            q = np.cross(st, a1)  # (T, 3)
+            v = np.einsum("rk,tk->rt", dd, q) * inv
+            t = np.einsum("tk,tk->t", q, a2)[None] * inv
+            ok = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > t_min)
+            nearest = np.minimum(nearest, np.where(ok, t, np.inf).min(axis=1))
+        best[r0:r0 + chunk_rays] = nearest
+    return best
+
+
+def traced_maps(origins, min_distance, size, triangles):
+    """(M, size, size) maps of the exact first hit through each texel centre (reference/ism.py's
+    octahedral layout, [row, column])."""
+    from vsgl_addon.reference.ism import texel_directions
+
+    directions = texel_directions(size).reshape(-1, 3)
+    return np.stack([nearest_hits(o, directions, triangles, near).reshape(size, size)
+                     for o, near in zip(origins, min_distance)])
+
+
+def lookup_texel_depth(depths, origins, position, normal):
+    """(P, M) the depth each map holds at the texel of each receiver (as the lookup offsets it) and
+    (P, M) the receiver's tested distance and bias (reference/ism.py lookup_offsets, the bilinear
+    filter's two-texel footprint)."""
+    from vsgl_addon.reference import ism
+
+    size = depths.shape[-1]
+    stored = np.empty((len(position), len(origins)))
+    distance = np.empty_like(stored)
+    bias = np.empty_like(stored)
+    for m, origin in enumerate(origins):
+        offsets, b = ism.lookup_offsets(position - origin, normal, size, 2.0)
+        texel = ism.ism_texel(offsets, size)
+        stored[:, m] = depths[m][texel[:, 1], texel[:, 0]]
+        distance[:, m] = np.linalg.norm(offsets, axis=-1)
+        bias[:, m] = b
+    return stored, distance, bias
+
+
+def disc_splat(points, normals, origin, size, min_distance, point_area, share):
+    """A float64 splat variant (reference/ism.py splat's layout and square of splat_radius): each
+    point a disc of area share² · point_area in its tangent plane, covering its own texel at its
+    distance and the other texels of its square whose centre ray meets the disc, at that ray's
+    distance to the plane (an oriented splat: the depth follows a grazing surface instead of
+    standing at the point's own distance across the square)."""
+    from vsgl_addon.reference import ism
+
+    offsets = points - origin
+    distance = np.linalg.norm(offsets, axis=-1)
+    keep = np.isfinite(distance) & (distance > max(min_distance, 1e-300))
+    offsets, distance, normals = offsets[keep], distance[keep], normals[keep]
+    texel = ism.ism_texel(offsets, size)
+    depth = np.full((size, size), ism.EMPTY)
+    np.minimum.at(depth, (texel[:, 1], texel[:, 0]), distance)
+    cos_theta = (normals * offsets).sum(axis=-1) / distance
+    radius = ism.splat_radius(offsets, cos_theta, point_area, size)
+    # The square wide enough for the disc seen face-on.
+    reach = np.clip(np.ceil(math.sqrt(point_area / math.pi) * share / distance
+                            / np.sqrt(ism.texel_solid_angle(offsets, size))), 0, ism.SPLAT_MAX_RADIUS)
+    radius = np.maximum(radius, reach).astype(np.int64)
+    centres = ism.texel_directions(size)
+    disc2 = share * share * point_area / math.pi
+    plane = (normals * offsets).sum(axis=-1)  # n · (p − o)
+    for r in range(1, int(radius.max(initial=0)) + 1):
+        here = radius >= r
+        for dy in range(-r, r + 1):
+            for dx in range(-r, r + 1):
+                if max(abs(dx), abs(dy)) != r:
+                    continue
+                column, row = ism.octahedral_wrap(texel[here, 0] + dx, texel[here, 1] + dy, size)
+                d = centres[row, column]
+                denominator = (normals[here] * d).sum(axis=-1)
+                t = plane[here] / np.where(np.abs(denominator) > 1e-12, denominator, np.nan)
+                hit = t[:, None] * d - offsets[here]
+                inside = (t > 0) & ((hit * hit).sum(axis=-1) <= disc2)
+                np.minimum.at(depth, (row[inside], column[inside]), t[inside])
+    return depth
+
+
+def rebuilt_maps(points, origins, sets, min_distance, size, point_area, mode):
+    """(M, size, size) the maps rebuilt in float64: "twin" (reference/ism.py splat, as the GPU),
+    "radius 0" (single-texel splats), "disc S" (disc_splat of share S); then gap closing (not with a
+    " no gaps" suffix), pull-push."""
+    from vsgl_addon.reference import ism
+
+    gaps = not mode.endswith(" no gaps")
+    mode = mode.removesuffix(" no gaps")
+    result = []
+    for origin, index, near in zip(origins, sets, min_distance):
+        p, n = np.asarray(points.positions[index], np.float64), np.asarray(points.normals[index], np.float64)
+        if mode == "twin":
+            depth = ism.splat(p, origin, size, near, n, point_area)
+        elif mode == "radius 0":
+            depth = ism.splat(p, origin, size, near)
+        else:
+            depth = disc_splat(p, n, origin, size, near, point_area, float(mode.split()[1]))
+        result.append(ism.pull_push(ism.close_gaps(depth) if gaps else depth))
+    return np.stack(result)
+
+
+BINS = {
+    "distance / sigma_v": (0.0, 1.0, 2.0, 4.0, 8.0, np.inf),
+    "cos incidence": (0.0, 0.2, 0.5, 0.8, 1.01),
+    "sigma_v (m)": (0.0, 0.1, 0.2, 0.4, 0.8, np.inf),
+    "origin clearance / sigma_v": (0.0, 0.5, 1.0, 2.0, np.inf),
+}
+
+
+def split(values, loss, bins):
+    """Σ loss per bin of values (loss and values broadcast to (P, N))."""
+    index = np.digitize(values, bins[1:-1])
+    return [float(loss[index == k].sum()) for k in range(len(bins) - 1)]
+
+
+def run_scene(name, path, stride, traced_sizes, variants, rebuilds=()):
+    from vsgl_addon.pipeline import POINT_SETS, VSGL_OWN_REFLECTOR_SIGMAS, build_visibility
+    from vsgl_addon.reference import ism
+    from vsgl_addon.reference.vsgl_shading import diffuse_mode_for_kernel, shade, vsgl_visibility
+    from vsgl_addon.passes.vsgl_shading import ISM_MAX_RADIUS
+    from vsgl_addon.scene_points import triangle_areas
+
+    width, height = RESOLUTION
+    saved, truth, description = scene_with_truth(name, path, width, height)
+    settings = saved.overridden(visibility=True)
+    triangles = np.asarray(description.geometry.positions, np.float64)
+    bench = Bench(description, width, height)
+    try:
+        pick, position, normal, view, rd, f0, alpha = sampled_pixels(bench, truth, stride)
+        material = bench.material_index[pick]
+        vsgls, _ = bench.vsgls(settings)
+        try:
+            build_visibility(bench.scene_gpu, vsgls, settings)
+            if rebuilds:
+                points = bench.scene_gpu.scene_points(settings.ism_points, POINT_SETS, settings.seed)
+                point_area = float(triangle_areas(triangles).sum()) / settings.ism_points
+            first_map = 0
+            per_table = []
+            for table, atlas in zip(vsgls.table_arrays(), vsgls.isms):
+                table = {k: np.asarray(v, np.float64) for k, v in table.items()}
+                maps = atlas.count // len(table["variance"])
+                if maps != 1:
+                    raise SystemExit("one map per VSGL expected (pipeline.MAPS_PER_VSGL)")
+                _, _, terms = shade(table, position, normal, view, rd, f0, alpha,
+                                    diffuse_mode=diffuse_mode_for_kernel(settings.kernel), per_term=True)
+                weight = (terms.sum(axis=3) @ LUMINANCE).sum(axis=2)  # (P, N): both lobes, one map
+                depths = atlas.read()
+                origins, sets, min_distance = ism.vsgl_map_origins(table, 1, first_map, POINT_SETS,
+                                                                   VSGL_OWN_REFLECTOR_SIGMAS)
+                first_map += atlas.count
+                v = {"maps": vsgl_visibility(depths, 1, table, position, normal, ISM_MAX_RADIUS)[:, :, 0],
+                     "exact": exact_visibility(table, 1, position, triangles, VSGL_OWN_REFLECTOR_SIGMAS)[:, :, 0]}
+                traced = {}
+                for size in traced_sizes:
+                    traced[size] = traced_maps(origins, min_distance, size, triangles)
+                    v[f"traced {size}"] = vsgl_visibility(traced[size], 1, table, position, normal,
+                                                          ISM_MAX_RADIUS)[:, :, 0]
+                for mode in rebuilds:
+                    rebuilt = rebuilt_maps(points, origins, sets, min_distance, depths.shape[-1], point_area, mode)
+                    v[f"float64 {mode}"] = vsgl_visibility(rebuilt, 1, table, position, normal, ISM_MAX_RADIUS)[:, :, 0]
+                sigma = np.sqrt(np.maximum(table["diffuse_variance"], 0.0))
+                offsets = position[:, None] - origins[None]
+                dist = np.linalg.norm(offsets, axis=-1)
+                cos_inc = np.abs((normal[:, None] * -offsets).sum(-1)) / np.maximum(dist, 1e-30)
+                finest = traced[max(traced_sizes)]
+                clearance = finest.reshape(len(origins), -1).min(axis=1)
+                stored, tested, bias = lookup_texel_depth(depths, origins, position, normal)
+                same = traced.get(depths.shape[-1])
+                stored_traced = (lookup_texel_depth(same, origins, position, normal)[0]
+                                 if same is not None else np.full_like(stored, np.nan))
+                per_table.append(dict(weight=weight, v=v, sigma=sigma, dist=dist, cos=cos_inc,
+                                      clearance=clearance, stored=stored, tested=tested, bias=bias,
+                                      stored_traced=stored_traced, depths=depths, size=depths.shape[-1]))
+            for points, size in variants:
+                for atlas in vsgls.isms:
+                    atlas.free()
+                vsgls.isms.clear()
+                build_visibility(bench.scene_gpu, vsgls, settings.overridden(ism_points=points, ism_size=size))
+                for entry, table, atlas in zip(per_table, vsgls.table_arrays(), vsgls.isms):
+                    table = {k: np.asarray(v, np.float64) for k, v in table.items()}
+                    entry["v"][f"{points} points, {atlas.size}²"] = vsgl_visibility(
+                        atlas.read(), 1, table, position, normal, ISM_MAX_RADIUS)[:, :, 0]
+        finally:
+            vsgls.free()
+        names = bench.materials
+    finally:
+        bench.free()
+    cycles = float((truth["indirect"][pick].astype(np.float64) @ LUMINANCE).sum())
+
+    def cat(key):
+        return np.concatenate([e[key] for e in per_table], axis=1)
+
+    weight = cat("weight")
+    v = {key: np.concatenate([e["v"][key] for e in per_table], axis=1) for key in per_table[0]["v"]}
+    sigma = np.concatenate([e["sigma"] for e in per_table])
+    clearance = np.concatenate([e["clearance"] for e in per_table])
+    dist, cos_inc = cat("dist"), cat("cos")
+    stored, tested, bias, stored_traced = cat("stored"), cat("tested"), cat("bias"), cat("stored_traced")
+    kept = float((weight * v["exact"]).sum())
+    result = {"pixels": int(pick.sum()), "vsgls": int(weight.shape[1]), "map_size": per_table[0]["size"],
+              "ism_points": settings.ism_points, "cycles": cycles, "off": float(weight.sum()) / cycles,
+              "ratios": {key: float((weight * value).sum()) / cycles for key, value in v.items()}}
+    # Lost light against exact, as a share of what exact keeps (negative: the variant leaks).
+    result["lost"] = {key: float((weight * (v["exact"] - value)).sum()) / kept for key, value in v.items()}
+    base_traced = f"traced {result['map_size']}"
+    parts = {"maps − exact": v["exact"] - v["maps"]}
+    if base_traced in v:
+        parts["traced − exact (projection, bias, filter)"] = v["exact"] - v[base_traced]
+        parts["maps − traced (points, splat, pull-push)"] = v[base_traced] - v["maps"]
+    breakdown = {}
+    for part, difference in parts.items():
+        loss = weight * difference
+        rows = {"all": float(loss.sum()) / kept}
+        for index in np.unique(material):
+            here = material == index
+            label = names[index] if 0 <= index < len(names) else str(index)
+            rows[f"material {label}"] = float(loss[here].sum()) / kept
+        per_bins = {}
+        for label, bins in BINS.items():
+            values = {"distance / sigma_v": dist / np.maximum(sigma, 1e-30)[None],
+                      "cos incidence": cos_inc,
+                      "sigma_v (m)": np.broadcast_to(sigma[None], loss.shape),
+                      "origin clearance / sigma_v": np.broadcast_to((clearance / np.maximum(sigma, 1e-30))[None],
+                                                                    loss.shape)}[label]
+            per_bins[label] = [x / kept for x in split(values, loss, bins)]
+        breakdown[part] = {"rows": rows, "bins": per_bins}
+    result["breakdown"] = breakdown
+    # What the maps hold at the receiver's own texel, over the pairs the point set darkens.
+    if base_traced in v:
+        darker = weight * np.maximum(v[base_traced] - v["maps"], 0.0)
+        front = stored + bias < tested  # the maps' own texel has something in front
+        front_traced = stored_traced + bias < tested
+        classes = {
+            "maps' texel nearer, traced texel not": front & ~front_traced,
+            "both texels nearer (the filter's other texels differ)": front & front_traced,
+            "maps' texel not nearer (a filter neighbour is)": ~front,
+        }
+        total = float(darker.sum())
+        result["point_classes"] = {label: float(darker[mask].sum()) / max(total, 1e-300) for label, mask in classes.items()}
+        nearer = front & ~front_traced
+        ratio = np.where(nearer, stored / np.maximum(stored_traced, 1e-30), np.nan)
+        ratio_bins = (0.0, 0.25, 0.5, 0.75, 0.9, 1.0, np.inf)
+        result["nearer_ratio_bins"] = {"bins": list(ratio_bins[:-1]),
+                                       "share": [float(darker[nearer & (np.digitize(ratio, ratio_bins[1:-1]) == k)].sum())
+                                                 / max(total, 1e-300) for k in range(len(ratio_bins) - 1)]}
+    log(f"{name}: " + ", ".join(f"{k} {x:.3f}" for k, x in result["ratios"].items()))
+    return result
+
+
+def markdown(results, argv_text):
+    lines = ["# Where the shadow maps hide more light than exact visibility", "",
+             "The module documentation of `benchmarks/ism_over_occlusion.py` defines the rows.", "",
+             f"`.venv/bin/python benchmarks/ism_over_occlusion.py {argv_text}`", ""]
+    for name, r in results.items():
+        lines += [f"## {name} ({r['pixels']} px, {r['vsgls']} VSGLs, maps {r['map_size']}², "
+                  f"{r['ism_points']} points per map)", "",
+                  "| visibility | mean / Cycles | light lost against exact (share of exact's) |", "|---|---|---|",
+                  f"| off | {r['off']:.3f} | |"]
+        lines += [f"| {key} | {ratio:.3f} | {r['lost'][key]:+.3f} |" for key, ratio in r["ratios"].items()]
+        for part, b in r["breakdown"].items():
+            lines += ["", f"**{part}**, light lost as a share of exact's: all {b['rows']['all']:+.3f}; "
+                      + ", ".join(f"{k} {x:+.3f}" for k, x in b["rows"].items() if k != "all")]
+            for label, shares in b["bins"].items():
+                edges = BINS[label]
+                lines.append(f"- by {label}: " + ", ".join(
+                    f"[{edges[k]:g}, {edges[k + 1]:g}) {x:+.3f}" for k, x in enumerate(shares)))
+        if "point_classes" in r:
+            lines += ["", "Pairs the point set darkens (traced → maps), their lost light by what the maps' "
+                      "texel at the receiver holds: " + "; ".join(f"{k} {x:.0%}" for k, x in r["point_classes"].items())
+                      + ". Of the first class, by the maps' depth over the traced depth: "
+                      + ", ".join(f"≥ {b:g}: {x:.0%}" for b, x in zip(r["nearer_ratio_bins"]["bins"],
+                                                                     r["nearer_ratio_bins"]["share"])) + "."]
+        lines.append("")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", nargs="+", default=["many_lights"])
+    parser.add_argument("--stride", type=int, default=10)
+    parser.add_argument("--traced-sizes", type=int, nargs="+", default=[64, 256])
+    parser.add_argument("--variants", nargs="*", default=["16384:64", "4096:256", "16384:256"],
+                        help="POINTS:SIZE of the GPU's maps rebuilt")
+    parser.add_argument("--rebuilds", nargs="*", default=["twin", "radius 0", "disc 0.7071", "disc 1"],
+                        help="float64 rebuilds of the maps: twin, 'radius 0', 'disc SHARE'")
+    parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
+    parser.add_argument("--tag", default="", help="suffix of the results' file names")
+    args = parser.parse_args(argv)
+    from vsgl_addon import register
+
+    register()
+    from vsgl_addon.gpu_context import ensure_gpu_context
+
+    ensure_gpu_context()
+    variants = [tuple(int(x) for x in text.split(":")) for text in args.variants]
+    results = {}
+    for name, path, _ in suite():
+        if name in args.only:
+            start = time.perf_counter()
+            results[name] = run_scene(name, path, args.stride, args.traced_sizes, variants, args.rebuilds)
+            log(f"  ({time.perf_counter() - start:.0f} s)")
+    argv_text = (f"--only {' '.join(args.only)} --stride {args.stride} --traced-sizes "
+                 f"{' '.join(map(str, args.traced_sizes))} --variants {' '.join(args.variants)}"
+                 + " --rebuilds" + "".join(f" '{mode}'" for mode in args.rebuilds)
+                 + (f" --tag {args.tag}" if args.tag else ""))
+    stem = "ism_over_occlusion" + (f"_{args.tag}" if args.tag else "")
+    args.results_dir.mkdir(parents=True, exist_ok=True)
+    text = markdown(results, argv_text)
+    (args.results_dir / f"{stem}.md").write_text(text)
+    (args.results_dir / f"{stem}.json").write_text(json.dumps({"command": argv_text, "results": results}, indent=1))
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
