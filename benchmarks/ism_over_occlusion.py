@@ -3,7 +3,7 @@
 shadow origin (not a test), per receiver and per VSGL.
 
     .venv/bin/python benchmarks/ism_over_occlusion.py [--only NAME ...] [--stride S] [--traced-sizes S ...]
-        [--variants POINTS:SIZE ...] [--results-dir DIR]
+        [--variants POINTS:SIZE ...] [--rebuilds MODE ...] [--tag TAG] [--results-dir DIR]
 
 On every S-th pixel (both ways) of the suite's 240x180 camera G-buffer, each VSGL's light is the
 float64 reference shading (reference/vsgl_shading.shade, per term, luminance, both lobes), weighted by:
@@ -18,14 +18,22 @@ float64 reference shading (reference/vsgl_shading.shade, per term, luminance, bo
   filter): a perfect point set, so traced − exact is the octahedral projection's resolution, the
   lookup's bias and its filter footprint, and maps − traced (at the maps' side) the point set, its
   splat, the gap closing and pull-push;
-* POINTS:SIZE variants: the GPU's maps rebuilt with that many points per map and that side.
+* POINTS:SIZE variants: the GPU's maps rebuilt with that many points per map and that side;
+* float64 MODE: the maps rebuilt by reference/ism.py's stages from the GPU's point sets with one
+  stage changed (rebuilt_maps): "twin" as the GPU; "radius 0" single-texel splats; "disc S" each
+  point an oriented disc of area S² times its share of the surface (disc_splat); "plane" the
+  twin's squares at the point's tangent plane's depth (plane_splat); suffix " no gaps" without
+  gap closing, " step gaps" / " texel gaps" with a stricter gap rule (close_gaps_rule).
 
 The light each hides (Σ w·(v_exact − v), as a share of the light exact visibility keeps) is then
 split by the receiver's material, its distance from the origin in σ_v, its incidence from the
 origin, the VSGL's σ_v, and the origin's clearance (its nearest surface, in σ_v: the traced map's
 least depth); and, for the point-set part, by what the maps hold at the receiver's texel against the
 traced map (nearer by more than the bias: a surface in front that is not there; an empty texel
-filled by pull-push). Writes ``benchmarks/results/ism_over_occlusion.md`` (+ .json).
+filled by pull-push), and by object: the receiver's, and the one holding the nearest depth in front
+of the receiver among its 3 × 3 texels (blocking_objects). Writes
+``benchmarks/results/ism_over_occlusion[_TAG].md`` (+ .json). Each table is one run; rel RMSE against
+Cycles is noise-corrected (its two seeds), against exact it is per pixel over exact's mean.
 """
 
 from __future__ import annotations
@@ -74,6 +82,68 @@ def nearest_hits(origin, directions, triangles, t_min, chunk_rays=4096, chunk_tr
             nearest = np.minimum(nearest, np.where(ok, t, np.inf).min(axis=1))
         best[r0:r0 + chunk_rays] = nearest
     return best
+
+
+def point_triangle_distance(points, triangles, chunk=256):
+    """(K,) distance from each point (K, 3) to the nearest triangle (T, 3, 3) and (K,) its index."""
+    best, which = np.full(len(points), np.inf), np.zeros(len(points), np.int64)
+    for t0 in range(0, len(triangles), chunk):
+        t = triangles[t0:t0 + chunk]
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        n = np.cross(b - a, c - a)
+        n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
+        d = np.einsum("ktj,tj->kt", points[:, None] - a[None], n)
+        q = points[:, None] - d[..., None] * n[None]
+        v0, v1, v2 = b - a, c - a, q - a[None]
+        d00, d01, d11 = (v0 * v0).sum(-1), (v0 * v1).sum(-1), (v1 * v1).sum(-1)
+        d20, d21 = (v2 * v0[None]).sum(-1), (v2 * v1[None]).sum(-1)
+        den = np.maximum(d00 * d11 - d01 * d01, 1e-30)
+        v, w = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
+        inside = (v >= 0) & (w >= 0) & (v + w <= 1)
+
+        def segment(x, y):
+            e = y - x
+            s = np.clip(((points[:, None] - x[None]) * e[None]).sum(-1) / np.maximum((e * e).sum(-1), 1e-30), 0, 1)
+            return np.linalg.norm(points[:, None] - (x[None] + s[..., None] * e[None]), axis=-1)
+
+        edge = np.minimum(np.minimum(segment(a, b), segment(b, c)), segment(c, a))
+        distance = np.where(inside, np.abs(d), edge)
+        k = distance.argmin(axis=1)
+        here = distance[np.arange(len(points)), k]
+        better = here < best
+        best[better], which[better] = here[better], (t0 + k)[better]
+    return best, which
+
+
+def blocking_objects(depths, origins, position, normal, pairs, triangles, object_index, object_names):
+    """For each (receiver, map) pair, the object of the nearest depth in front of the receiver among
+    the 3 × 3 texels around its own (the bilinear filter's block lies inside them), "on" where the
+    texel's point (origin + its centre direction × depth) lies within 1.5 texel footprints of that
+    object's surface, "off" where it is nowhere near a surface; "none" where no texel is in front."""
+    from vsgl_addon.reference import ism
+
+    size = depths.shape[-1]
+    centres = ism.texel_directions(size)
+    p, m = pairs
+    offsets, bias = ism.lookup_offsets(position[p] - origins[m], normal[p], size, 2.0)
+    distance = np.linalg.norm(offsets, axis=-1)
+    texel = ism.ism_texel(offsets, size)
+    best = np.full(len(p), np.inf)
+    best_row, best_column = np.zeros(len(p), np.int64), np.zeros(len(p), np.int64)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            column, row = ism.octahedral_wrap(texel[:, 0] + dx, texel[:, 1] + dy, size)
+            stored = depths[m, row, column]
+            nearer = (stored + bias < distance) & (stored < best)
+            best = np.where(nearer, stored, best)
+            best_row, best_column = np.where(nearer, row, best_row), np.where(nearer, column, best_column)
+    found = np.isfinite(best)
+    point = origins[m] + centres[best_row, best_column] * np.where(found, best, 0.0)[:, None]
+    gap, index = point_triangle_distance(point, triangles)
+    on = gap < 1.5 * best * np.sqrt(4.0 * np.pi) / size
+    names = np.array([f"{object_names[object_index[i]]} {'on' if o else 'off'}" for i, o in zip(index, on)], object)
+    names[~found] = "none"
+    return names
 
 
 def traced_maps(origins, min_distance, size, triangles):
@@ -145,24 +215,95 @@ def disc_splat(points, normals, origin, size, min_distance, point_area, share):
     return depth
 
 
-def rebuilt_maps(points, origins, sets, min_distance, size, point_area, mode):
-    """(M, size, size) the maps rebuilt in float64: "twin" (reference/ism.py splat, as the GPU),
-    "radius 0" (single-texel splats), "disc S" (disc_splat of share S); then gap closing (not with a
-    " no gaps" suffix), pull-push."""
+def plane_splat(points, normals, origin, size, min_distance, point_area):
+    """A float64 splat variant: reference/ism.py splat's squares (splat_radius), each texel at the
+    distance along its centre ray to the point's tangent plane instead of the point's own distance
+    (the point's distance where the ray meets the plane behind the origin or beyond twice that)."""
     from vsgl_addon.reference import ism
 
-    gaps = not mode.endswith(" no gaps")
-    mode = mode.removesuffix(" no gaps")
+    offsets = points - origin
+    distance = np.linalg.norm(offsets, axis=-1)
+    keep = np.isfinite(distance) & (distance > max(min_distance, 1e-300))
+    offsets, distance, normals = offsets[keep], distance[keep], normals[keep]
+    texel = ism.ism_texel(offsets, size)
+    depth = np.full((size, size), ism.EMPTY)
+    np.minimum.at(depth, (texel[:, 1], texel[:, 0]), distance)
+    cos_theta = (normals * offsets).sum(axis=-1) / distance
+    radius = ism.splat_radius(offsets, cos_theta, point_area, size)
+    centres = ism.texel_directions(size)
+    plane = (normals * offsets).sum(axis=-1)
+    for r in range(1, int(radius.max(initial=0)) + 1):
+        here = radius >= r
+        for dy in range(-r, r + 1):
+            for dx in range(-r, r + 1):
+                if max(abs(dx), abs(dy)) != r:
+                    continue
+                column, row = ism.octahedral_wrap(texel[here, 0] + dx, texel[here, 1] + dy, size)
+                denominator = (normals[here] * centres[row, column]).sum(axis=-1)
+                t = plane[here] / np.where(np.abs(denominator) > 1e-12, denominator, np.nan)
+                t = np.where((t > 0) & (t <= 2.0 * distance[here]), t, distance[here])
+                np.minimum.at(depth, (row, column), t)
+    return depth
+
+
+def close_gaps_rule(depth, rule):
+    """reference/ism.py close_gaps (rule "old"), or with a further condition on each side of the
+    gap within GAP_REACH: "step", a fall of more than GAP_MARGIN between consecutive texels holding
+    depths (empty ones skipped; a hole's edge falls at once, a concave fold of one surface
+    gradually); "texel", a depth k texels away nearer than (1 − GAP_MARGIN)^k times the texel's
+    (a slope steeper than GAP_MARGIN per texel)."""
+    from vsgl_addon.reference import ism
+
+    if rule == "old":
+        return ism.close_gaps(depth)
+    size = depth.shape[0]
+    rows, columns = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    best = np.full(depth.shape, ism.EMPTY)
+    for dx, dy in ism.GAP_DIRECTIONS:
+        sides, steps = [], []
+        for sign in (-1, 1):
+            nearest = np.full(depth.shape, ism.EMPTY)
+            previous, stepped = depth, np.zeros(depth.shape, bool)
+            for k in range(1, min(ism.GAP_REACH, size) + 1):
+                column, row = ism.octahedral_wrap(columns + sign * k * dx, rows + sign * k * dy, size)
+                here = depth[row, column]
+                nearest = np.minimum(nearest, here)
+                if rule == "texel":
+                    stepped |= here < (1.0 - ism.GAP_MARGIN) ** k * depth
+                else:
+                    stepped |= here < (1.0 - ism.GAP_MARGIN) * previous
+                previous = np.where(np.isfinite(here), here, previous)
+            sides.append(nearest)
+            steps.append(stepped)
+        farther = np.maximum(sides[0], sides[1])
+        gap = (farther < (1.0 - ism.GAP_MARGIN) * depth) & steps[0] & steps[1]
+        best = np.minimum(best, np.where(gap, farther, ism.EMPTY))
+    return np.minimum(depth, best)
+
+
+def rebuilt_maps(points, origins, sets, min_distance, size, point_area, mode):
+    """(M, size, size) the maps rebuilt in float64: "twin" (reference/ism.py splat, as the GPU),
+    "radius 0" (single-texel splats), "disc S" (disc_splat of share S), "plane" (plane_splat); then
+    gap closing (close_gaps_rule: suffix " step gaps" or " texel gaps"; none with " no gaps"),
+    pull-push."""
+    from vsgl_addon.reference import ism
+
+    rule = "old"
+    for suffix, value in ((" no gaps", None), (" step gaps", "step"), (" texel gaps", "texel")):
+        if mode.endswith(suffix):
+            rule, mode = value, mode.removesuffix(suffix)
     result = []
     for origin, index, near in zip(origins, sets, min_distance):
         p, n = np.asarray(points.positions[index], np.float64), np.asarray(points.normals[index], np.float64)
         if mode == "twin":
             depth = ism.splat(p, origin, size, near, n, point_area)
+        elif mode == "plane":
+            depth = plane_splat(p, n, origin, size, near, point_area)
         elif mode == "radius 0":
             depth = ism.splat(p, origin, size, near)
         else:
             depth = disc_splat(p, n, origin, size, near, point_area, float(mode.split()[1]))
-        result.append(ism.pull_push(ism.close_gaps(depth) if gaps else depth))
+        result.append(ism.pull_push(depth if rule is None else close_gaps_rule(depth, rule)))
     return np.stack(result)
 
 
@@ -235,7 +376,19 @@ def run_scene(name, path, stride, traced_sizes, variants, rebuilds=()):
                 same = traced.get(depths.shape[-1])
                 stored_traced = (lookup_texel_depth(same, origins, position, normal)[0]
                                  if same is not None else np.full_like(stored, np.nan))
-                per_table.append(dict(weight=weight, v=v, sigma=sigma, dist=dist, cos=cos_inc,
+                darker = np.nonzero(weight * (v.get(f"traced {depths.shape[-1]}", v["exact"]) - v["maps"]) > 0)
+                blockers = blocking_objects(depths, origins, position, normal, darker, triangles,
+                                            description.geometry.object_index, description.object_names)
+                _, receiver_triangle = point_triangle_distance(position, triangles)
+                receiver_object = np.array(description.object_names, object)[
+                    description.geometry.object_index[receiver_triangle]]
+                lost = weight[darker] * (v.get(f"traced {depths.shape[-1]}", v["exact"]) - v["maps"])[darker]
+                by_blocker = {}
+                for key, label in zip(("blocker", "receiver"), (blockers, receiver_object[darker[0]])):
+                    for name_, value in zip(label, lost):
+                        by_blocker.setdefault(key, {}).setdefault(name_, 0.0)
+                        by_blocker[key][name_] += float(value)
+                per_table.append(dict(weight=weight, v=v, sigma=sigma, by_blocker=by_blocker, dist=dist, cos=cos_inc,
                                       clearance=clearance, stored=stored, tested=tested, bias=bias,
                                       stored_traced=stored_traced, depths=depths, size=depths.shape[-1]))
             for points, size in variants:
@@ -264,9 +417,18 @@ def run_scene(name, path, stride, traced_sizes, variants, rebuilds=()):
     dist, cos_inc = cat("dist"), cat("cos")
     stored, tested, bias, stored_traced = cat("stored"), cat("tested"), cat("bias"), cat("stored_traced")
     kept = float((weight * v["exact"]).sum())
+    a = (truth["diffuse_a"] + truth["glossy_a"])[pick].astype(np.float64) @ LUMINANCE
+    b = (truth["diffuse_b"] + truth["glossy_b"])[pick].astype(np.float64) @ LUMINANCE
+    per_pixel = {key: (weight * value).sum(axis=1) for key, value in v.items()}
+    truth_mean = cycles / len(a)
+    exact_pixels = per_pixel["exact"]
     result = {"pixels": int(pick.sum()), "vsgls": int(weight.shape[1]), "map_size": per_table[0]["size"],
               "ism_points": settings.ism_points, "cycles": cycles, "off": float(weight.sum()) / cycles,
               "ratios": {key: float((weight * value).sum()) / cycles for key, value in v.items()}}
+    result["rel_rmse"] = {key: math.sqrt(max(float(np.mean((x - a) * (x - b))), 0.0)) / truth_mean
+                          for key, x in per_pixel.items()}
+    result["rel_rmse_exact"] = {key: float(np.sqrt(np.mean((x - exact_pixels) ** 2)) / exact_pixels.mean())
+                                for key, x in per_pixel.items()}
     # Lost light against exact, as a share of what exact keeps (negative: the variant leaks).
     result["lost"] = {key: float((weight * (v["exact"] - value)).sum()) / kept for key, value in v.items()}
     base_traced = f"traced {result['map_size']}"
@@ -292,6 +454,13 @@ def run_scene(name, path, stride, traced_sizes, variants, rebuilds=()):
             per_bins[label] = [x / kept for x in split(values, loss, bins)]
         breakdown[part] = {"rows": rows, "bins": per_bins}
     result["breakdown"] = breakdown
+    blockers = {}
+    for entry in per_table:
+        for key, values in entry["by_blocker"].items():
+            for label, value in values.items():
+                blockers.setdefault(key, {}).setdefault(label, 0.0)
+                blockers[key][label] += value / kept
+    result["darkened_by"] = {key: dict(sorted(values.items(), key=lambda kv: -kv[1])) for key, values in blockers.items()}
     # What the maps hold at the receiver's own texel, over the pairs the point set darkens.
     if base_traced in v:
         darker = weight * np.maximum(v[base_traced] - v["maps"], 0.0)
@@ -321,9 +490,11 @@ def markdown(results, argv_text):
     for name, r in results.items():
         lines += [f"## {name} ({r['pixels']} px, {r['vsgls']} VSGLs, maps {r['map_size']}², "
                   f"{r['ism_points']} points per map)", "",
-                  "| visibility | mean / Cycles | light lost against exact (share of exact's) |", "|---|---|---|",
-                  f"| off | {r['off']:.3f} | |"]
-        lines += [f"| {key} | {ratio:.3f} | {r['lost'][key]:+.3f} |" for key, ratio in r["ratios"].items()]
+                  "| visibility | mean / Cycles | rel RMSE (Cycles, noise-corrected) | rel RMSE against exact "
+                  "| light lost against exact (share of exact's) |", "|---|---|---|---|---|",
+                  f"| off | {r['off']:.3f} | | | |"]
+        lines += [f"| {key} | {ratio:.3f} | {r['rel_rmse'][key]:.3f} | {r['rel_rmse_exact'][key]:.3f} "
+                  f"| {r['lost'][key]:+.3f} |" for key, ratio in r["ratios"].items()]
         for part, b in r["breakdown"].items():
             lines += ["", f"**{part}**, light lost as a share of exact's: all {b['rows']['all']:+.3f}; "
                       + ", ".join(f"{k} {x:+.3f}" for k, x in b["rows"].items() if k != "all")]
@@ -337,6 +508,13 @@ def markdown(results, argv_text):
                       + ". Of the first class, by the maps' depth over the traced depth: "
                       + ", ".join(f"≥ {b:g}: {x:.0%}" for b, x in zip(r["nearer_ratio_bins"]["bins"],
                                                                      r["nearer_ratio_bins"]["share"])) + "."]
+        for key, text in (("receiver", "the receiver's object"),
+                          ("blocker", "the object holding the nearest depth in front among the receiver's 3 × 3 "
+                                      "texels (on: that texel's point within 1.5 texels of its surface; off: "
+                                      "nowhere near one; none: no texel in front, the filter's weights)")):
+            if key in r.get("darkened_by", {}):
+                lines += ["", f"Light the point set hides (traced → maps, share of exact's), by {text}: "
+                          + ", ".join(f"{label} {x:.3f}" for label, x in r["darkened_by"][key].items() if x >= 0.0005) + "."]
         lines.append("")
     return "\n".join(lines) + "\n"
 
@@ -349,7 +527,8 @@ def main(argv=None):
     parser.add_argument("--variants", nargs="*", default=["16384:64", "4096:256", "16384:256"],
                         help="POINTS:SIZE of the GPU's maps rebuilt")
     parser.add_argument("--rebuilds", nargs="*", default=["twin", "radius 0", "disc 0.7071", "disc 1"],
-                        help="float64 rebuilds of the maps: twin, 'radius 0', 'disc SHARE'")
+                        help="float64 rebuilds of the maps (rebuilt_maps): twin, 'radius 0', 'disc SHARE', plane, "
+                             "each optionally with ' no gaps', ' step gaps' or ' texel gaps'")
     parser.add_argument("--results-dir", type=Path, default=REPO / "benchmarks" / "results")
     parser.add_argument("--tag", default="", help="suffix of the results' file names")
     args = parser.parse_args(argv)
