@@ -283,7 +283,7 @@ def close_gaps_rule(depth, rule):
 
 def rebuilt_maps(points, origins, sets, min_distance, size, point_area, mode):
     """(M, size, size) the maps rebuilt in float64: "twin" (reference/ism.py splat, as the GPU),
-    "radius 0" (single-texel splats), "disc S" (disc_splat of share S), "plane" (plane_splat); then
+    "share S" its splats with SPLAT_SHARE S, "radius 0" (single-texel splats), "disc S" (disc_splat of share S), "plane" (plane_splat); then
     gap closing (close_gaps_rule: suffix " step gaps" or " texel gaps"; none with " no gaps"),
     pull-push."""
     from vsgl_addon.reference import ism
@@ -297,6 +297,12 @@ def rebuilt_maps(points, origins, sets, min_distance, size, point_area, mode):
         p, n = np.asarray(points.positions[index], np.float64), np.asarray(points.normals[index], np.float64)
         if mode == "twin":
             depth = ism.splat(p, origin, size, near, n, point_area)
+        elif mode.startswith("share "):
+            saved_share, ism.SPLAT_SHARE = ism.SPLAT_SHARE, float(mode.split()[1])
+            try:
+                depth = ism.splat(p, origin, size, near, n, point_area)
+            finally:
+                ism.SPLAT_SHARE = saved_share
         elif mode == "plane":
             depth = plane_splat(p, n, origin, size, near, point_area)
         elif mode == "radius 0":
