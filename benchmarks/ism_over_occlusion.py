@@ -281,15 +281,84 @@ def close_gaps_rule(depth, rule):
     return np.minimum(depth, best)
 
 
+def splat_normals(points, normals, origin, size, min_distance, point_area, depth, planes=False):
+    """(size, size, 3) the normal of the point that won each texel of ``depth`` (reference/ism.py
+    splat's squares, plane_splat's with ``planes``, or single texels with ``point_area`` 0), zero
+    where none did."""
+    from vsgl_addon.reference import ism
+
+    offsets = points - origin
+    distance = np.linalg.norm(offsets, axis=-1)
+    keep = np.isfinite(distance) & (distance > max(min_distance, 1e-300))
+    offsets, distance, normals = offsets[keep], distance[keep], normals[keep]
+    texel = ism.ism_texel(offsets, size)
+    radius = (ism.splat_radius(offsets, (normals * offsets).sum(-1) / distance, point_area, size)
+              if point_area > 0.0 else np.zeros(len(offsets), np.int64))
+    result = np.zeros((size, size, 3))
+    for r in np.unique(radius):
+        here = radius == r
+        for dy in range(-r, r + 1):
+            for dx in range(-r, r + 1):
+                column, row = ism.octahedral_wrap(texel[here, 0] + dx, texel[here, 1] + dy, size)
+                value = distance[here]
+                if planes and (dx or dy):
+                    centre = ism.texel_directions(size)[row, column]
+                    denominator = (normals[here] * centre).sum(axis=-1)
+                    t = (normals[here] * offsets[here]).sum(-1) / np.where(np.abs(denominator) > 1e-12,
+                                                                            denominator, np.nan)
+                    value = np.where((t > 0) & (t <= 2.0 * value), t, value)
+                won = depth[row, column] == value
+                result[row[won], column[won]] = normals[here][won]
+    return result
+
+
+def close_gaps_planes(depth, normal):
+    """reference/ism.py close_gaps, a gap also lying behind the tangent planes of both sides' nearest
+    texels (their point: the texel centre's direction times the depth, with the winning point's
+    normal), carried along its own direction by more than GAP_MARGIN: a slope or a concave fold
+    continues its plane to the texel, a hole's far surface lies behind the near occluder's plane."""
+    from vsgl_addon.reference import ism
+
+    size = depth.shape[0]
+    centres = ism.texel_directions(size)
+    rows, columns = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    best = np.full(depth.shape, ism.EMPTY)
+    for dx, dy in ism.GAP_DIRECTIONS:
+        sides, behind = [], []
+        for sign in (-1, 1):
+            nearest = np.full(depth.shape, ism.EMPTY)
+            plane = np.zeros(depth.shape)
+            for k in range(1, min(ism.GAP_REACH, size) + 1):
+                column, row = ism.octahedral_wrap(columns + sign * k * dx, rows + sign * k * dy, size)
+                here = depth[row, column]
+                nearer = here < nearest
+                nearest = np.where(nearer, here, nearest)
+                n = normal[row, column]
+                point = centres[row, column] * np.where(np.isfinite(here), here, 0.0)[..., None]
+                denominator = (n * centres).sum(-1)
+                reach = (n * point).sum(-1) / np.where(np.abs(denominator) > 1e-6, denominator, np.nan)
+                # No plane (an empty texel, a ray along or away from it): the plane does not decide.
+                reach = np.where(np.isfinite(reach) & (reach > 0) & (np.abs(n).sum(-1) > 0), reach, 0.0)
+                plane = np.where(nearer, reach, plane)
+            sides.append(nearest)
+            behind.append(depth * (1.0 - ism.GAP_MARGIN) > plane)
+        farther = np.maximum(sides[0], sides[1])
+        gap = (farther < (1.0 - ism.GAP_MARGIN) * depth) & behind[0] & behind[1]
+        best = np.minimum(best, np.where(gap, farther, ism.EMPTY))
+    return np.minimum(depth, best)
+
+
 def rebuilt_maps(points, origins, sets, min_distance, size, point_area, mode):
     """(M, size, size) the maps rebuilt in float64: "twin" (reference/ism.py splat, as the GPU),
     "share S" its splats with SPLAT_SHARE S, "radius 0" (single-texel splats), "disc S" (disc_splat of share S), "plane" (plane_splat); then
-    gap closing (close_gaps_rule: suffix " step gaps" or " texel gaps"; none with " no gaps"),
+    gap closing (close_gaps_rule: suffix " step gaps" or " texel gaps"; close_gaps_planes: " plane
+    gaps"; none with " no gaps"),
     pull-push."""
     from vsgl_addon.reference import ism
 
     rule = "old"
-    for suffix, value in ((" no gaps", None), (" step gaps", "step"), (" texel gaps", "texel")):
+    for suffix, value in ((" no gaps", None), (" step gaps", "step"), (" texel gaps", "texel"),
+                          (" plane gaps", "plane")):
         if mode.endswith(suffix):
             rule, mode = value, mode.removesuffix(suffix)
     result = []
@@ -309,7 +378,15 @@ def rebuilt_maps(points, origins, sets, min_distance, size, point_area, mode):
             depth = ism.splat(p, origin, size, near)
         else:
             depth = disc_splat(p, n, origin, size, near, point_area, float(mode.split()[1]))
-        result.append(ism.pull_push(depth if rule is None else close_gaps_rule(depth, rule)))
+        if rule == "plane":
+            if mode not in ("twin", "radius 0", "plane"):
+                raise ValueError("plane gaps need the twin's, plane_splat's or single-texel splats")
+            normal = splat_normals(p, n, origin, size, near, 0.0 if mode == "radius 0" else point_area, depth,
+                                   planes=mode == "plane")
+            depth = close_gaps_planes(depth, normal)
+        elif rule is not None:
+            depth = close_gaps_rule(depth, rule)
+        result.append(ism.pull_push(depth))
     return np.stack(result)
 
 
