@@ -23,7 +23,9 @@ float64 reference shading (reference/vsgl_shading.shade, per term, luminance, bo
   stage changed (rebuilt_maps): "twin" as the GPU; "radius 0" single-texel splats; "disc S" each
   point an oriented disc of area S² times its share of the surface (disc_splat); "plane" the
   twin's squares at the point's tangent plane's depth (plane_splat); suffix " no gaps" without
-  gap closing, " step gaps" / " texel gaps" with a stricter gap rule (close_gaps_rule).
+  gap closing, " step gaps" / " texel gaps" with a stricter gap rule (close_gaps_rule), " plane
+  gaps" with a gap also behind both sides' tangent planes (close_gaps_planes, the winning points'
+  normals kept per texel: splat_normals).
 
 The light each hides (Σ w·(v_exact − v), as a share of the light exact visibility keeps) is then
 split by the receiver's material, its distance from the origin in σ_v, its incidence from the
