@@ -11,7 +11,9 @@ receivers (positions within ±10 % of the distance, views within ±3° of the mi
 relative RMSE of
 
 * MRP-ASG (001 Eqs. 6–36 with Blender's units, the energy-matched k and the local-light spread,
-  reference.mrp_asg docs), ASG mode (Eq. 11) and SG mode (Eq. 37);
+  reference.mrp_asg docs), ASG mode with the pass's receiver (001's Eq. 8 NDF as two SGs, Eq. 11)
+  and with the ASG light against the exact GGX receiver by quadrature
+  (reference.mrp_asg.mrp_receiver_quadrature), and SG mode (Eq. 37);
 * VSGLs: the rectangle as a 64² RSM of VPLs (texel flux = irradiance × area, Rs = F0, its GGX α),
   256 VSGLs (000, the modified kernel), shaded by reference.vsgl_shading (its specular term).
 
@@ -111,22 +113,25 @@ def row(alpha_r, alpha_x, sigma, distance, radius):
     rect, light, p, n, o, radius, alpha_x = configuration(alpha_r, alpha_x, sigma, distance, radius)
     truth = np.array([mrp.brute_force_rectangle(p[i], n[i], o[i], alpha_x, F0, rect, light) for i in range(len(p))])
     asg = mrp.mrp_shade(p, n, o, alpha_x, F0, rect, light, radius, "asg")
+    exact = mrp.mrp_shade(p, n, o, alpha_x, F0, rect, light, radius, "asg", receiver="quadrature")
     sg = mrp.mrp_shade(p, n, o, alpha_x, F0, rect, light, radius, "sg")
     vsgls = rectangle_vsgls(rect, light)
     _, specular = vsgl_shading.shade(vsgls, p, n, o, np.zeros_like(p), np.full_like(p, F0), np.full(len(p), alpha_x))
-    return rel_rmse(asg, truth), rel_rmse(sg, truth), rel_rmse(specular[:, 0], truth), float(np.mean(truth))
+    return (rel_rmse(asg, truth), rel_rmse(exact, truth), rel_rmse(sg, truth), rel_rmse(specular[:, 0], truth),
+            float(np.mean(truth)))
 
 
 def error_table():
-    lines = ["| varied | reflector α | receiver α | σ (°) | distance (m) | r_d (m) | MRP-ASG | ASG→SG (Eq. 37) | VSGL (N = 256) | best |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| varied | reflector α | receiver α | σ (°) | distance (m) | r_d (m) | MRP-ASG | MRP-ASG, exact receiver "
+             "| ASG→SG (Eq. 37) | VSGL (N = 256) | best |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, values in SWEEPS.items():
         for value in values:
             c = {**BASE, name: value}
-            asg, sg, vs, _ = row(**c)
-            best = min((asg, "MRP-ASG"), (sg, "ASG→SG"), (vs, "VSGL"))[1]
+            asg, exact, sg, vs, _ = row(**c)
+            best = min((asg, "MRP-ASG"), (exact, "exact receiver"), (sg, "ASG→SG"), (vs, "VSGL"))[1]
             lines.append(f"| {name} | {c['alpha_r']:g} | {c['alpha_x']:g} | {c['sigma']:g} | {c['distance']:g} | "
-                         f"{c['radius']:g} | {asg:.3f} | {sg:.3f} | {vs:.3f} | {best} |")
+                         f"{c['radius']:g} | {asg:.3f} | {exact:.3f} | {sg:.3f} | {vs:.3f} | {best} |")
     return "\n".join(lines)
 
 

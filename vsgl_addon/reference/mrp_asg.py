@@ -45,6 +45,11 @@ Steps (001 §3):
    (separable Smith as ``ggx.microfacet_brdf``): M cos = F (−r_y·n_x)/((c_i + s_i)(c_o + s_o)).
    Mode ``"sg"`` (Eq. 37): the ASG becomes the SG G(v; z, 2 max(λ, µ)) with amplitude t and the
    SG × SG product integral replaces Eq. 11.
+   ``mrp_receiver_quadrature`` integrates the ASG light against the receiver's exact GGX BRDF
+   instead (a Gauss–Hermite rule on the light and a GGX rule on the receiver's lobe, combined by
+   the balance heuristic): within 0.09 of that integral on the demo's gold sphere where Eq. 8's
+   isotropic warp is 0.40 off, yet not the pass's, since against Cycles the frames do not improve
+   (docs/accuracy.md, benchmarks/results/mrp_asg_receiver_quadrature.md).
 
 Guards (finite everywhere): receiver in R's plane or at the peak (|p_y − p_x| → 0: no
 contribution), ρ floored at ``EXTENT_FLOOR`` (λ ≤ ~3e8) and the bandwidths at ``BANDWIDTH_FLOOR``
@@ -59,10 +64,12 @@ mirror point, exact GGX at both ends, the light's exact irradiance at every poin
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
-from .asg import asg_any_tangent, asg_specular_lobe, sg_asg_convolution
-from .ggx import fresnel_schlick, ggx_g1_denominator, microfacet_brdf
+from .asg import asg_any_tangent, asg_evaluate, asg_specular_lobe, sg_asg_convolution
+from .ggx import fresnel_schlick, ggx_g1_denominator, ggx_ndf, microfacet_brdf
 from .lights import light_intensity
 from .numerics import dot, f64, norm, safe_normalize, safe_ratio
 from .quadrature import composite_gauss_legendre
@@ -99,6 +106,19 @@ RECEIVER_NDF_LOBES = ((0.83, 1.96), (0.17, 0.17 / (1.0 - 0.83 / 1.96)))
 #: ε = 0.05 of 001 Eq. 31 gives ln(1/ε) = 2.996 in Eq. 32.
 LOG_INV_EPSILON = 2.996
 MODES = ("asg", "sg")
+#: Receivers of ``mrp_shade``: Eq. 8's NDF as two SGs convolved by Eq. 11 (001's, ``mrp_convolve``,
+#: the pass's), the ASG light against the receiver's exact GGX BRDF by quadrature
+#: (``mrp_receiver_quadrature``), or Eq. 8's NDF warped as 003's ASG (``mrp_convolve_asg_receiver``).
+RECEIVERS = ("sg", "quadrature", "asg")
+#: Gauss–Hermite rule of the ASG light (nodes and weights for e^(−x²), weights over √π so they sum to
+#: 1), QUADRATURE_LIGHT_NODES per axis of its tangent plane.
+QUADRATURE_LIGHT_NODES = 4
+#: The receiver's rule: Gauss–Legendre rings in the GGX half-vector CDF u (tan²θ_h = α² u/(1 − u))
+#: times QUADRATURE_SECTORS equal sectors in azimuth, every other ring turned by half a sector.
+QUADRATURE_RINGS = 3
+QUADRATURE_SECTORS = 4
+#: Below this ω·z the light rule's density is 0 (its 1/(ω·z)³ would overflow; the ASG is nil there).
+QUADRATURE_MIN_COSINE = 1e-6
 AREA_NORMALIZATIONS = ("square", "paper")
 K_FITS = ("energy", "paper")
 
@@ -378,6 +398,79 @@ def mrp_convolve_asg_receiver(view, normal, roughness, m, n, z, bandwidth_m, ban
     return f64(amplitude) * value / (np.pi * alpha * alpha)
 
 
+def mrp_quadrature_rules(light_nodes=QUADRATURE_LIGHT_NODES, rings=QUADRATURE_RINGS):
+    """(Gauss–Hermite nodes, weights / √π) for e^(−x²) and (Gauss–Legendre nodes, weights) on [0, 1]:
+    the two rules of ``mrp_receiver_quadrature`` (the GLSL twin holds them as constants)."""
+    x, w = np.polynomial.hermite.hermgauss(light_nodes)
+    u, uw = np.polynomial.legendre.leggauss(rings)
+    return x, w / np.sqrt(np.pi), 0.5 * (u + 1.0), 0.5 * uw
+
+
+def mrp_receiver_quadrature(view, normal, roughness, f0, m, n, z, bandwidth_m, bandwidth_n, amplitude,
+                            light_nodes=QUADRATURE_LIGHT_NODES, rings=QUADRATURE_RINGS,
+                            sectors=QUADRATURE_SECTORS):
+    """∫ Ga(ω) f_x(ω, o) ⟨ω, n_x⟩ dω: 001 Eq. 10's integral of the ASG light (m, n, z; λ along m,
+    µ along n; amplitude t) against the receiver's exact GGX BRDF (``ggx.microfacet_brdf``, Fresnel
+    and masking inside), in place of Eq. 8's NDF as SGs, Eq. 11 and M pulled out.
+
+    Those three are exact only where the receiver's lobe is isotropic and smooth across the light.
+    On a sphere's flank (the demo's gold sphere: grazing views, α 0.09) the warped GGX lobe is
+    stretched and about as wide as the ASG, and Eq. 11 with Eq. 8's isotropic warp is 0.40 relative
+    RMSE off this integral (benchmarks/results/mrp_asg_receiver_quadrature.md). The integral is
+    taken by two deterministic rules, one per lobe, combined by the balance heuristic (Veach's
+    multiple importance sampling with quadrature rules in place of random samples):
+
+    - the light's: ω = normalize(z + a m + b n) with (a, b) = (x_i/√λ, x_j/√µ), Gauss–Hermite nodes;
+      its density p_L(ω) = √(λµ)/π e^(−λa² − µb²) / (ω·z)³ (the ASG's tangent-plane Gaussian
+      carried to the sphere, dω = (ω·z)³ da db);
+    - the receiver's: ω = 2(o·h)h − o with h at tan²θ_h = α² u_k/(1 − u_k), Gauss–Legendre u_k in
+      GGX's D(h)(h·n) CDF, and ``sectors`` azimuths; its density p_R(ω) = D(h)(h·n)/(4|o·h|).
+
+    Each rule integrates f / (p_L + p_R) against its own density, so the sum is the integral exactly
+    where that ratio is as smooth as each rule assumes: a sharp light (the ratio is the receiver's
+    BRDF across it), a sharp receiver (the light across its lobe), and both between.
+    Returns the integral per unit amplitude times ``amplitude``; 0 where no node carries light."""
+    view, normal, m, n, z = (f64(v) for v in (view, normal, m, n, z))
+    alpha = np.maximum(f64(roughness), ALPHA_MIN)
+    lam = np.maximum(f64(bandwidth_m), BANDWIDTH_FLOOR)
+    mu = np.maximum(f64(bandwidth_n), BANDWIDTH_FLOOR)
+    x, wx, u, uw = mrp_quadrature_rules(light_nodes, rings)
+    directions, weights = [], []
+    for i, j in itertools.product(range(len(x)), repeat=2):
+        w = z + (x[i] / np.sqrt(lam))[..., None] * m + (x[j] / np.sqrt(mu))[..., None] * n
+        directions.append(w / norm(w)[..., None])
+        weights.append(wx[i] * wx[j])
+    t1 = asg_any_tangent(normal)
+    t2 = np.cross(normal, t1)
+    for k in range(len(u)):
+        tan2 = alpha * alpha * (u[k] / (1.0 - u[k]))
+        cos_h = 1.0 / np.sqrt(1.0 + tan2)
+        sin_h = np.sqrt(tan2) * cos_h
+        for s in range(sectors):
+            phi = 2.0 * np.pi * (s + 0.5 * (k % 2)) / sectors
+            h = (cos_h[..., None] * normal
+                 + sin_h[..., None] * (np.cos(phi) * t1 + np.sin(phi) * t2))
+            directions.append(2.0 * dot(view, h)[..., None] * h - view)
+            weights.append(uw[k] / sectors)
+    total = 0.0
+    for w, weight in zip(directions, weights):
+        value = (asg_evaluate(w, m, n, z, lam, mu) * microfacet_brdf(w, view, normal, alpha, f0)
+                 * np.maximum(dot(w, normal), 0.0))
+        c = dot(w, z)
+        c_safe = np.maximum(c, QUADRATURE_MIN_COSINE)
+        a, b = dot(w, m) / c_safe, dot(w, n) / c_safe
+        p_light = np.where(c > QUADRATURE_MIN_COSINE, np.sqrt(lam * mu) / np.pi * np.exp(-lam * a * a - mu * b * b)
+                           / (c_safe * c_safe * c_safe), 0.0)
+        half = w + view
+        half = safe_normalize(half, normal, norm(half))
+        cos_h = dot(half, normal)
+        p_receiver = ggx_ndf(cos_h, alpha) * np.maximum(cos_h, 0.0) / (4.0 * np.maximum(np.abs(dot(view, half)), 1e-30))
+        density = p_light + p_receiver
+        ratio = np.divide(value, density, out=np.zeros_like(density * value), where=density > 0.0)
+        total = total + weight * np.where(np.isfinite(ratio), ratio, 0.0)
+    return f64(amplitude) * total
+
+
 def light_irradiance_at(light, point):
     """(E⊥ at ``point`` for a surface facing the light, unit direction from ``point`` to the
     light, distance d_l or inf): I/d² for point/spot/area (``lights.light_intensity``), S for a
@@ -445,20 +538,28 @@ def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, m
     the light's shadow at p_y (1 = lit). Per unit light colour and per colour channel of the F0s.
     ``peak_form="paper"`` uses 001 Eq. 17 for L_y (for the comparison only). ``disk``: "lobe" (the
     default) samples a disk of radius max(r_d, DISK_LOBE_SCALE ρ_lobe |p_y − p_x|), "fixed" 001's
-    r_d alone (``DISK_RULES``). ``receiver``: ``"sg"`` (the default, the GPU pass's) Eq. 8's NDF
-    as two SGs; ``"asg"`` the receiver lobe of ``mrp_convolve_asg_receiver`` (ASG mode only,
-    measured in benchmarks/results/mrp_asg_stages.md: closer on the demo's sharp gold sphere,
-    further on the occluded reflector's α 0.2 wall and at grazing light, so not the pass's)."""
+    r_d alone (``DISK_RULES``). ``receiver`` (``RECEIVERS``): ``"sg"`` (the default, the GPU pass's)
+    001's Eq. 8 NDF as two SGs with Eq. 11 (or Eq. 37's SG product) and M pulled out;
+    ``"quadrature"`` the ASG light against the exact GGX receiver (``mrp_receiver_quadrature``, ASG
+    mode only; measured in benchmarks/results/mrp_asg_receiver_quadrature.md: the exact receiver
+    does not bring the frames closer to Cycles); ``"asg"`` the receiver lobe of
+    ``mrp_convolve_asg_receiver`` (ASG mode only, measured in benchmarks/results/mrp_asg_stages.md:
+    closer than "sg" on the demo's sharp gold sphere, further on the occluded reflector's α 0.2 wall
+    and at grazing light)."""
     a = mrp_asg_light(position, rect, light, disk_radius, spread_correction, peak_form, area_normalization,
                       fit, disk)
+    if receiver not in RECEIVERS or (mode == "sg" and receiver != "sg"):
+        raise ValueError(f"receiver must be one of {RECEIVERS} ('sg' in SG mode), got {receiver!r}")
+    if receiver == "quadrature":
+        value = mrp_receiver_quadrature(view, normal, roughness, f0, a["m"], a["n"], a["z"], a["bandwidth_m"],
+                                        a["bandwidth_n"], a["amplitude"])
+        return np.where(a["valid"], f64(visibility) * value, 0.0)
     if receiver == "asg":
         conv = mrp_convolve_asg_receiver(view, normal, roughness, a["m"], a["n"], a["z"], a["bandwidth_m"],
                                          a["bandwidth_n"], a["amplitude"])
-    elif receiver == "sg":
+    else:
         conv = mrp_convolve(view, normal, roughness, a["m"], a["n"], a["z"], a["bandwidth_m"], a["bandwidth_n"],
                             a["amplitude"], mode)
-    else:
-        raise ValueError(f"receiver must be 'sg' or 'asg', got {receiver!r}")
     factor = mrp_receiver_factor(a["z"], view, normal, roughness, f0)
     return np.where(a["valid"], f64(visibility) * factor * conv, 0.0)
 
