@@ -181,8 +181,8 @@ def test_lobe_disk_keeps_the_highlight_a_fixed_disk_loses(distance, sigma):
         p[2] = max(p[2], 0.02 * distance)
         x, n, o = facing_receiver(p, rect, light)
         truth.append(mrp.brute_force_rectangle(x, n, o, 0.2, 0.9, rect, light))
-        fixed.append(float(mrp.mrp_shade(x, n, o, 0.2, 0.9, rect, light, 0.1, disk="fixed", receiver="sg")))
-        lobe.append(float(mrp.mrp_shade(x, n, o, 0.2, 0.9, rect, light, 0.1, receiver="sg")))
+        fixed.append(float(mrp.mrp_shade(x, n, o, 0.2, 0.9, rect, light, 0.1, disk="fixed")))
+        lobe.append(float(mrp.mrp_shade(x, n, o, 0.2, 0.9, rect, light, 0.1)))
     truth, fixed, lobe = np.array(truth), np.array(fixed), np.array(lobe)
 
     def rel_rmse(values):

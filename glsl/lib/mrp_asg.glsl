@@ -9,9 +9,8 @@
 // derives each step: the specular peak (Eq. 12, exact for local lights), the radiance at the peak
 // in Blender's units (not Eq. 17's distant-light form), the disk integral with the energy-matched
 // k and the local-light spread, the area ratio from the bounding rectangle of disk and rectangle
-// (normalised by the disk's square), the ASG light (Eqs. 18, 28-35), and the receiver: in ASG mode
-// the ASG light against the receiver's exact GGX BRDF by quadrature (mrp_receiver_quadrature), in
-// SG mode Eq. 37 with the receiver's NDF as SGs (Eqs. 6, 8). mrp_convolve keeps Eq. 11.
+// (normalised by the disk's square), the ASG light (Eqs. 18, 28-35), the receiver's NDF as an SG
+// (Eqs. 6, 8) and its convolution with the ASG (Eq. 11, nu = lam / 2) or, in SG mode, Eq. 37.
 
 const float MRP_ALPHA_MIN = 1e-3;
 const float MRP_EXTENT_FLOOR = 1e-4;
@@ -23,18 +22,6 @@ const float MRP_DISK_LOBE_SCALE = 1.5;
 const float MRP_LOG_INV_EPSILON = 2.996;
 const int MRP_MODE_ASG = 0;
 const int MRP_MODE_SG = 1;
-// mrp_receiver_quadrature's rules (reference mrp_quadrature_rules, QUADRATURE_*): Gauss-Hermite
-// nodes for e^(-x^2) and their weights over sqrt(pi), 4 per axis of the ASG's tangent plane;
-// Gauss-Legendre nodes and weights on [0, 1] in GGX's half-vector CDF, 3 rings of 4 sectors.
-const float MRP_HERMITE_NODES[4] = float[4](-1.6506801238857846, -0.52464762327529032,
-                                            0.52464762327529032, 1.6506801238857846);
-const float MRP_HERMITE_WEIGHTS[4] = float[4](0.045875854768068491, 0.45412414523193151,
-                                              0.45412414523193151, 0.045875854768068491);
-const float MRP_RING_NODES[3] = float[3](0.11270166537925831, 0.5, 0.88729833462074169);
-const float MRP_RING_WEIGHTS[3] = float[3](0.27777777777777778, 0.44444444444444444, 0.27777777777777778);
-const int MRP_SECTORS = 4;
-// Below this w.z the light rule's density is 0 (reference QUADRATURE_MIN_COSINE).
-const float MRP_QUADRATURE_MIN_COSINE = 1e-6;
 
 // Eq. 12 for a distant light towards `incoming`: false (peak = position) when i.n_r <= 0 or the
 // receiver is not in front of the plane.
@@ -218,75 +205,6 @@ float mrp_convolve(vec3 view, vec3 normal, float roughness, vec3 m, vec3 n, vec3
   return amplitude * sg_amplitude * value;
 }
 
-// One node of mrp_receiver_quadrature: the integrand (ASG light x receiver BRDF with F = 1 x cosine)
-// over both rules' densities, split by the receiver's Schlick factor q = (1 - w.h)^5 so that an RGB
-// F0 gives x + F0 y (F = q + F0 (1 - q)). `light_density` = sqrt(lam mu) / pi.
-vec2 mrp_quadrature_node(vec3 w, vec3 view, vec3 normal, float alpha, vec3 m, vec3 n, vec3 z,
-                         float bandwidth_m, float bandwidth_n, float light_density)
-{
-  float value = asg_evaluate(w, m, n, z, bandwidth_m, bandwidth_n) * microfacet_brdf(w, view, normal, alpha, 1.0) *
-                max(ggx_cosine(w, normal), 0.0);
-  if (!(value > 0.0)) {
-    return vec2(0.0);
-  }
-  vec3 half_sum = w + view;
-  float half_length = safe_length(half_sum);  // > 0 where the BRDF is
-  float c = dot(w, z);
-  float p_light = 0.0;
-  if (c > MRP_QUADRATURE_MIN_COSINE) {
-    float a = dot(w, m) / c;
-    float b = dot(w, n) / c;
-    p_light = light_density * exp(-bandwidth_m * a * a - bandwidth_n * b * b) / (c * c * c);
-  }
-  float cos_h = dot(half_sum, normal) / half_length;
-  float p_receiver = ggx_half_vector_ndf(w, view, normal, alpha) * max(cos_h, 0.0) /
-                     (4.0 * max(abs(dot(view, half_sum)) / half_length, 1e-30));
-  float density = p_light + p_receiver;
-  if (!(density > 0.0)) {
-    return vec2(0.0);
-  }
-  float q = fresnel_schlick(dot(w, half_sum) / half_length, 0.0);
-  return (value / density) * vec2(q, 1.0 - q);
-}
-
-// The ASG light (m, n, z; lam along m, mu along n; amplitude t) against the receiver's exact GGX
-// BRDF and cosine: Gauss-Hermite nodes of the ASG's tangent-plane Gaussian and nodes of GGX's
-// half-vector distribution, combined by the balance heuristic (reference mrp_receiver_quadrature).
-// Returns (x, y): the radiance is t (x + F0 y).
-vec2 mrp_receiver_quadrature(vec3 view, vec3 normal, float roughness, vec3 m, vec3 n, vec3 z,
-                             float bandwidth_m, float bandwidth_n, float amplitude)
-{
-  float alpha = max(roughness, MRP_ALPHA_MIN);
-  float lam = max(bandwidth_m, MRP_BANDWIDTH_FLOOR);
-  float mu = max(bandwidth_n, MRP_BANDWIDTH_FLOOR);
-  float light_density = sqrt(lam) * sqrt(mu) / PI;
-  vec2 total = vec2(0.0);
-  for (int i = 0; i < 4; i++) {
-    vec3 along_m = z + (MRP_HERMITE_NODES[i] / sqrt(lam)) * m;
-    for (int j = 0; j < 4; j++) {
-      vec3 w = safe_normalize(along_m + (MRP_HERMITE_NODES[j] / sqrt(mu)) * n, z);
-      total += (MRP_HERMITE_WEIGHTS[i] * MRP_HERMITE_WEIGHTS[j]) *
-               mrp_quadrature_node(w, view, normal, alpha, m, n, z, lam, mu, light_density);
-    }
-  }
-  vec3 t1 = asg_any_tangent(normal);
-  vec3 t2 = cross(normal, t1);
-  for (int k = 0; k < 3; k++) {
-    float u = MRP_RING_NODES[k];
-    float tan2 = alpha * alpha * (u / (1.0 - u));
-    float cos_h = inversesqrt(1.0 + tan2);
-    float sin_h = sqrt(tan2) * cos_h;
-    for (int s = 0; s < MRP_SECTORS; s++) {
-      float phi = TWO_PI * (float(s) + 0.5 * float(k % 2)) / float(MRP_SECTORS);
-      vec3 h = cos_h * normal + sin_h * (cos(phi) * t1 + sin(phi) * t2);
-      vec3 w = 2.0 * dot(view, h) * h - view;
-      total += (MRP_RING_WEIGHTS[k] / float(MRP_SECTORS)) *
-               mrp_quadrature_node(w, view, normal, alpha, m, n, z, lam, mu, light_density);
-    }
-  }
-  return amplitude * total;
-}
-
 // Schlick's Fresnel for an RGB F0 (linear in F0).
 vec3 mrp_fresnel(float cos_theta, vec3 f0)
 {
@@ -344,15 +262,9 @@ bool mrp_shade(vec3 position, vec3 normal, vec3 view, float roughness, vec3 f0, 
   float bandwidth_m = mrp_bandwidth(extent);
   float bandwidth_n = mrp_bandwidth(extent * abs(cos_n));
   float amplitude = sqrt(bandwidth_m) * sqrt(bandwidth_n) / PI * total;
-  if (mode == MRP_MODE_SG) {
-    float conv = mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amplitude, mode);
-    float geometry = mrp_receiver_geometry(z, view, normal, roughness);
-    vec3 h = safe_normalize(z + view, normal);
-    radiance = mrp_fresnel(cos_sigma, rect_f0) * mrp_fresnel(dot(z, h), f0) * (geometry * conv);
-  }
-  else {
-    vec2 split = mrp_receiver_quadrature(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amplitude);
-    radiance = mrp_fresnel(cos_sigma, rect_f0) * (vec3(split.x) + f0 * split.y);
-  }
+  float conv = mrp_convolve(view, normal, roughness, m, n, z, bandwidth_m, bandwidth_n, amplitude, mode);
+  float geometry = mrp_receiver_geometry(z, view, normal, roughness);
+  vec3 h = safe_normalize(z + view, normal);
+  radiance = mrp_fresnel(cos_sigma, rect_f0) * mrp_fresnel(dot(z, h), f0) * (geometry * conv);
   return true;
 }

@@ -530,7 +530,7 @@ def mrp_asg_light(position, rect, light, disk_radius, spread_correction=True, pe
 
 def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, mode="asg",
               visibility=1.0, spread_correction=True, peak_form="blender",
-              area_normalization="square", fit="energy", disk="lobe", receiver=None):
+              area_normalization="square", fit="energy", disk="lobe", receiver="sg"):
     """L_x(o) of one rectangle and one light at receivers (001 Eqs. 3–37; module documentation).
 
     ``rect``: mapping with ``center``, ``normal``, ``axis_u``, ``axis_v``, ``half_u``, ``half_v``,
@@ -548,8 +548,6 @@ def mrp_shade(position, normal, view, roughness, f0, rect, light, disk_radius, m
     and at grazing light)."""
     a = mrp_asg_light(position, rect, light, disk_radius, spread_correction, peak_form, area_normalization,
                       fit, disk)
-    if receiver is None:  # the pass's: the exact receiver in ASG mode
-        receiver = "quadrature" if mode == "asg" else "sg"
     if receiver not in RECEIVERS or (mode == "sg" and receiver != "sg"):
         raise ValueError(f"receiver must be one of {RECEIVERS} ('sg' in SG mode), got {receiver!r}")
     if receiver == "quadrature":
