@@ -64,7 +64,7 @@ DEMO_PURPOSE = ("demo.blend: a spot-lit glossy red floor bounces onto white wall
                 "(glossy-to-glossy, caustics).")
 # Cycles samples per seed of each truth: as many as keep its noise small against its mean within
 # the time budget (measured per scene: the caustic scenes converge slowest, diffuse rooms fastest).
-TRUTH_SAMPLES = {"occluder": 2048, "sun_courtyard": 1024, "cornell_box": 1024, "closed_room": 1024,
+TRUTH_SAMPLES = {"occluder": 2048, "sun_courtyard": 1024, "sun_ground": 1024, "cornell_box": 1024, "closed_room": 1024,
                  "caustic_panel": 8192, "glossy_floor_object": 4096, "many_lights": 2048, "demo": 4096,
                  "polished_metal_floor": 4096, "occluded_reflector": 4096}
 QUICK_SCENES = ("occluder", "cornell_box")

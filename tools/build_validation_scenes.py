@@ -143,6 +143,25 @@ def sun_courtyard(scene):
     _camera(scene, (1.5, -3.6, 1.6), (-0.6, 4.0, 1.6), lens=20.0)
 
 
+def sun_ground(scene):
+    """A sun over an open 60 m ground, the camera looking down at a white block and a red box on it
+    from a few metres: the sun's map covers the whole ground, about 40 times the surface the camera
+    sees, and the boxes' shaded sides and the ground beside them take their bounce light from the
+    few metres around."""
+    ground = principled("Ground", (0.5, 0.48, 0.45), roughness=0.8)
+    white = principled("White", (0.8, 0.8, 0.8), roughness=0.6)
+    red = principled("Red", (0.7, 0.08, 0.05), roughness=0.5)
+    _plane("Ground", 60.0, (0, 0, 0), (0, 0, 0), ground)
+    _box("Block", (1.0, 1.0, 2.0), (0.0, 0.0, 0.0), white, rotation_z=math.radians(20))
+    _box("Red box", (0.8, 0.8, 0.8), (1.4, -0.9, 0.0), red, rotation_z=math.radians(-15))
+    # From the south-west, 35° above the horizon: the block's north-east faces are in its shadow.
+    elevation, azimuth = math.radians(35), math.radians(225)
+    toward = (math.cos(elevation) * math.cos(azimuth), math.cos(elevation) * math.sin(azimuth), math.sin(elevation))
+    _light(scene, "Sun", "SUN", 3.0, (0.0, 0.0, 10.0),
+           (-toward[0], -toward[1], 10.0 - toward[2]))
+    _camera(scene, (2.6, 3.1, 3.4), (0.1, -0.3, 0.4), lens=35.0)
+
+
 def cornell_box(scene):
     """The Cornell box: red and green side walls bleed onto white walls and two blocks, lit by a small
     area light under the ceiling; the blocks occlude part of the bounce."""
@@ -288,6 +307,7 @@ def many_lights(scene):
 SCENES = {
     "occluder": occluder,
     "sun_courtyard": sun_courtyard,
+    "sun_ground": sun_ground,
     "cornell_box": cornell_box,
     "closed_room": closed_room,
     "caustic_panel": caustic_panel,
