@@ -3,6 +3,7 @@
 
     .venv/bin/python benchmarks/view_pdf.py [--only NAME ...] [--results-dir DIR]
         [--flicker-frames F] [--flicker-seeds S] [--skip-flicker] [--defensive B ...] [--repeats R]
+        [--seeds S]
 
 Per scene of benchmarks/validation_suite.py (its cached Cycles truths, 240x180, each scene's saved
 settings: N = 256, visibility on), one frame with ``pdf = light`` and one with ``pdf = view``, after
@@ -14,8 +15,12 @@ PDF's in the same run. Each scene's footprint ratio: the surface area of the lig
 another light's its solid angle times d² over cos θ) over the part of it the camera sees (texels
 whose position is the camera G-buffer's at their pixel, within two texel footprints).
 
+Every error is the mean over ``--seeds`` lattice seeds (the scene's seed and the next ones, 4 by
+default; one seed's relative RMSE moves by ±10 % on the sun scenes), each seed's in the JSON.
+
 Targets (the issue's): on a scene whose light's footprint is at least 10x the camera's view
-(sun_courtyard: a sun over a 40 m ground) the view PDF's relative RMSE at least 20 % lower; no scene
+(sun_courtyard: a sun over a 40 m ground; sun_ground: a sun over an open 60 m ground) the view PDF's
+relative RMSE at least 20 % lower; no scene
 worse by more than 5 %; the modified/original kernel flicker ratio with the view PDF at or under
 0.5. Flicker, on that scene with ``pdf = view`` at its saved settings (seed 0), F frames of each
 motion: *light*, the sun turning 1°/frame about world Z (its azimuth: the shadows move), and
@@ -160,7 +165,7 @@ def flicker(name: str, path: Path, frames: int, seeds: int) -> dict:
     return out
 
 
-def measure(name: str, path: Path, defensive=(), repeats: int = 3) -> dict:
+def measure(name: str, path: Path, defensive=(), repeats: int = 3, seeds: int = 1) -> dict:
 
     from vsgl_addon.passes.contract import LIGHT_PASSES
     from vsgl_addon.reference import brsm
@@ -182,18 +187,30 @@ def measure(name: str, path: Path, defensive=(), repeats: int = 3) -> dict:
                 if index == 0:  # the frames of a seed are the same image
                     errors = Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
                     row[pdf] = {"mean_ratio": errors["mean_ratio"], "rel": errors["rel"],
-                                "view_pdf": frame.plan.decisions["view_pdf"].reason}
+                                "view_pdf": frame.plan.decisions["view_pdf"].reason,
+                                "seeds": {str(settings.seed): {"mean_ratio": errors["mean_ratio"],
+                                                               "rel": errors["rel"]}}}
         for pdf, values in times.items():
             frame_seconds, light_seconds, cpu_seconds = (statistics.median(v) for v in zip(*values))
             row[pdf].update(frame_seconds=frame_seconds, light_pass_seconds=light_seconds, cpu_seconds=cpu_seconds)
+        # Further lattice seeds: one seed's relative RMSE moves by ±10 % on the sun scenes
+        # (N = 256 kernels over a large map), so each PDF's figures are the means over the seeds.
+        for pdf in ("light", "view"):
+            for seed in range(settings.seed + 1, settings.seed + max(int(seeds), 1)):
+                frame = renderer.render(description, settings.overridden(pdf=pdf, seed=seed), WIDTH, HEIGHT)
+                errors = Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
+                row[pdf]["seeds"][str(seed)] = {"mean_ratio": errors["mean_ratio"], "rel": errors["rel"]}
+            row[pdf]["mean_ratio"] = float(np.mean([e["mean_ratio"] for e in row[pdf]["seeds"].values()]))
+            row[pdf]["rel"] = float(np.mean([e["rel"] for e in row[pdf]["seeds"].values()]))
         default = brsm.DEFENSIVE_SHARE
         try:
             for share in defensive:  # the same frame with another β of the mixture, same run
                 brsm.DEFENSIVE_SHARE = float(share)
-                frame = renderer.render(description, settings.overridden(pdf="view"), WIDTH, HEIGHT)
-                errors = Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
-                row.setdefault("defensive", {})[f"{share:g}"] = {"rel": errors["rel"],
-                                                                   "rel_change": errors["rel"] / row["light"]["rel"] - 1.0}
+                rel = float(np.mean([
+                    Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)["rel"]
+                    for frame in (renderer.render(description, settings.overridden(pdf="view", seed=int(seed)),
+                                                  WIDTH, HEIGHT) for seed in row["light"]["seeds"])]))
+                row.setdefault("defensive", {})[f"{share:g}"] = {"rel": rel, "rel_change": rel / row["light"]["rel"] - 1.0}
         finally:
             brsm.DEFENSIVE_SHARE = default
     finally:
@@ -207,9 +224,10 @@ def measure(name: str, path: Path, defensive=(), repeats: int = 3) -> dict:
 def markdown(rows, flicker_result=None, command="") -> str:
     lines = ["# View PDF (000 §5) against the light PDF", "",
              f"`{command or '.venv/bin/python benchmarks/view_pdf.py'}`; 240×180, each scene's saved settings (N = 256, "
-             "visibility on), the validation suite's cached Cycles truths; noise-corrected relative RMSE. Footprint: "
+             "visibility on), the validation suite's cached Cycles truths; noise-corrected relative RMSE and mean "
+             "ours / Cycles, each the mean over the lattice seeds (the JSON has every seed's). Footprint: "
              "the lights' RSM texels' surface area over the part of it the camera sees. Targets: on a scene whose "
-             f"footprint is at least {FOOTPRINT_TARGET:g}× the view ({LARGE_FOOTPRINT}) at least 20 % lower with the "
+             f"footprint is at least {FOOTPRINT_TARGET:g}× the view (sun_courtyard, sun_ground) at least 20 % lower with the "
              f"view PDF, no scene worse by more than 5 %, modified / original flicker with the view PDF ≤ "
              f"{FLICKER_TARGET:g}.", "",
              "Times: the median of the repeats, light and view frames alternating (a shared machine: compare "
@@ -226,12 +244,11 @@ def markdown(rows, flicker_result=None, command="") -> str:
                      f"{r['view']['frame_seconds'] * 1e3:.0f} | {r['light'].get('light_pass_seconds', 0) * 1e3:.0f} / "
                      f"{r['view'].get('light_pass_seconds', 0) * 1e3:.0f} | {r['light'].get('cpu_seconds', 0):.2f} / "
                      f"{r['view'].get('cpu_seconds', 0):.2f} |")
-    large = [r for r in rows if r["scene"] == LARGE_FOOTPRINT]
-    if large:
-        met = large[0]["rel_change"] <= -0.20
-        lines += ["", f"{LARGE_FOOTPRINT}: footprint {large[0]['footprint']['ratio']:.1f}× the view (at least "
-                  f"{FOOTPRINT_TARGET:g}×: {'yes' if large[0]['footprint']['ratio'] >= FOOTPRINT_TARGET else 'no'}), "
-                  f"{100 * large[0]['rel_change']:+.1f} % (target ≤ −20 %: {'met' if met else 'missed'})."]
+    for r in rows:
+        if r["footprint"]["ratio"] >= FOOTPRINT_TARGET:
+            met = r["rel_change"] <= -0.20
+            lines += ["", f"{r['scene']}: footprint {r['footprint']['ratio']:.1f}× the view (at least "
+                      f"{FOOTPRINT_TARGET:g}×), {100 * r['rel_change']:+.1f} % (target ≤ −20 %: {'met' if met else 'missed'})."]
     worst = max(rows, key=lambda r: r["rel_change"])
     lines += [f"Worst scene: {worst['scene']} {100 * worst['rel_change']:+.1f} % (target ≤ +5 %: "
               f"{'met' if worst['rel_change'] <= 0.05 else 'missed'})."]
@@ -277,6 +294,8 @@ def main(argv=None) -> int:
     parser.add_argument("--flicker-seeds", type=int, default=0)
     parser.add_argument("--skip-flicker", action="store_true")
     parser.add_argument("--repeats", type=int, default=3, help="timed frames per PDF (alternating)")
+    parser.add_argument("--seeds", type=int, default=4,
+                        help="lattice seeds (the scene's and the next ones) whose errors are averaged per PDF")
     parser.add_argument("--defensive", type=float, nargs="+", default=[],
                         help="also the view PDF at each of these defensive shares β (a sweep, same run)")
     args = parser.parse_args(argv)
@@ -286,7 +305,7 @@ def main(argv=None) -> int:
     register()
     ensure_gpu_context()
     scenes = [(name, path) for name, path, _ in suite() if not args.only or name in args.only]
-    rows = [measure(name, path, args.defensive, args.repeats) for name, path in scenes]
+    rows = [measure(name, path, args.defensive, args.repeats, args.seeds) for name, path in scenes]
     flicker_result = None
     if not args.skip_flicker:
         flicker_result = next((flicker(name, path, args.flicker_frames, args.flicker_seeds)
