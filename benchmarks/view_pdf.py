@@ -3,7 +3,7 @@
 
     .venv/bin/python benchmarks/view_pdf.py [--only NAME ...] [--results-dir DIR]
         [--flicker-frames F] [--flicker-seeds S] [--skip-flicker] [--defensive B ...] [--repeats R]
-        [--seeds S]
+        [--seeds S] [--unnormalized]
 
 Per scene of benchmarks/validation_suite.py (its cached Cycles truths, 240x180, each scene's saved
 settings: N = 256, visibility on), one frame with ``pdf = light`` and one with ``pdf = view``, after
@@ -17,6 +17,8 @@ whose position is the camera G-buffer's at their pixel, within two texel footpri
 
 Every error is the mean over ``--seeds`` lattice seeds (the scene's seed and the next ones, 4 by
 default; one seed's relative RMSE moves by ±10 % on the sun scenes), each seed's in the JSON.
+``--unnormalized``: also the view PDF's frames without the per-view normalization of the VSGL powers
+to the RSM total (pipeline.NORMALIZE_VIEW_PDF_POWERS).
 
 Targets (the issue's): on a scene whose light's footprint is at least 10x the camera's view
 (sun_courtyard: a sun over a 40 m ground; sun_ground: a sun over an open 60 m ground) the view PDF's
@@ -165,7 +167,7 @@ def flicker(name: str, path: Path, frames: int, seeds: int) -> dict:
     return out
 
 
-def measure(name: str, path: Path, defensive=(), repeats: int = 3, seeds: int = 1) -> dict:
+def measure(name: str, path: Path, defensive=(), repeats: int = 3, seeds: int = 1, unnormalized: bool = False) -> dict:
 
     from vsgl_addon.passes.contract import LIGHT_PASSES
     from vsgl_addon.reference import brsm
@@ -202,6 +204,19 @@ def measure(name: str, path: Path, defensive=(), repeats: int = 3, seeds: int = 
                 row[pdf]["seeds"][str(seed)] = {"mean_ratio": errors["mean_ratio"], "rel": errors["rel"]}
             row[pdf]["mean_ratio"] = float(np.mean([e["mean_ratio"] for e in row[pdf]["seeds"].values()]))
             row[pdf]["rel"] = float(np.mean([e["rel"] for e in row[pdf]["seeds"].values()]))
+        if unnormalized:  # the view PDF's frames without the per-view power normalization, same seeds
+            from vsgl_addon import pipeline
+
+            pipeline.NORMALIZE_VIEW_PDF_POWERS = False
+            try:
+                errors = [Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
+                          for frame in (renderer.render(description, settings.overridden(pdf="view", seed=int(seed)),
+                                                        WIDTH, HEIGHT) for seed in row["light"]["seeds"])]
+            finally:
+                pipeline.NORMALIZE_VIEW_PDF_POWERS = True
+            rel = float(np.mean([e["rel"] for e in errors]))
+            row["unnormalized"] = {"mean_ratio": float(np.mean([e["mean_ratio"] for e in errors])), "rel": rel,
+                                   "rel_change": rel / row["light"]["rel"] - 1.0}
         default = brsm.DEFENSIVE_SHARE
         try:
             for share in defensive:  # the same frame with another β of the mixture, same run
@@ -252,6 +267,14 @@ def markdown(rows, flicker_result=None, command="") -> str:
     worst = max(rows, key=lambda r: r["rel_change"])
     lines += [f"Worst scene: {worst['scene']} {100 * worst['rel_change']:+.1f} % (target ≤ +5 %: "
               f"{'met' if worst['rel_change'] <= 0.05 else 'missed'})."]
+    if rows and "unnormalized" in rows[0]:
+        lines += ["", "## The view PDF without the per-view power normalization", "",
+                  "Each view's VSGL powers are not scaled to its RSM total (pipeline.NORMALIZE_VIEW_PDF_POWERS "
+                  "off), the same seeds; change against the light PDF's relative RMSE.", "",
+                  "| scene | mean view, not normalized | rel RMSE view, not normalized | change |", "|---|---|---|---|"]
+        for r in rows:
+            u = r["unnormalized"]
+            lines.append(f"| {r['scene']} | {u['mean_ratio']:.3f} | {u['rel']:.3f} | {100 * u['rel_change']:+.1f} % |")
     shares = list(rows[0].get("defensive", {})) if rows else []
     if shares:
         from vsgl_addon.reference.brsm import DEFENSIVE_SHARE
@@ -294,6 +317,8 @@ def main(argv=None) -> int:
     parser.add_argument("--flicker-seeds", type=int, default=0)
     parser.add_argument("--skip-flicker", action="store_true")
     parser.add_argument("--repeats", type=int, default=3, help="timed frames per PDF (alternating)")
+    parser.add_argument("--unnormalized", action="store_true",
+                        help="also the view PDF without the per-view normalization of the VSGL powers")
     parser.add_argument("--seeds", type=int, default=4,
                         help="lattice seeds (the scene's and the next ones) whose errors are averaged per PDF")
     parser.add_argument("--defensive", type=float, nargs="+", default=[],
@@ -305,7 +330,7 @@ def main(argv=None) -> int:
     register()
     ensure_gpu_context()
     scenes = [(name, path) for name, path, _ in suite() if not args.only or name in args.only]
-    rows = [measure(name, path, args.defensive, args.repeats, args.seeds) for name, path in scenes]
+    rows = [measure(name, path, args.defensive, args.repeats, args.seeds, args.unnormalized) for name, path in scenes]
     flicker_result = None
     if not args.skip_flicker:
         flicker_result = next((flicker(name, path, args.flicker_frames, args.flicker_seeds)

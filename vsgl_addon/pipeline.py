@@ -162,6 +162,11 @@ VIEW_PDF_GBUFFER = 64
 VIEW_PDF_RECEIVERS = 256
 #: The view PDF's pole radius r, as a fraction of the scene's bounding diagonal.
 VIEW_PDF_RADIUS = 0.02
+#: With the view PDF, each view's VSGL powers scaled to its RSM total (SceneVSGLs.merge; read when
+#: called, so benchmarks/view_pdf.py can measure the frames without it). One scale per view raises
+#: the near kernels with the far ones it corrects: without it the suite's sun scenes keep the light
+#: PDF's means (benchmarks/results/view_pdf.md), but a room at N = 64 sums 12-19 % short.
+NORMALIZE_VIEW_PDF_POWERS = True
 
 
 def view_receivers(scene_gpu: SceneGPU, view_matrix, projection_matrix) -> dict:
@@ -292,7 +297,7 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
                                 _rotation(settings.seed, light_index, view_index),
                                 settings.positional_distribution,
                                 split_kernels_at_jumps(scene_gpu.scene.lights[light_index]))
-        result.merge(normalize=view_pdf)
+        result.merge(normalize=view_pdf and NORMALIZE_VIEW_PDF_POWERS)
     except BaseException:
         for _, _, generation in pending:
             generation.free()
