@@ -36,10 +36,9 @@ REPO = Path(__file__).resolve().parents[1]
 for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
-from path_partition import RESOLUTION, _asg_exact_receiver, partition_settings  # noqa: E402
-from tradeoff.bench import Bench  # noqa: E402
+from path_partition import _asg_exact_receiver, served_pixels  # noqa: E402
 from tradeoff.demo import RESULTS_DIR, log  # noqa: E402
-from validation_suite import sampled_pixels, scene_with_truth, suite  # noqa: E402
+from validation_suite import suite  # noqa: E402
 
 SCENES = {"demo": (2, ["Glossy gold"]), "occluded_reflector": (6, None)}
 RULES = ((3, 3, 4), (4, 3, 4), (4, 4, 8), (6, 3, 4))
@@ -47,22 +46,12 @@ GRID = 601
 
 
 def measure(name, path, stride, materials) -> dict:
-    from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.reference import mrp_asg as mrp
-    from vsgl_addon.renderer import FrameRenderer, SceneLights
 
-    width, height = RESOLUTION
-    settings, truth, description = scene_with_truth(name, path, width, height)
-    settings = partition_settings(settings)
-    camera = description.camera
-    view_matrix, projection = camera.view_matrix(), camera.projection_matrix()
-    bench = Bench(description, width, height)
-    renderer = FrameRenderer()
-    lights = SceneLights.build(description, settings, view=(view_matrix, projection))
-    try:
-        pick, position, normal, view, _, f0, alpha = sampled_pixels(bench, truth, stride, materials)
-        renderer.render_view(lights, settings, width, height, view_matrix, projection)
-        served = np.flatnonzero(read_texture(renderer._mrp.texture, width, height)[..., 3][pick] > 0.0)
+    with served_pixels(name, path, stride, materials) as px:
+        settings, description, lights = px.settings, px.description, px.lights
+        position, normal, view, f0, alpha = px.position, px.normal, px.view, px.f0, px.alpha
+        served = np.flatnonzero(px.served)
         labels = ["exact", "Eq. 11 (the pass)", "003 ASG receiver"] + [f"quadrature {l}/{r}×{s}" for l, r, s in RULES]
         values = {label: np.zeros(len(served)) for label in labels}
         start = time.perf_counter()
@@ -89,10 +78,6 @@ def measure(name, path, stride, materials) -> dict:
                             mrp.mrp_receiver_quadrature(*args, light_nodes=l, rings=r, sectors=s))
             if row % 100 == 0:
                 log(f"{name}: {row}/{len(served)} served pixels, {time.perf_counter() - start:.0f} s")
-    finally:
-        lights.free()
-        renderer.free()
-        bench.free()
     exact = values["exact"]
     bright = exact > 1e-3 * max(float(exact.max()), 1e-30)
     cos_o = np.einsum("ij,ij->i", view[served], normal[served])

@@ -37,6 +37,7 @@ written to ``mrp_asg_stages.{md,json}``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import time
@@ -385,12 +386,16 @@ def stage_values(position, normal, view, alpha, f0, lit, lights, disk_radius) ->
     return out
 
 
-def stages(name, path, stride, materials=None) -> dict:
-    """MRP-ASG's error on the pixels it serves, by stage, against quadrature of the same cell
-    (``stage_values``) and against the texel brute force of path_partition's cell "specular, sharp,
-    on a proxy" (which has the light's shadows at the reflector; the quadrature has none)."""
+@contextlib.contextmanager
+def served_pixels(name, path, stride, materials=None):
+    """The frame of ``name`` (visibility off, path_partition's settings) and the pixels MRP-ASG serves
+    among every ``stride``-th one (of ``materials`` only, when given): a namespace with ``settings``,
+    ``description``, ``lights`` (SceneLights), ``bench``, ``frame``, ``pick`` and the sampled
+    ``position``, ``normal``, ``view``, ``rd``, ``f0``, ``alpha`` (validation_suite.sampled_pixels)
+    and ``served`` (a mask over them). The GPU resources are freed on exit."""
+    import types
+
     from vsgl_addon.passes.gpu_util import read_texture
-    from vsgl_addon.reference.path_partition import brute_force_one_bounce as brute_force, cell_fluxes, set_texels
     from vsgl_addon.renderer import FrameRenderer, SceneLights
 
     width, height = RESOLUTION
@@ -406,8 +411,27 @@ def stages(name, path, stride, materials=None) -> dict:
         frame = renderer.render_view(lights, settings, width, height, view_matrix, projection)
         if frame.indirect_glossy_reflectors is None:
             raise RuntimeError(f"{name}: MRP-ASG did not run")
-        gpu = frame.indirect_glossy_reflectors[pick].astype(np.float64)
         served = read_texture(renderer._mrp.texture, width, height)[..., 3][pick] > 0.0
+        yield types.SimpleNamespace(settings=settings, description=description, lights=lights, bench=bench,
+                                    frame=frame, pick=pick, position=position, normal=normal, view=view, rd=rd,
+                                    f0=f0, alpha=alpha, served=served)
+    finally:
+        lights.free()
+        renderer.free()
+        bench.free()
+
+
+def stages(name, path, stride, materials=None) -> dict:
+    """MRP-ASG's error on the pixels it serves, by stage, against quadrature of the same cell
+    (``stage_values``) and against the texel brute force of path_partition's cell "specular, sharp,
+    on a proxy" (which has the light's shadows at the reflector; the quadrature has none)."""
+    from vsgl_addon.reference.path_partition import brute_force_one_bounce as brute_force, cell_fluxes, set_texels
+
+    with served_pixels(name, path, stride, materials) as px:
+        settings, description, lights, bench, pick = px.settings, px.description, px.lights, px.bench, px.pick
+        position, normal, view, rd, f0, alpha = px.position, px.normal, px.view, px.rd, px.f0, px.alpha
+        gpu = px.frame.indirect_glossy_reflectors[pick].astype(np.float64)
+        served = px.served
         whole = set_texels(lights.whole_vsgls if lights.whole_vsgls is not None else lights.vsgls, description.lights)
         cell = cell_fluxes(whole, lights.proxies, settings.caustic_roughness)["specular, sharp, on a proxy"]
         idx = np.flatnonzero(served)
@@ -441,10 +465,6 @@ def stages(name, path, stride, materials=None) -> dict:
         v = {key: np.array([value[key] for value in values]) for key in values[0]}
         materials_index = np.asarray(bench.material_index[pick])[idx]
         material_names = list(bench.materials)
-    finally:
-        lights.free()
-        renderer.free()
-        bench.free()
     ratio = lambda a, b: np.divide(a, b, out=np.zeros_like(a), where=np.abs(b) > 0)
     energy_exact = v["ref"] * ratio(v["C_quad"], v["C_ref"])
     shape_only = v["asg_exact"] * ratio(v["C_quad"], v["C_ref"])

@@ -400,7 +400,8 @@ def mrp_convolve_asg_receiver(view, normal, roughness, m, n, z, bandwidth_m, ban
 
 def mrp_quadrature_rules(light_nodes=QUADRATURE_LIGHT_NODES, rings=QUADRATURE_RINGS):
     """(Gauss–Hermite nodes, weights / √π) for e^(−x²) and (Gauss–Legendre nodes, weights) on [0, 1]:
-    the two rules of ``mrp_receiver_quadrature`` (the GLSL twin holds them as constants)."""
+    the two rules of ``mrp_receiver_quadrature`` (the GLSL twin of commit db4140c held them as
+    constants; the pass does not use it, docs/accuracy.md)."""
     x, w = np.polynomial.hermite.hermgauss(light_nodes)
     u, uw = np.polynomial.legendre.leggauss(rings)
     return x, w / np.sqrt(np.pi), 0.5 * (u + 1.0), 0.5 * uw
