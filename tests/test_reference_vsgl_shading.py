@@ -12,11 +12,14 @@ receiver roughness 0.1, 0.3, 1. The errors of each approximation are measured in
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from vsgl_addon.reference import vsgl_shading as vs
 from vsgl_addon.reference.asg import asg_specular_lobe
+from vsgl_addon.reference import sg
 from vsgl_addon.reference.sg import sg_evaluate, sg_integral, sg_product_integral
 from vsgl_addon.reference.vsgl import generate_vsgls
 
@@ -468,23 +471,31 @@ def test_separable_keeps_the_light_of_a_cluster_spanning_a_corner():
 
 def test_separable_shading_converges_to_brute_force(scene):
     """On the floor patch the separable diffuse is the point light at N = M (σv² at its floor), as
-    Eq. 12's is, and about as close to the exact VPLs after clustering (Σ|Δ|/Σ: 11.9 % against
-    10.0 % at N = 16, where the brighter separable adds to the SG VPL lobes' own excess on these
-    receivers; 5.6 % against 5.7 % at N = 64); the specular is Eq. 12's, unchanged."""
+    Eq. 12's is (with 000 Eq. 6's SG emission the SG VPLs', with the flat clusters' Lambertian
+    emission the exact VPLs' diffuse), and about as close to the exact VPLs after clustering (Σ|Δ|/Σ:
+    11.9 % with the SG emission, 11.3 % with Lambert's, against Eq. 12's 10.0 % at N = 16; 5.6 %,
+    5.1 % and 5.7 % at N = 64); the specular is Eq. 12's, unchanged."""
     vpls, rsm, texel_vsgls = scene
     rec = receivers(0.3)
     exact, _ = vs.brute_force_shading(vpls, *rec)
     sg_vpls, _ = vs.brute_force_shading(vpls, *rec, vpl_lobes="sg")
-    texel_d, texel_s = vs.shade(texel_vsgls, *rec, diffuse_mode="separable")
+    texel_d, texel_s = vs.shade(texel_vsgls, *rec, diffuse_mode="separable", diffuse_emission="sg")
     np.testing.assert_allclose(texel_d, sg_vpls, rtol=1e-4)
+    # With the flat clusters' Lambertian emission (the default) a texel's diffuse lobe is its exact VPL's.
+    matte = dataclasses.replace(vpls, specular_f0=np.zeros_like(vpls.specular_f0))
+    matte_exact, _ = vs.brute_force_shading(matte, *rec)
+    np.testing.assert_allclose(vs.shade(vs.per_texel_vsgls(matte.rsm()), *rec, diffuse_mode="separable")[0],
+                               matte_exact, rtol=5e-3)
     np.testing.assert_array_equal(texel_s, vs.shade(texel_vsgls, *rec, diffuse_mode="cosine")[1])
     for count in (16, 64):
         vsgls = generate_vsgls(rsm, count)
-        separable = vs.shade(vsgls, *rec, diffuse_mode="separable")[0]
+        separable = vs.shade(vsgls, *rec, diffuse_mode="separable", diffuse_emission="sg")[0]
+        lambert = vs.shade(vsgls, *rec, diffuse_mode="separable")[0]
         cosine = vs.shade(vsgls, *rec, diffuse_mode="cosine")[0]
         print(f"\nN = {count} vs exact VPLs: separable {relative_error(separable, exact):.4f}, "
-              f"Eq. 12 {relative_error(cosine, exact):.4f}")
+              f"with Lambert's lobes {relative_error(lambert, exact):.4f}, Eq. 12 {relative_error(cosine, exact):.4f}")
         assert relative_error(separable, exact) < min(0.13, relative_error(cosine, exact) + 0.03)
+        assert relative_error(lambert, exact) < relative_error(separable, exact)
 
 
 def test_separable_shading_takes_the_visibility():
@@ -581,3 +592,24 @@ def test_per_lobe_positions_keep_a_diffuse_floor_where_it_is(alpha):
     print(f"\nα = {alpha}, N = 16 against per-texel VSGLs: Σ|Δ|/Σ {errors}, Σ/Σ {means}")
     assert errors["per-lobe"] < 0.85 * errors["shared"]
     assert means["per-lobe"] > means["shared"]
+
+
+def test_diffuse_emission_of_flat_and_bent_clusters():
+    """vsgl_diffuse_emission: a flat cluster (λv = 2, r̄ = 1) emits Lambert's lobe, its flux the
+    cluster's P = cv A(λv)/(1 + e^(−λd)) and nothing below its horizon; a bent one (r̄ ≤ 0.95) keeps
+    000 Eq. 6's SG; in between the blend is continuous in λv; finite and ≥ 0 from λv = 0 to 1e6 and
+    μ = −1 … 1."""
+    mu = np.linspace(-1.0, 1.0, 2001)
+    flat = vs.vsgl_diffuse_emission(mu, 2.0)
+    flux = sg.sg_integral(2.0) / sg.DIFFUSE_HEMISPHERE_SCALE
+    np.testing.assert_allclose(flat, flux * np.maximum(mu, 0.0) / np.pi, rtol=1e-12)
+    # ∫ I dω = 2π ∫ I(μ) dμ = P (the trapezoid rule on 2001 points).
+    assert 2.0 * np.pi * np.trapz(flat, mu) == pytest.approx(flux, rel=1e-5)
+    for lam in (0.0, 0.5, 1.0, 1.5):
+        assert vs.mean_normal_length(lam) <= vs.FLAT_CLUSTER[0]
+        np.testing.assert_allclose(vs.vsgl_diffuse_emission(mu, lam), np.exp(lam * (mu - 1.0)), rtol=1e-12)
+    lams = np.linspace(1.5, 2.0, 501)
+    values = vs.vsgl_diffuse_emission(0.3, lams)
+    assert np.max(np.abs(np.diff(values))) < 0.01 * values.max()
+    extremes = vs.vsgl_diffuse_emission(mu[:, None], np.array([0.0, 1e-6, 2.0, 2.0001, 10.0, 1e6])[None, :])
+    assert np.all(np.isfinite(extremes)) and np.all(extremes >= 0.0)

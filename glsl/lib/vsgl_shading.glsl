@@ -16,9 +16,10 @@
 //             or c_in * int G(xi_in, lam_in) G(n, lam_d) / A(lam_d)   (003's 2-VSGL mode)
 //             or c_in * 1/pi int G(xi_in, lam_in) max(<w, n>, 0) dw   (clamped cosine)
 //   specular  += c_in * k * (1 - m^5)   and   fresnel += c_in * k * m^5,
-// c_sep = c_v G(-xi_mu; xi_v, lam_v) / (2 pi sigma_v^2): the radiant intensity at the direction of the
-// mean times the positional lobe, not multiplied into Eq. 12's SG, whose axis a broad positional
-// lobe tilts towards -xi_v (behind the walls of a cluster spanning a corner; the reference's module
+// c_sep = I_v(-xi_mu) / (2 pi sigma_v^2): the radiant intensity at the direction of the mean
+// (vsgl_accumulate: a flat diffuse lobe's texels' Lambertian lobe, vsgl_diffuse_emission; the specular
+// lobe's, and vsgl_accumulate_lobe's, the SG c_v G(-xi_mu; xi_v, lam_v)) times the positional lobe,
+// not multiplied into Eq. 12's SG, whose axis a broad positional lobe tilts towards -xi_v (behind the walls of a cluster spanning a corner; the reference's module
 // documentation). The specular always takes Eq. 12's product c_in G(xi_in, lam_in).
 // k = D(1) <xi_in, n> / ((c_i + s_i)(c_o + s_o)) * pi / sqrt((eta_x + nu)(eta_y + nu))
 //     * exp(-eta_x' (xi_in.x)^2 - eta_y' (xi_in.y)^2), m = 1 - xi_in.h (Schlick), so that the
@@ -39,6 +40,32 @@ const int VSGL_DIFFUSE_COSINE = 0;          // 000 app. C
 const int VSGL_DIFFUSE_SG_CONVOLUTION = 1;  // 003's 2-VSGL mode
 const int VSGL_DIFFUSE_CLAMPED_COSINE = 2;  // Tokuyoshi et al. 2024 (sg.glsl sg_clamped_cosine_integral)
 const int VSGL_DIFFUSE_SEPARABLE = 3;       // 000 Eqs. 10-11, intensity at the mean's direction
+// The mean normal length over which a diffuse lobe goes from the SG to Lambert's lobe (reference
+// FLAT_CLUSTER).
+const vec2 VSGL_FLAT_CLUSTER = vec2(0.95, 0.99);
+
+// The mean length of a VSGL diffuse lobe's texel normals from its lam_v (reference
+// mean_normal_length): |xi_v| (lam_d + 1) / lam_d with |xi_v| = lam_v / (lam_v + 1).
+float vsgl_mean_normal_length(float lobe_sharpness)
+{
+  float lam = max(lobe_sharpness, 0.0);
+  return clamp(lam / (lam + 1.0) * ((DIFFUSE_SHARPNESS + 1.0) / DIFFUSE_SHARPNESS), 0.0, 1.0);
+}
+
+// The separable diffuse's emission of a VSGL diffuse lobe per unit c_v towards `direction`, `axis`
+// its axis (reference vsgl_diffuse_emission): 000 Eq. 6's SG blended by smoothstep over
+// VSGL_FLAT_CLUSTER of the mean normal length into its texels' Lambertian lobe
+// c_v A(lam_v) / (1 + e^-lam_d) max(mu, 0) / pi. The SG keeps e^-2 of its peak at the horizon, where
+// a Lambertian texel sends nothing: a flat reflector lit what it sees edge-on too much (the
+// occluder scene 0.83 -> 0.20 relative RMSE). (1 - w) a + w b, not mix's a + w (b - a): at w = 1 the
+// SG's rounding would stay where it is much the larger.
+float vsgl_diffuse_emission(vec3 direction, vec3 axis, float lobe_sharpness)
+{
+  float weight = smoothstep(VSGL_FLAT_CLUSTER.x, VSGL_FLAT_CLUSTER.y, vsgl_mean_normal_length(lobe_sharpness));
+  float mu = dot(direction, axis);
+  float lambert = sg_integral(lobe_sharpness) / DIFFUSE_HEMISPHERE_SCALE * max(mu, 0.0) * (1.0 / PI);
+  return (1.0 - weight) * sg_evaluate(direction, axis, lobe_sharpness) + weight * lambert;
+}
 
 // Incoming radiance SG of one VSGL lobe at `position` (000 Eq. 12), without c_v:
 // xi_mu = (mu_v - y_p)/|mu_v - y_p|, lam_sigma = |mu_v - y_p|^2 / sigma_v^2,
@@ -240,8 +267,11 @@ void vsgl_accumulate(VSGLReceiver rc, VSGLPosition diffuse_position, vec3 diffus
     vec3 c_in = amplitude * (product_scale * inv_area);
     if (diffuse_mode == VSGL_DIFFUSE_SEPARABLE) {
       // vsgl_separable_lobe from the VSGLPosition (lobe_axis is -xi_v here: G(xi_mu; -xi_v, lam_v)).
+      // A flat diffuse lobe emits as its texels' Lambertian lobe (vsgl_diffuse_emission), the
+      // specular lobe as its SG.
       vec3 xi_sep = lam_sigma > 0.0 ? xi_mu : lobe_axis;
-      float emission = sg_evaluate(xi_sep, lobe_axis, lobe_sharpness);
+      float emission = lobe == 0 ? vsgl_diffuse_emission(xi_sep, lobe_axis, lobe_sharpness) :
+                                   sg_evaluate(xi_sep, lobe_axis, lobe_sharpness);
       diffuse += amplitude * (emission * inv_area * vsgl_diffuse_factor(xi_sep, lam_sigma, rc.normal, diffuse_mode));
     }
     else {

@@ -23,7 +23,11 @@ lobes in the paper's "shared" form, 000 app. B.2). Then, per lobe:
       Lin(ω) ≈ cv G(−ξµ; ξv, λv) G(ω; ξµ, λσ)/(2πσv²),
       Ld = cv G(−ξµ; ξv, λv)/(2πσv²) · Rd/π · A(λσ) ⟨ξµ, n_p⟩
 
-  (the cosine pulled out of the positional lobe's integral as in 000 app. C, exact A). Why not
+  (the cosine pulled out of the positional lobe's integral as in 000 app. C, exact A), where a
+  flat cluster's diffuse lobe emits as its texels' Lambertian lobes instead of 000 Eq. 6's SG,
+  cv G(−ξµ; ξv, λv) → :func:`vsgl_diffuse_emission` (``diffuse_emission="lambert"``, the default;
+  "sg" keeps the SG for every cluster; why: docs/accuracy.md, "The diffuse lobe of a flat
+  cluster"). Why not
   Eq. 12's product for the diffuse: it tilts the incoming lobe's axis to (λσ ξµ − λv ξv)/λin,
   towards −ξv, by as much as the positional lobe is broad. For a cluster spanning a room's corner
   (its mean between floor and wall, ξv diagonal, λv broad) the receivers across the room then see
@@ -111,7 +115,8 @@ import numpy as np
 from .asg import asg_specular_lobe, sg_asg_convolution
 from .ggx import fresnel_schlick, ggx_g1_denominator, microfacet_brdf
 from .numerics import dot, f64, norm, safe_normalize
-from .sg import (DIFFUSE_SHARPNESS, diffuse_lobe_hemisphere, sg_clamped_cosine_integral, sg_evaluate,
+from .sg import (DIFFUSE_HEMISPHERE_SCALE, DIFFUSE_SHARPNESS, diffuse_lobe_hemisphere, sg_clamped_cosine_integral,
+                 sg_evaluate,
                  sg_integral, sg_product, sg_product_integral, specular_lobe_warp)
 from .vsgl import (MOMENT_CHANNELS, RSM, VARIANCE_FLOOR_ABSOLUTE, texel_moments,
                    vsgl_parameters)
@@ -162,13 +167,14 @@ def vsgl_incoming_sg(position, mean, variance, lobe_axis, lobe_sharpness):
     return axis_in, lam_in, scale / (2.0 * np.pi * var)
 
 
-def vsgl_separable_lobe(position, mean, variance, lobe_axis, lobe_sharpness):
+def vsgl_separable_lobe(position, mean, variance, lobe_axis, lobe_sharpness, emission="sg"):
     """The separable incoming radiance of one VSGL lobe (000 Eqs. 10-11 with Iv(−ω) taken at the
     direction of µv), without cv: Lin(ω) ≈ cv G(−ξµ; ξv, λv) G(ω; ξµ, λσ)/(2πσv²).
 
     Returns ``(xi_mu, lam_sigma, scale)`` with Lin = cv · scale · G(ω; ξµ, λσ),
-    scale = G(−ξµ; ξv, λv)/(2πσv²). Broadcasts (vectors in a trailing axis of 3). At y_p = µv
-    (λσ = 0) −ξv stands in for ξµ, as in :func:`vsgl_incoming_sg`.
+    scale = G(−ξµ; ξv, λv)/(2πσv²) (``emission`` "sg"; "lambert": a diffuse lobe's
+    :func:`vsgl_diffuse_emission` at −ξµ in place of the SG). Broadcasts (vectors in a trailing axis
+    of 3). At y_p = µv (λσ = 0) −ξv stands in for ξµ, as in :func:`vsgl_incoming_sg`.
     """
     r = f64(mean) - f64(position)
     d2 = dot(r, r)
@@ -176,8 +182,52 @@ def vsgl_separable_lobe(position, mean, variance, lobe_axis, lobe_sharpness):
     r, lobe_axis = np.broadcast_arrays(r, lobe_axis)
     xi_mu = safe_normalize(r, -lobe_axis, np.sqrt(d2))
     var = np.maximum(f64(variance), VARIANCE_FLOOR)
-    emission = sg_evaluate(-xi_mu, lobe_axis, f64(lobe_sharpness))
-    return xi_mu, d2 / var, emission / (2.0 * np.pi * var)
+    if emission == "lambert":
+        intensity = vsgl_diffuse_emission(dot(-xi_mu, lobe_axis), lobe_sharpness)
+    elif emission == "sg":
+        intensity = sg_evaluate(-xi_mu, lobe_axis, f64(lobe_sharpness))
+    else:
+        raise ValueError(f"emission must be one of {EMISSIONS}, got {emission!r}")
+    return xi_mu, d2 / var, intensity / (2.0 * np.pi * var)
+
+
+#: The mean normal length r̄ over which a diffuse lobe's emission goes from 000 Eq. 6's SG to its
+#: texels' Lambertian lobe (smoothstep): a flat cluster (r̄ ≥ 0.97 is the flat class of
+#: benchmarks/results/vsgl_aggregation_diagnosis.md) emits as Lambert's lobe, one spanning surfaces
+#: that face different ways keeps the SG, which gives rooms' corner clusters more of their light
+#: than a Lambert lobe of their normals' spread (a vMF of them) does: the 24 lights 0.883 → 0.843 of
+#: Cycles with that for every cluster.
+FLAT_CLUSTER = (0.95, 0.99)
+#: The separable diffuse's emission of a VSGL's diffuse lobe (EMISSIONS): "lambert", flat clusters'
+#: texels' Lambertian lobe (vsgl_diffuse_emission), or "sg", 000 Eq. 6's SG for every cluster.
+EMISSIONS = ("lambert", "sg")
+
+
+def mean_normal_length(lobe_sharpness):
+    """r̄ of a VSGL diffuse lobe's texel normals, from its λv (000 app. B.1): every texel adds
+    ξ̄ = λd/(λd + 1) n (Toksvig, λd = 2), so r̄ = |ξ̄v| (λd + 1)/λd with |ξ̄v| = λv/(λv + 1)."""
+    lam = np.maximum(f64(lobe_sharpness), 0.0)
+    return np.clip(lam / (lam + 1.0) * ((DIFFUSE_SHARPNESS + 1.0) / DIFFUSE_SHARPNESS), 0.0, 1.0)
+
+
+def vsgl_diffuse_emission(cosine, lobe_sharpness):
+    """The separable diffuse's radiant intensity of a VSGL diffuse lobe per unit cv towards a
+    direction at cosine μ to its axis ξv (emission "lambert"): 000 Eq. 6's SG e^(λv (μ − 1)) blended
+    by smoothstep over FLAT_CLUSTER of r̄ (mean_normal_length) into its texels' Lambertian lobe
+    P max(μ, 0)/π, P = cv A(λv)/(1 + e^(−λd)) the cluster's flux (vsgl.vsgl_parameters'
+    hemisphere-normalized amplitude). Why: the SG (λd = 2) keeps e^(−2) of its peak at the horizon,
+    where a Lambertian texel sends nothing, so a flat reflector lights what it sees at grazing angles
+    too much: on the suite's occluder, whose floor lights the occluding wall edge-on, the relative
+    RMSE against Cycles falls from 0.83 with the SG to 0.20 (docs/accuracy.md, "The diffuse lobe of a
+    flat cluster")."""
+    mu = f64(cosine)
+    lam = f64(lobe_sharpness)
+    low, high = FLAT_CLUSTER
+    t = np.clip((mean_normal_length(lam) - low) / (high - low), 0.0, 1.0)
+    weight = t * t * (3.0 - 2.0 * t)
+    sg = np.exp(lam * (np.minimum(mu, 1.0) - 1.0))
+    lambert = sg_integral(lam) / DIFFUSE_HEMISPHERE_SCALE * np.maximum(mu, 0.0) / np.pi
+    return (1.0 - weight) * sg + weight * lambert
 
 
 def vsgl_diffuse_factor(axis_in, sharpness_in, normal, mode="cosine"):
@@ -232,7 +282,7 @@ def _chunks(count, per_chunk):
 
 def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, roughness,
           diffuse_mode=DEFAULT_DIFFUSE_MODE, specular_cosine="normal", per_term=False, visibility=None,
-          specular_mode="product"):
+          specular_mode="product", diffuse_emission="lambert"):
     """Indirect radiance (diffuse, specular), each (P, 3), at P shading points from N VSGLs.
 
     vsgls     dict with ``VSGL_KEYS`` (rows = VSGLs), e.g. from ``vsgl.generate_vsgls``.
@@ -245,12 +295,16 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
     the renderer's for the default kernel (``DEFAULT_DIFFUSE_MODE``; 003's 2-VSGL tables want
     "sg-convolution", ``diffuse_mode_for_kernel``). ``specular_mode`` (``SPECULAR_MODES``): the
     receivers' specular term from Eq. 12's SG ("product") or from the separable incoming radiance
-    ("separable"; the module documentation).
+    ("separable"; the module documentation). ``diffuse_emission`` (``EMISSIONS``): with the
+    separable diffuse, the VSGLs' diffuse lobes emit as :func:`vsgl_diffuse_emission` ("lambert",
+    the GPU's) or as 000 Eq. 6's SG ("sg").
     """
     if diffuse_mode not in DIFFUSE_MODES:
         raise ValueError(f"diffuse mode must be one of {DIFFUSE_MODES}, got {diffuse_mode!r}")
     if specular_mode not in SPECULAR_MODES:
         raise ValueError(f"specular mode must be one of {SPECULAR_MODES}, got {specular_mode!r}")
+    if diffuse_emission not in EMISSIONS:
+        raise ValueError(f"diffuse emission must be one of {EMISSIONS}, got {diffuse_emission!r}")
     position, normal, view, rd, f0, alpha = _receivers(position, normal, view, diffuse_reflectance,
                                                        specular_f0, roughness)
     count = len(f64(vsgls["diffuse_variance"]).reshape(-1))
@@ -277,7 +331,13 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
                     position[:, None], mean, variance, f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
                     f64(vsgls[sharp_key]).reshape(-1)[rows][None])
             if diffuse_mode == "separable":
-                ld = (amplitude * sep_scale[..., None] * seen
+                if lobe == "diffuse" and diffuse_emission != "sg":
+                    _, _, emitted = vsgl_separable_lobe(
+                        position[:, None], mean, variance, f64(vsgls[axis_key]).reshape(-1, 3)[rows][None],
+                        f64(vsgls[sharp_key]).reshape(-1)[rows][None], diffuse_emission)
+                else:
+                    emitted = sep_scale
+                ld = (amplitude * emitted[..., None] * seen
                       * vsgl_diffuse_factor(xi_mu, lam_sigma, normal[:, None], "separable")[..., None]
                       * rd[:, None])
             else:
