@@ -257,6 +257,30 @@ def test_glsl_lobe_matches_reference(lobe_results, output, body):
     assert accuracy.ok, accuracy.report({name: value[keep] for name, value in grid.items()})
 
 
+def test_diffuse_emission_matches_reference():
+    """vsgl_diffuse_emission against its twin across the SG → Lambert blend (λv 0 … 2.1, the blend at
+    1.73 … 1.94, and 1e6), every cosine including below the horizon; finite, ≥ 0."""
+    lam = np.concatenate([np.linspace(0.0, 2.1, 211), [1e-6, 1e6]])
+    mu = np.linspace(-1.0, 1.0, 41)
+    grid_lam, grid_mu = (a.ravel() for a in np.meshgrid(lam, mu, indexing="ij"))
+    axis = np.tile([0.0, 0.0, 1.0], (len(grid_mu), 1))
+    direction = np.stack([np.sqrt(np.maximum(1.0 - grid_mu ** 2, 0.0)), np.zeros_like(grid_mu), grid_mu], -1)
+    inputs = {"direction": _f32(direction), "axis": _f32(axis), "lam": _f32(grid_lam)}
+    out = evaluate_glsl("emission = vsgl_diffuse_emission(direction, axis, lam);", inputs, {"emission": 1},
+                        libraries=["lib/vsgl_shading.glsl"])["emission"]
+    expected = vs.vsgl_diffuse_emission(inputs["direction"][:, 2], inputs["lam"])
+    assert np.all(np.isfinite(out)) and np.all(out >= 0.0)
+    # Where the smoothstep's weight w is within 1e-2 of 1, the SG's share (1 - w) carries w's float32
+    # rounding amplified by 1/(1 - w) (3.1e-4 measured below the horizon, where that share is all the
+    # light): 1e-3 there, 1e-4 elsewhere.
+    low, high = vs.FLAT_CLUSTER
+    t = np.clip((vs.mean_normal_length(inputs["lam"]) - low) / (high - low), 0.0, 1.0)
+    tail = (t * t * (3.0 - 2.0 * t) > 0.99) & (t < 1.0)
+    for part, relative in ((~tail, 1e-4), (tail, 1e-3)):
+        accuracy = Accuracy(out[part], expected[part], inputs["lam"][part], relative=relative)
+        assert accuracy.ok, accuracy.report({k: v[part] for k, v in inputs.items()})
+
+
 # --- The shading pass --------------------------------------------------------------------------
 
 from test_reference_vsgl_shading import floor_vpls  # noqa: E402
