@@ -27,7 +27,10 @@ diffuse lobes as
   (twice the VSGLs); "one per plane": up to six, the texels binned by their normal's dominant axis
   and sign (the suite's rooms are axis-aligned): what clusters kept to one plane would give; its
   light split by receiver: where the receiver's plane passes within 2 σ_v of the plane VSGL's mean
-  (the VSGL's isotropic Gaussian reaches behind the receiver's horizon) and elsewhere;
+  (the VSGL's isotropic Gaussian reaches behind the receiver's horizon) and elsewhere; "blocks d":
+  the same six bins, each texel binned by the class of its 2^b-texel block's mean normal, b =
+  max(⌊l⌋ − d, 0) (the mip texels d levels under the kernel's taps: what reference.vsgl's
+  plane-split clusters read, d = PLANE_SPLIT_DEPTH);
 * what-if, VSGL with its lobe normalized over the hemisphere around its own axis ξ_v: c_v scaled by
   (1 + e^-λv) / (1 + e^-λd), which is 1 for a flat cluster (λv = λd).
 
@@ -60,7 +63,8 @@ from energy_budget import LUMINANCE, view_vpls  # noqa: E402
 from vsgl_addon.reference.sg import DIFFUSE_HEMISPHERE_SCALE  # noqa: E402
 
 FLAT_LENGTH = 2.0 / 3.0  # |ξ̄| of a flat cluster: λ_d/(λ_d + 1), λ_d = 2 (000 Eq. 6, app. B.1)
-STAGES = ("texels", "lobe", "lobe_front", "point", "vsgl", "vsgl_axis_hemisphere", "vsgl_split", "vsgl_planes")
+STAGES = ("texels", "lobe", "lobe_front", "point", "vsgl", "vsgl_axis_hemisphere", "vsgl_split", "vsgl_planes",
+          "vsgl_blocks1", "vsgl_blocks2", "vsgl_blocks3")
 
 
 def split_by_normal(normal, weight):
@@ -85,7 +89,31 @@ def split_by_normal(normal, weight):
     return group
 
 
-def split_vsgls(v, c, table, planes=False):
+def normal_class(normal):
+    """Class 0-5 of each normal: its dominant axis and sign."""
+    dominant = np.argmax(np.abs(normal), axis=-1)
+    return 2 * dominant + (np.take_along_axis(normal, dominant[..., None], -1)[..., 0] < 0.0)
+
+
+def block_bins(v, levels, size, depth):
+    """(N, M) class of each texel for each VSGL: the class of the mean normal of its block at mip
+    level max(⌊l⌋ − depth, 0) (the mip chain's children of the kernel's taps)."""
+    w = (v["flux"] * v["rd"]) @ LUMINANCE
+    row, col = np.divmod(np.asarray(v["texel"]), size)
+    out = np.zeros((len(levels), len(w)), np.int64)
+    cache = {}
+    for i, l in enumerate(levels):
+        b = max(int(np.floor(l)) - depth, 0)
+        if b not in cache:
+            key = (row >> b) * (size >> b) + (col >> b)
+            sums = np.zeros(((size >> b) ** 2, 3))
+            np.add.at(sums, key, w[:, None] * v["normal"])
+            cache[b] = normal_class(sums[key])
+        out[i] = cache[b]
+    return out
+
+
+def split_vsgls(v, c, table, planes=False, bins_per_vsgl=None):
     """What-if: each cluster's diffuse VSGL as two, its texels split by normal (split_by_normal),
     each part's VSGL from its own moments (000 app. B.1-B.2 on the part's c_ij-weighted texels);
     ``planes``: as six, the texels binned by their normal's dominant axis and sign."""
@@ -99,12 +127,15 @@ def split_vsgls(v, c, table, planes=False):
     moments[:, ref.CH_DIFFUSE_DIRECTION] = w[:, None] * FLAT_LENGTH * n
     moments[:, ref.CH_DIFFUSE_POSITION] = w[:, None] * y
     moments[:, ref.CH_DIFFUSE_POSITION_SQUARED] = w * np.einsum("ij,ij->i", y, y)
-    parts = 6 if planes else 2
+    parts = 6 if planes or bins_per_vsgl is not None else 2
     totals = np.zeros((len(c), parts, ref.MOMENT_CHANNELS))
     dominant = np.argmax(np.abs(n), axis=1)
     bins = 2 * dominant + (n[np.arange(len(n)), dominant] < 0.0)
     for i in range(len(c)):
-        if planes:
+        if bins_per_vsgl is not None:
+            for b in range(6):
+                totals[i, b] = (c[i] * (bins_per_vsgl[i] == b)) @ moments
+        elif planes:
             for b in range(6):
                 totals[i, b] = (c[i] * (bins == b)) @ moments
         else:
@@ -141,7 +172,7 @@ def receiver_brdf_lum(omega, view, normal, rd, f0, alpha):
     return out
 
 
-def view_stages(v, table, c, position, normal, view, rd, f0, alpha):
+def view_stages(v, table, c, position, normal, view, rd, f0, alpha, size):
     """(N, P) luminance of each stage for each VSGL of one view."""
     from vsgl_addon.reference.sg import diffuse_lobe_hemisphere, sg_evaluate
     from vsgl_addon.reference.vsgl_shading import shade
@@ -202,6 +233,12 @@ def view_stages(v, table, c, position, normal, view, rd, f0, alpha):
     _, _, terms = shade(split, position, normal, view, rd, f0, alpha, diffuse_mode="separable", per_term=True)
     per_plane = ((terms[:, :, 0, 0] + terms[:, :, 0, 1]) @ LUMINANCE).T.reshape(len(c), 6, -1)  # (N, 6, P)
     stages["vsgl_planes"] = per_plane.sum(axis=1)
+    levels = np.asarray(table["kernel_level"]).reshape(-1)
+    for depth in (1, 2, 3):
+        blocks = split_vsgls(v, c, table, bins_per_vsgl=block_bins(v, levels, size, depth))
+        _, _, terms = shade(blocks, position, normal, view, rd, f0, alpha, diffuse_mode="separable", per_term=True)
+        stages[f"vsgl_blocks{depth}"] = ((terms[:, :, 0, 0] + terms[:, :, 0, 1]) @ LUMINANCE).T.reshape(
+            len(c), 6, -1).sum(axis=1)
     # The per-plane VSGLs' near field: receivers whose own plane passes within 2 σ_v of the plane
     # VSGL's mean (its isotropic Gaussian reaches behind the receiver's horizon) against the rest.
     dominant = np.argmax(np.abs(n), axis=1)
@@ -255,7 +292,7 @@ def aggregation(name, path, stride, count=None):
                 c = c_full[:, v["texel"]]
                 rebuilt = luminance(c @ (v["flux"] * (v["rd"] + v["rs"])))
                 check.append((rebuilt.sum(), luminance(np.asarray(table["power"]).reshape(-1, 3)).sum()))
-                stages, every, planes = view_stages(v, table, c, position, normal, view, rd, f0, alpha)
+                stages, every, planes = view_stages(v, table, c, position, normal, view, rd, f0, alpha, size)
                 all_texels += float(every.sum())
                 length = np.asarray(table["diffuse_sharpness"]).reshape(-1)
                 length = length / (1.0 + length)
@@ -287,8 +324,9 @@ def summarize(result):
              f"All texels' SG lobes once / Cycles: {result['all_texels'] / cyc:.3f}; the clusters' texels "
              f"(Σ_i Σ_j c_ij): {total['texels'] / cyc:.3f} (coverage {total['texels'] / result['all_texels']:.3f}).\n",
              "| VSGLs | share of the clusters' light | texels | lobe / texels | lobe, front only / texels | "
-             "point / texels | VSGL / texels | VSGL, lobe normalized over its axis' hemisphere / texels | split by normal (2 VSGLs) / texels | one per plane / texels |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "point / texels | VSGL / texels | VSGL, lobe normalized over its axis' hemisphere / texels | split by normal (2 VSGLs) / texels | one per plane / texels | "
+             "one per class of the mip blocks at ⌊l⌋−1 / ⌊l⌋−2 / ⌊l⌋−3 |||",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def line(label, chosen):
         t = sum(r["texels"] for r in chosen)

@@ -430,3 +430,52 @@ def test_the_pdf_setting_and_its_command_line_flag():
                         view_projection=camera.projection_matrix() @ camera.view_matrix()).runs("view_pdf")
     assert not P.plan_frame(scene, VSGLSettings(pdf="view", kernel="two-vsgl"), ProxyCache(),
                             view_projection=np.eye(4)).runs("view_pdf")
+
+
+@pytest.mark.gpu
+def test_plane_split_point_lights_keep_each_light_s_power_and_its_kernels(monkeypatch):
+    """With the point lights' clusters split by plane (pipeline.PLANE_SPLIT_LIGHT_TYPES) in the
+    same room: N = 48 kernels still, more VSGLs (the room's corners), each light's VSGL power its
+    RSM total as without the split, every field finite; the shading table is the compacted one."""
+    from vsgl_addon import pipeline
+    from vsgl_addon.pipeline import generate_scene_vsgls
+
+    lights = [_named(point_light((x, 0.0, 2.0), power=p), f"L{i}")
+              for i, (x, p) in enumerate(((-2.0, 600.0), (0.5, 300.0), (2.5, 30.0)))]
+    settings = VSGLSettings(vsgl_count=48, rsm_size=64, visibility=False)
+    whole = generate_scene_vsgls(_room(lights), settings)
+    monkeypatch.setattr(pipeline, "PLANE_SPLIT_LIGHT_TYPES", ("POINT",))
+    split = generate_scene_vsgls(_room(lights), settings)
+    assert 48 < len(split["power"]) <= 48 * 4
+    assert not np.any(np.all(split["power"] == 0.0, axis=1))
+    for key in ("power", "diffuse_amplitude", "diffuse_mean", "diffuse_variance", "mean", "variance"):
+        assert np.all(np.isfinite(split[key])), key
+    for light in range(3):
+        np.testing.assert_allclose(split["power"][split["light_index"] == light].sum(axis=0),
+                                   whole["power"][whole["light_index"] == light].sum(axis=0), rtol=1e-4)
+
+
+@pytest.mark.gpu
+def test_plane_split_frames_render_with_visibility(monkeypatch):
+    """A point-lit room with the split on renders with visibility (one shadow map per VSGL of the
+    compacted table): finite images, the VSGL count above N, the indirect light within 15 % of
+    the frame without the split (the same kernels' power, regrouped)."""
+    from vsgl_addon import pipeline
+    from vsgl_addon.renderer import FrameRenderer
+
+    scene = _room([point_light((0.0, -1.0, 2.5), power=800.0)])
+    camera = _camera(position=(0.0, -5.0, 3.5), looking=(0.0, 1.0, -0.3))
+    scene = SceneDescription(scene.geometry, scene.materials, scene.lights, camera, scene.object_names)
+    settings = VSGLSettings(vsgl_count=32, rsm_size=64, visibility=True, ism_points=512, ism_size=16)
+    renderer = FrameRenderer()
+    try:
+        whole = renderer.render(scene, settings, 48, 36)
+        monkeypatch.setattr(pipeline, "PLANE_SPLIT_LIGHT_TYPES", ("POINT",))
+        split = renderer.render(scene, settings, 48, 36)
+    finally:
+        renderer.free()
+    assert np.all(np.isfinite(split.indirect)) and split.indirect.max() > 0.0
+    assert split.counts["vsgls"] > whole.counts["vsgls"]
+    covered = whole.coverage > 0.5
+    ratio = split.indirect[covered].mean() / whole.indirect[covered].mean()
+    assert 0.85 < ratio < 1.15, ratio

@@ -673,3 +673,50 @@ def test_no_descent_without_a_jump_on_the_gpu(compiled, monkeypatch):
     after = vg.generate_vsgls_gpu(rsm, 128, rotation=(0.3, 0.6))
     for name in vsgl.OUTPUT_KEYS:
         np.testing.assert_array_equal(after[name], before[name], err_msg=name)
+
+
+# --------------------------------------------------------------------------------------------
+# Plane-split clusters (reference.vsgl.PLANE_SPLIT)
+
+
+@pytest.mark.parametrize("count, rotation", [(1, (0.3, 0.7)), (4, (0.3, 0.7)), (16, (0.1, 0.2)), (64, (0.62, 0.37))])
+def test_plane_split_as_the_reference(compiled, count, rotation):
+    """Over a floor-wall corner the GPU splits the same kernels into the same planes as the
+    reference (row for row, the kernels' VSGLs then the used extra slots) within the module's
+    tolerances; its table has N (1 + PLANE_SPLIT_EXTRA) columns and reading drops the unused."""
+    from test_reference_vsgl import corner_rsm
+
+    vg = _vg()
+    rsm = corner_rsm(64, fold=37)
+    ref = vsgl.generate_vsgls(rsm, count, rotation=rotation, plane_split=True)
+    generation = vg.VSGLGeneration()
+    try:
+        generation.run(rsm, count, rotation=rotation)
+        generation.generate(count, rotation=vsgl.lattice_rotation(0, rotation), plane_split=True)
+        assert generation.table_width == count * (1 + vsgl.PLANE_SPLIT_EXTRA)
+        assert generation.kernel_count == count and generation.plane_split
+        gpu = generation.read_table()
+    finally:
+        generation.free()
+    _all_finite(gpu)
+    assert len(ref["power"]) > count
+    assert len(gpu["power"]) == len(ref["power"])
+    np.testing.assert_allclose(gpu["kernel_center"], ref["kernel_center"], atol=CENTER_TOLERANCE)
+    ratios = parameter_errors(gpu, ref, None, RELATIVE_DIRECT)
+    assert max(ratios.values()) <= 1.0, ratios
+
+
+def test_plane_split_changes_nothing_on_a_floor(compiled):
+    """On the smooth test RSM (a bumpy floor) plane_split changes no row of the GPU's table."""
+    vg = _vg()
+    rsm = smooth_rsm(32)
+    generation = vg.VSGLGeneration()
+    try:
+        generation.run(rsm, 128, rotation=(0.3, 0.6))
+        before = generation.read_table()
+        generation.generate(128, rotation=vsgl.lattice_rotation(0, (0.3, 0.6)), plane_split=True)
+        after = generation.read_table()
+    finally:
+        generation.free()
+    for name in vsgl.OUTPUT_KEYS:
+        np.testing.assert_array_equal(after[name], before[name], err_msg=name)

@@ -73,6 +73,9 @@ class SceneVSGLs:
 
     @property
     def vsgl_count(self) -> int:
+        """The VSGLs shading gets: the merged table's, or the sum of the views' tables."""
+        if self.merged is not None:
+            return self.merged[1].count
         return sum(generation.vsgl_count for _, _, generation in self.generations)
 
     def tables(self) -> list:
@@ -99,10 +102,13 @@ class SceneVSGLs:
         (reference/brsm.py) the few wide kernels over the dim part of a view read a filtered PDF
         mass larger than theirs and the sum comes out low (12-19 % at N = 64 over a point light's
         five views, 3 % at N = 1024; tests/test_reference_brsm.py's room), so the view PDF's frames
-        would be darker."""
+        would be darker. A table with plane-split slots (VSGLGeneration.generate's ``plane_split``)
+        is merged even alone: reading it drops its unused slots, which shading would loop over."""
         from .passes.vsgl_shading import upload_vsgl_table
 
-        if self.merged is not None or not self.generations or (len(self.generations) < 2 and not normalize):
+        split = any(generation.plane_split for _, _, generation in self.generations)
+        if self.merged is not None or not self.generations or (len(self.generations) < 2 and not normalize
+                                                                and not split):
             return
         tables = [generation.read_table() for _, _, generation in self.generations]
         if normalize:
@@ -122,8 +128,8 @@ class SceneVSGLs:
         read = [generation.read_table() for _, _, generation in self.generations]
         for (light_index, view_index, generation), table in zip(self.generations, read):
             tables.append({name: table[name] for name in VSGL_FIELDS})
-            light_rows.append(np.full(generation.vsgl_count, light_index))
-            view_rows.append(np.full(generation.vsgl_count, view_index))
+            light_rows.append(np.full(len(table["power"]), light_index))
+            view_rows.append(np.full(len(table["power"]), view_index))
         merged = ({name: np.concatenate([t[name] for t in tables]) for name in VSGL_FIELDS}
                   if tables else _empty_table())
         if self.merged is not None:  # the shading table, normalized where merge() normalized it
@@ -293,10 +299,11 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
                 generation.free()
                 continue
             result.generations.append((light_index, view_index, generation))
+            light = scene_gpu.scene.lights[light_index]
             generation.generate(count, settings.k, settings.kernel,
                                 _rotation(settings.seed, light_index, view_index),
-                                settings.positional_distribution,
-                                split_kernels_at_jumps(scene_gpu.scene.lights[light_index]))
+                                settings.positional_distribution, split_kernels_at_jumps(light),
+                                split_planes(light))
         result.merge(normalize=view_pdf and NORMALIZE_VIEW_PDF_POWERS)
     except BaseException:
         for _, _, generation in pending:
@@ -322,6 +329,21 @@ SPLIT_LIGHT_TYPES = ("SUN",)
 def split_kernels_at_jumps(light) -> bool:
     """Whether this light's VSGL kernels descend off depth discontinuities (SPLIT_LIGHT_TYPES)."""
     return light.type in SPLIT_LIGHT_TYPES
+
+
+#: The light types whose VSGL clusters over several planes give each plane its own VSGL
+#: (reference.vsgl.PLANE_SPLIT; split_planes). None by default: measured on the suite
+#: (benchmarks/plane_split.py, results/plane_split.md), the point lights' split brings the 24-light
+#: room's mean to 0.90 of Cycles (0.88 without) but with 2.2x the VSGLs, and at that count 000's
+#: clusters give the same relative RMSE there (0.165) and a lower one in the closed room (0.112
+#: against the split's 0.132): N counts kernels, so the split would also break N as the frame's
+#: VSGL budget (planner.FramePlan.allocate).
+PLANE_SPLIT_LIGHT_TYPES = ()
+
+
+def split_planes(light) -> bool:
+    """Whether this light's VSGL clusters split by plane (PLANE_SPLIT_LIGHT_TYPES)."""
+    return light.type in PLANE_SPLIT_LIGHT_TYPES
 
 
 #: Point sets the imperfect shadow maps draw from: map m splats set m mod POINT_SETS (Ritschel et

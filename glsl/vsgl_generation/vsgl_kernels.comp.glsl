@@ -17,7 +17,9 @@
 // VSGLRecord per column, stored by the generated vsgl_table_store (rows and channels declared in
 // vsgl_addon/layouts.py VSGL_TABLE); column 0 of row VSGL_ROW_RSM_TOTAL_POWER holds the RSM's total.
 // kernel_texel is the level-0 texel the warp chose (row, column): the centre can round onto the
-// texel's far edge ((texel + u) / S in float32 with u just below 1).
+// texel's far edge ((texel + u) / S in float32 with u just below 1). With plane_split (reference
+// `split_planes`), columns vsgl_count + PLANE_SPLIT_EXTRA i + e hold kernel i's extra planes (zero
+// records where unused), after the vsgl_count kernels' columns.
 
 const int BISECTION_ITERATIONS = 12;   // 000 section 3.2
 const float BELOW_ONE = 0.99999994;     // largest float32 below 1 (1 - 2^-24)
@@ -119,6 +121,79 @@ bool kernel_straddles(vec2 uv, float level, int top)
   bool disagree = NORMAL_AGREEMENT <= 0.0 || !(diffuse > 0.0)
                   || length(vec3(p0.w, p1.xy)) < NORMAL_AGREEMENT * one_surface * diffuse;
   return weight > 0.0 && jump > STRADDLE_SHARE * weight && disagree;
+}
+
+// --- Plane-split clusters (reference vsgl.plane_class_moments, split_planes) ---------------------
+const int NORMAL_CLASSES = 6;
+
+// 2 x the dominant axis + 1 where that component is negative; ties take the first axis (np.argmax).
+int normal_class(vec3 direction)
+{
+  vec3 a = abs(direction);
+  int axis = 0;
+  float largest = a.x;
+  if (a.y > largest) {
+    axis = 1;
+    largest = a.y;
+  }
+  if (a.z > largest) {
+    axis = 2;
+  }
+  float component = axis == 0 ? direction.x : (axis == 1 ? direction.y : direction.z);
+  return 2 * axis + (component < 0.0 ? 1 : 0);
+}
+
+// The cluster's diffuse lobes disagree: Toksvig mean direction shorter than NORMAL_AGREEMENT times
+// one surface's (reference `normals_disagree`).
+bool normals_disagree(vec4 totals[MOMENT_PLANES])
+{
+  float diffuse = luminance(totals[0].xyz);
+  float one_surface = DIFFUSE_SHARPNESS / (DIFFUSE_SHARPNESS + 1.0);
+  return diffuse > 0.0 && length(vec3(totals[0].w, totals[1].xy)) < NORMAL_AGREEMENT * one_surface * diffuse;
+}
+
+// The trilinear filter of the diffuse moment channels (planes 0, 1.xy and 3) at (uv, level), split
+// by the normal class of the texels PLANE_SPLIT_DEPTH levels under each tap (unscaled).
+void plane_class_moments(vec2 uv, float level, int top, out vec4 class0[NORMAL_CLASSES],
+                         out vec2 class1[NORMAL_CLASSES], out vec4 class3[NORMAL_CLASSES])
+{
+  for (int c = 0; c < NORMAL_CLASSES; c++) {
+    class0[c] = vec4(0.0);
+    class1[c] = vec2(0.0);
+    class3[c] = vec4(0.0);
+  }
+  int lower, upper;
+  float fraction;
+  mip_level_split(level, top, lower, upper, fraction);
+  for (int k = 0; k < 2; k++) {
+    int tap_level = k == 0 ? lower : upper;
+    float share = k == 0 ? 1.0 - fraction : fraction;
+    if (!(share > 0.0)) {
+      continue;
+    }
+    BilinearTap tap = bilinear_tap(rsm_size >> tap_level, uv);
+    int child = max(tap_level - PLANE_SPLIT_DEPTH, 0);
+    int block = 1 << (tap_level - child);
+    float per_child = 1.0 / float(block * block);
+    for (int t = 0; t < 4; t++) {
+      bool right = (t & 1) != 0;
+      bool below = (t & 2) != 0;
+      ivec2 texel = ivec2(right ? tap.b.x : tap.a.x, below ? tap.b.y : tap.a.y);
+      float weight = share * ((below ? tap.f.y : 1.0 - tap.f.y) * (right ? tap.f.x : 1.0 - tap.f.x)) * per_child;
+      for (int y = 0; y < block; y++) {
+        for (int x = 0; x < block; x++) {
+          ivec2 at = texel * block + ivec2(x, y);
+          vec4 m0 = mip_atlas_fetch(rsm_size, child, 0, at);
+          vec4 m1 = mip_atlas_fetch(rsm_size, child, 1, at);
+          vec4 m3 = mip_atlas_fetch(rsm_size, child, 3, at);
+          int c = normal_class(vec3(m0.w, m1.xy));
+          class0[c] += weight * m0;
+          class1[c] += weight * m1.xy;
+          class3[c] += weight * m3;
+        }
+      }
+    }
+  }
 }
 
 float interpolate_levels(float per_level[MIP_ATLAS_MAX_LEVELS], float level, int top)
@@ -308,5 +383,82 @@ void main()
     vec4 filtered = (1.0 - fraction) * a[plane] + fraction * b[plane];
     totals[plane] = texel_count * filtered / denominator;
   }
+  if (plane_split == 0 || kernel_mode != 0) {
+    write_vsgl(index, totals, fallback_mean, fallback_variance, center, level, texel);
+    return;
+  }
+  // Plane-split clusters (reference `split_planes`): this kernel's PLANE_SPLIT_EXTRA slots follow
+  // the N kernels' columns, written every frame (zero when unused).
+  int leaving[PLANE_SPLIT_EXTRA];
+  for (int e = 0; e < PLANE_SPLIT_EXTRA; e++) {
+    leaving[e] = -1;
+  }
+  vec4 class0[NORMAL_CLASSES];
+  vec2 class1[NORMAL_CLASSES];
+  vec4 class3[NORMAL_CLASSES];
+  if (normals_disagree(totals)) {
+    plane_class_moments(center, level, top, class0, class1, class3);
+    float weight[NORMAL_CLASSES];
+    int order[NORMAL_CLASSES];
+    float sum = 0.0;
+    for (int c = 0; c < NORMAL_CLASSES; c++) {
+      weight[c] = luminance(class0[c].xyz);
+      sum += weight[c];
+      order[c] = c;
+    }
+    // Stable descending insertion sort (np.argsort(-w, kind="stable")).
+    for (int i = 1; i < NORMAL_CLASSES; i++) {
+      int key = order[i];
+      int j = i - 1;
+      while (j >= 0 && weight[order[j]] < weight[key]) {
+        order[j + 1] = order[j];
+        j--;
+      }
+      order[j + 1] = key;
+    }
+    float threshold = PLANE_SPLIT_SHARE * sum;
+    bool second = weight[order[1]] >= threshold && weight[order[1]] > 0.0;
+    if (second) {
+      for (int e = 0; e < PLANE_SPLIT_EXTRA; e++) {
+        float w = weight[order[e + 1]];
+        if (w >= threshold && w > 0.0) {
+          leaving[e] = order[e + 1];
+        }
+      }
+      vec4 stay0 = vec4(0.0);
+      vec2 stay1 = vec2(0.0);
+      vec4 stay3 = vec4(0.0);
+      for (int c = 0; c < NORMAL_CLASSES; c++) {
+        bool leaves = false;
+        for (int e = 0; e < PLANE_SPLIT_EXTRA; e++) {
+          leaves = leaves || leaving[e] == c;
+        }
+        if (!leaves) {
+          stay0 += class0[c];
+          stay1 += class1[c];
+          stay3 += class3[c];
+        }
+      }
+      float scale = texel_count / denominator;
+      totals[0] = scale * stay0;
+      totals[1] = vec4(scale * stay1, totals[1].zw);
+      totals[3] = scale * stay3;
+    }
+  }
   write_vsgl(index, totals, fallback_mean, fallback_variance, center, level, texel);
+  float scale = texel_count / denominator;
+  for (int e = 0; e < PLANE_SPLIT_EXTRA; e++) {
+    vec4 plane_totals[MOMENT_PLANES];
+    for (int plane = 0; plane < MOMENT_PLANES; plane++) {
+      plane_totals[plane] = vec4(0.0);
+    }
+    int c = leaving[e];
+    if (c >= 0) {
+      plane_totals[0] = scale * class0[c];
+      plane_totals[1] = vec4(scale * class1[c], 0.0, 0.0);
+      plane_totals[3] = scale * class3[c];
+    }
+    write_vsgl(vsgl_count + PLANE_SPLIT_EXTRA * index + e, plane_totals, fallback_mean, fallback_variance,
+               center, level, texel);
+  }
 }

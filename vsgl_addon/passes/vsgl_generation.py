@@ -24,7 +24,10 @@ Four shader stages (``glsl/vsgl_generation/``), compiled once per process and ca
    with exact weights (texel loads, no hardware filtering), VSGL parameters with the reference's
    clamps (``glsl/lib/vsgl_parameters.glsl``), each lobe's position per the positional
    distribution (``reference.vsgl.POSITIONAL_DISTRIBUTIONS``). The 2-VSGL mode reads the atlas's
-   top level (the parallel sum comes with the mip chain).
+   top level (the parallel sum comes with the mip chain). With ``plane_split`` a kernel whose
+   diffuse normals disagree bins its filter's diffuse moments by the normal class of the texels
+   ``reference.vsgl.PLANE_SPLIT_DEPTH`` levels under its taps and writes its extra planes' VSGLs
+   into its slots after the N kernels' columns (``reference.vsgl.split_planes``).
 
 Python textures have no mip levels (shared/reference/blender-gpu.md). Level 0 of each plane is its
 own S x S texture; levels >= 1 of all planes share one RGBA32F texture, the mip atlas
@@ -120,7 +123,7 @@ def _vsgl_kernels_interface() -> ShaderInterface:
     return ShaderInterface(
         push_constants=[("INT", "rsm_size"), ("INT", "vsgl_count"), ("INT", "kernel_mode"),
                         ("INT", "positional_distribution"), ("FLOAT", "kernel_k"),
-                        ("IVEC2", "lattice_rotation_fixed"), ("INT", "split_at_jumps")],
+                        ("IVEC2", "lattice_rotation_fixed"), ("INT", "split_at_jumps"), ("INT", "plane_split")],
         samplers=_LEVEL0_SAMPLERS,
         images=[_ATLAS_IMAGE, ("RGBA32F", "FLOAT_2D", "vsgl_table")],
         local_group_size=_KERNEL_GROUP,
@@ -158,7 +161,10 @@ PASS = GPUPass(
                                    defines=lambda: {"STRADDLE_SHARE": float(reference.STRADDLE_SHARE),
                                                     "NORMAL_AGREEMENT": float(reference.NORMAL_AGREEMENT),
                                                     "SNAP_TO_TEXEL": int(bool(reference.SNAP_TO_TEXEL)),
-                                                    "MAX_DESCENT": int(reference.MAX_DESCENT)},
+                                                    "MAX_DESCENT": int(reference.MAX_DESCENT),
+                                                    "PLANE_SPLIT_DEPTH": int(reference.PLANE_SPLIT_DEPTH),
+                                                    "PLANE_SPLIT_SHARE": float(reference.PLANE_SPLIT_SHARE),
+                                                    "PLANE_SPLIT_EXTRA": int(reference.PLANE_SPLIT_EXTRA)},
                                    code=lambda: {"compute": VSGL_TABLE.glsl("image_store")}),
     },
     reads=(RSM.name,),
@@ -321,7 +327,9 @@ class VSGLGeneration:
         self.layout: MipAtlasLayout | None = None
         self.table = None
         self.table_width = 0
-        self.vsgl_count = 0
+        self.vsgl_count = 0  # the table's columns: the kernels', then their plane-split slots
+        self.kernel_count = 0
+        self.plane_split = False  # of the current table
         self.positional_distribution = "per-lobe"  # of the current table
 
     def free(self) -> None:
@@ -334,6 +342,7 @@ class VSGLGeneration:
         self.table = None
         self.table_width = 0
         self.vsgl_count = 0
+        self.kernel_count = 0
 
     def build_mip_atlas(self, rsm_textures: RSMTextures, pdf_texture=None, jumps=None) -> None:
         """Stages 1, 2 and 2b: level 0 from the RSM, then the mip levels of every plane. ``jumps``:
@@ -411,19 +420,28 @@ class VSGLGeneration:
         program.image("mip_atlas", self.atlas)
 
     def generate(self, vsgl_count: int, k: float = 1.0, kernel: str = "modified",
-                 rotation=(0.0, 0.0), positional_distribution: str = "per-lobe", split_at_jumps=None):
+                 rotation=(0.0, 0.0), positional_distribution: str = "per-lobe", split_at_jumps=None,
+                 plane_split=None):
         """Stage 3 on the current mip atlas; returns the table texture (see the module doc).
         ``split_at_jumps``: the kernels descend off depth discontinuities (reference
-        ``kernel_level_unstraddled``); None reads reference.SPLIT_AT_JUMPS."""
+        ``kernel_level_unstraddled``); None reads reference.SPLIT_AT_JUMPS. ``plane_split``:
+        clusters over several planes add a VSGL per plane (reference ``split_planes``; None reads
+        reference.PLANE_SPLIT): the table then has reference.PLANE_SPLIT_EXTRA slots per kernel
+        after the kernels' columns, zero where unused (:meth:`read_table` drops those)."""
         import gpu
 
         if self.atlas is None:
             raise RuntimeError("build_mip_atlas() first")
         count, k = _check_arguments(vsgl_count, k, kernel, positional_distribution)
-        if self.table is None or self.table_width != count:
-            self.table = gpu.types.GPUTexture((count, len(VSGL_TABLE.slots)), format="RGBA32F")
-            self.table_width = count
-        self.vsgl_count = count
+        split_planes = reference.plane_split_applies(
+            reference.PLANE_SPLIT if plane_split is None else plane_split, kernel, count)
+        width = count * (1 + reference.PLANE_SPLIT_EXTRA) if split_planes else count
+        if self.table is None or self.table_width != width:
+            self.table = gpu.types.GPUTexture((width, len(VSGL_TABLE.slots)), format="RGBA32F")
+            self.table_width = width
+        self.vsgl_count = width
+        self.kernel_count = count
+        self.plane_split = split_planes
         self.positional_distribution = positional_distribution
         kernels = shader("vsgl_kernels")
         kernels.bind()
@@ -437,16 +455,19 @@ class VSGLGeneration:
         # reference.SPLIT_AT_JUMPS read at each generation, as the reference reads it per call.
         split = reference.SPLIT_AT_JUMPS if split_at_jumps is None else split_at_jumps
         set_uniform(kernels.uniform_int, "split_at_jumps", int(bool(split)))
+        set_uniform(kernels.uniform_int, "plane_split", int(split_planes))
         self._bind_levels(kernels)
         kernels.image("vsgl_table", self.table)
         gpu.compute.dispatch(kernels, _groups(count, _KERNEL_GROUP[0]), 1, 1)
         return self.table
 
     def read_table(self) -> dict:
-        """The table as the reference's dict of float64 arrays (reading back finishes the GPU)."""
+        """The table as the reference's dict of float64 arrays (reading back finishes the GPU),
+        without the unused plane-split slots (reference ``compact_plane_split``)."""
         count = self.vsgl_count
         table = read_texture(self.table, self.table_width, len(VSGL_TABLE.slots)).astype(np.float64)
-        return VSGL_TABLE.unpack(table, count)
+        table = VSGL_TABLE.unpack(table, count)
+        return reference.compact_plane_split(table, self.kernel_count) if self.plane_split else table
 
     def read_mip_chains(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """The mip chains as the reference's ``RSMMipmaps`` holds them (float32 values):

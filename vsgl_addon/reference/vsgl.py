@@ -629,6 +629,14 @@ def cluster_totals(maps: RSMMipmaps, center, texel, k, vsgl_count, kernel="modif
     None), estimate M F̄(x_i, l_i) / (N p̄(x_i, l_i)) (Eq. 5).
     'original': l_i from Eq. 1, estimate M F̄(x_i, l_i) / max(N p(x_i), 1) (Eq. 4).
     """
+    level, center, scale = _cluster_scale(maps, center, texel, k, vsgl_count, kernel, split_at_jumps)
+    filtered = mipmap.trilinear(maps.moments, center, level)
+    return level, center, filtered * scale[:, None]
+
+
+def _cluster_scale(maps: RSMMipmaps, center, texel, k, vsgl_count, kernel, split_at_jumps):
+    """(level, center, M / denominator) of :func:`cluster_totals`: the cluster estimate is the
+    trilinear filter of the moments at (center, level) times the last."""
     texel_count = maps.texel_count
     if kernel == "modified":
         level = kernel_level_modified(maps.pdf, center, k, vsgl_count, texel_count)
@@ -646,12 +654,148 @@ def cluster_totals(maps: RSMMipmaps, center, texel, k, vsgl_count, kernel="modif
     # p̄ > 0 at a warped centre (its own texel has bilinear weight >= 1/4 at every level); the
     # floor only guards against a subnormal PDF.
     denominator = np.maximum(denominator, np.finfo(np.float64).tiny)
-    filtered = mipmap.trilinear(maps.moments, center, level)
-    return level, center, texel_count * filtered / denominator[:, None]
+    return level, center, texel_count / denominator
+
+
+# --- Plane-split clusters --------------------------------------------------------------------
+
+#: 000 §4 clusters the VPLs of an RSM-image kernel. Where a kernel spans a room's corner (a point
+#: light's cube face over a floor and two walls, a few VSGLs per view), one SG lobe and one
+#: isotropic Gaussian stand for several planes: the Toksvig mean of the normals is short (λ_v ≈ 1
+#: instead of 2), the lobe sends light behind both surfaces and the mean floats in front of the
+#: corner. Measured against each cluster's own texels (benchmarks/results/vsgl_aggregation*.md,
+#: no visibility, N = 256): the 24-light room's VSGLs give 0.928 of their texels' light, its
+#: corner clusters 0.891. A **plane-split cluster** keeps 000's kernel (its level, centre and
+#: Eq. 5 weights, so the power is unchanged) and bins its diffuse moments by the normal class of
+#: the mip texels PLANE_SPLIT_DEPTH levels under each of its trilinear taps (the kernel's filter,
+#: regrouped); each class holding PLANE_SPLIT_SHARE of the diffuse power or more becomes a VSGL of
+#: its own (up to PLANE_SPLIT_EXTRA more), built with 000 app. B.1-B.2 from its moments. The
+#: kernel's VSGL keeps the largest class, the small ones and the whole specular lobe. Only kernels
+#: whose diffuse normals disagree (NORMAL_AGREEMENT, as for the jumps) split, so a flat cluster's
+#: VSGL is 000's. The what-if (same kernels, float64, benchmarks/results/vsgl_aggregation_blocks.md):
+#: the 24-light room 0.928 -> 0.964 of the texels' light, the closed room 0.986 -> 1.012, the
+#: Cornell box 0.955 -> 0.952. It departs from 000 §4: a frame has N VSGLs plus the extra planes'.
+#: The generation's default (the renderer asks per light type: pipeline.PLANE_SPLIT_LIGHT_TYPES).
+PLANE_SPLIT = False
+#: Levels under each trilinear tap whose texels are binned by their mean normal's class: 1 gives
+#: 0.955, 2 0.953 and 3 0.964 of the texels' light on the 24-light room; each texel's own normal
+#: (level 0) 0.969.
+PLANE_SPLIT_DEPTH = 3
+#: Share of a cluster's diffuse power (luminance) a class needs to become a VSGL of its own.
+PLANE_SPLIT_SHARE = 0.05
+#: Most VSGLs a kernel adds: the table keeps PLANE_SPLIT_EXTRA slots per kernel after the N
+#: kernels' VSGLs, and the unused ones (power 0) are dropped when it is read.
+PLANE_SPLIT_EXTRA = 3
+NORMAL_CLASSES = 6
+_DIFFUSE_CHANNELS = np.r_[0:6, 12:16]
+
+
+def normal_class(direction) -> np.ndarray:
+    """Class 0-5 of each direction (..., 3): 2 × its dominant axis + 1 where that component is
+    negative; ties take the first axis (np.argmax), a zero vector class 0."""
+    direction = f64(direction)
+    dominant = np.argmax(np.abs(direction), axis=-1)
+    component = np.take_along_axis(direction, dominant[..., None], axis=-1)[..., 0]
+    return 2 * dominant + (component < 0.0)
+
+
+def normals_disagree(totals) -> np.ndarray:
+    """(N,) True where a cluster's diffuse lobes' Toksvig mean direction is shorter than
+    NORMAL_AGREEMENT times one surface's (:func:`straddles`' test without the jump)."""
+    totals = f64(totals)
+    diffuse = luminance(totals[..., CH_DIFFUSE])
+    length = norm(totals[..., CH_DIFFUSE_DIRECTION])
+    one_surface = DIFFUSE_SHARPNESS / (DIFFUSE_SHARPNESS + 1.0)
+    return (diffuse > 0.0) & (length < NORMAL_AGREEMENT * one_surface * diffuse)
+
+
+def plane_class_moments(maps: RSMMipmaps, center, level) -> np.ndarray:
+    """(N, 6, 20): the trilinear filter of the moments at (center, level) (``mipmap.trilinear``,
+    unscaled) with its diffuse channels split by normal class. Each tap texel at level L is the
+    mean of its 4^(L - b) texels at b = max(L - PLANE_SPLIT_DEPTH, 0), each binned by the class of
+    its Σ w_d ξ̄_d (:func:`normal_class`); the classes sum to the filter's diffuse channels, the
+    specular channels are 0."""
+    center, level = f64(center).reshape(-1, 2), f64(level).reshape(-1)
+    top = maps.top_level
+    out = np.zeros((len(level), NORMAL_CLASSES, MOMENT_CHANNELS))
+    for n, (uv, l) in enumerate(zip(center, level)):
+        l = min(max(float(l), 0.0), float(top))
+        lower = min(int(np.floor(l)), top)
+        upper = min(lower + 1, top)
+        fraction = l - lower
+        for tap_level, share in ((lower, 1.0 - fraction), (upper, fraction)):
+            if not share > 0.0:
+                continue
+            side = maps.moments[tap_level].shape[0]
+            s, t = uv[0] * side - 0.5, uv[1] * side - 0.5
+            j0, i0 = int(np.floor(s)), int(np.floor(t))
+            fx, fy = s - j0, t - i0
+            child = max(tap_level - PLANE_SPLIT_DEPTH, 0)
+            block = 1 << (tap_level - child)
+            image = maps.moments[child]
+            for di, wy in ((0, 1.0 - fy), (1, fy)):
+                for dj, wx in ((0, 1.0 - fx), (1, fx)):
+                    i = min(max(i0 + di, 0), side - 1)
+                    j = min(max(j0 + dj, 0), side - 1)
+                    texels = image[i * block:(i + 1) * block, j * block:(j + 1) * block].reshape(-1, MOMENT_CHANNELS)
+                    classes = normal_class(texels[:, CH_DIFFUSE_DIRECTION])
+                    np.add.at(out[n], classes, (share * wy * wx / (block * block)) * texels)
+    keep = np.zeros(MOMENT_CHANNELS)
+    keep[_DIFFUSE_CHANNELS] = 1.0
+    return out * keep
+
+
+def split_planes(totals, class_totals):
+    """(main (N, 20), extra (N, PLANE_SPLIT_EXTRA, 20)): each cluster's totals with the diffuse
+    channels of its extra planes moved out, and those planes' totals (diffuse channels only; zero
+    where unused). A cluster splits when :func:`normals_disagree` and at least two classes of
+    ``class_totals`` (N, 6, 20, the scale of ``totals``) hold PLANE_SPLIT_SHARE of its diffuse
+    power; the largest class stays, the next ones by power (ties by class) up to PLANE_SPLIT_EXTRA
+    leave if they hold that share. The kernel's VSGL keeps the other classes' sum."""
+    totals, class_totals = f64(totals).copy(), f64(class_totals)
+    weight = luminance(class_totals[..., CH_DIFFUSE])  # (N, 6)
+    order = np.argsort(-weight, axis=1, kind="stable")
+    ranked = np.take_along_axis(weight, order, axis=1)
+    major = (ranked >= PLANE_SPLIT_SHARE * weight.sum(axis=1, keepdims=True)) & (ranked > 0.0)
+    split = normals_disagree(totals) & (major.sum(axis=1) >= 2)
+    extra = np.zeros((len(totals), PLANE_SPLIT_EXTRA, MOMENT_CHANNELS))
+    for n in np.flatnonzero(split):
+        leaving = [c for c, keep in zip(order[n, 1:1 + PLANE_SPLIT_EXTRA], major[n, 1:1 + PLANE_SPLIT_EXTRA]) if keep]
+        for e, c in enumerate(leaving):
+            extra[n, e] = class_totals[n, c]
+        staying = [c for c in range(NORMAL_CLASSES) if c not in leaving]
+        totals[n, _DIFFUSE_CHANNELS] = class_totals[n, staying][:, _DIFFUSE_CHANNELS].sum(axis=0)
+    return totals, extra
+
+
+#: The GPU's table is one texture row (passes/vsgl_generation.MAX_VSGL_COUNT columns): a plane split
+#: needs N (1 + PLANE_SPLIT_EXTRA) of them, so N above 4096 keeps 000's clusters.
+PLANE_SPLIT_MAX_COLUMNS = 16384
+
+
+def plane_split_applies(plane_split, kernel, vsgl_count) -> bool:
+    """Whether a generation asked for ``plane_split`` splits: modified kernels only (the original
+    kernels are 000's comparison baseline, the 2-VSGL mode has no kernels) and a table that fits
+    (PLANE_SPLIT_MAX_COLUMNS)."""
+    return bool(plane_split) and kernel == "modified" \
+        and int(vsgl_count) * (1 + PLANE_SPLIT_EXTRA) <= PLANE_SPLIT_MAX_COLUMNS
+
+
+def compact_plane_split(table: dict, kernel_count: int) -> dict:
+    """The table without its unused extra-plane slots: the first ``kernel_count`` rows (one per
+    kernel), then each slot with power (in slot order); ``rsm_total_power`` as it is."""
+    power = np.asarray(table["power"]).reshape(len(table["power"]), -1)
+    if len(power) <= kernel_count:
+        return table
+    keep = np.ones(len(power), bool)
+    keep[kernel_count:] = np.any(power[kernel_count:] != 0.0, axis=1)
+    return {name: (np.asarray(value)[keep] if name != "rsm_total_power" and np.ndim(value) and len(value) == len(keep)
+                   else value) for name, value in table.items()}
 
 
 def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
-                   rotation=None, positional_distribution="per-lobe", split_at_jumps=None) -> dict:
+                   rotation=None, positional_distribution="per-lobe", split_at_jumps=None,
+                   plane_split=None) -> dict:
     """Generate VSGLs from an RSM by filtered importance sampling (000 §4, app. B.3, app. D).
 
     rsm         an :class:`RSM` or a mapping with its field names.
@@ -665,6 +809,9 @@ def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
                 ``POSITIONAL_DISTRIBUTIONS`` and ``vsgl_parameters``.
     split_at_jumps  'modified' kernels over a depth discontinuity descend until they hold none
                 of it (:func:`kernel_level_unstraddled`; SPLIT_AT_JUMPS when None).
+    plane_split  clusters over several planes give each plane its own VSGL (PLANE_SPLIT when
+                None; see there): the N kernels' VSGLs come first, then the extra planes' in
+                kernel order (their kernel's centre and level); N rows without it.
 
     Returns a dict of float64 arrays, one row per VSGL: ``mean`` (N, 3), ``variance`` (N)
     (000 app. B.2), ``diffuse_mean``/``specular_mean`` (N, 3), ``diffuse_variance``/
@@ -690,11 +837,22 @@ def generate_vsgls(rsm, vsgl_count, k=1.0, kernel="modified", seed=0, pdf=None,
 
     lattice = mipmap.fibonacci_lattice(vsgl_count, lattice_rotation(seed, rotation))
     center, texel = mipmap.warp_hierarchical(maps.pdf, lattice)
-    level, center, totals = cluster_totals(maps, center, texel, k, vsgl_count, kernel, split_at_jumps)
+    level, center, scale = _cluster_scale(maps, center, texel, k, vsgl_count, kernel, split_at_jumps)
+    totals = mipmap.trilinear(maps.moments, center, level) * scale[:, None]
 
     fallback_mean, fallback_variance = _rsm_fallback(maps.moments[-1])
-    out = vsgl_parameters(totals, fallback_mean, fallback_variance, positional_distribution)
-    out["kernel_center"] = center
-    out["kernel_level"] = level
+    plane_split = plane_split_applies(PLANE_SPLIT if plane_split is None else plane_split, kernel, vsgl_count)
+    extra = np.zeros((vsgl_count, 0, MOMENT_CHANNELS))
+    if plane_split:
+        splits = normals_disagree(totals)
+        class_totals = np.zeros((vsgl_count, NORMAL_CLASSES, MOMENT_CHANNELS))
+        if splits.any():
+            class_totals[splits] = plane_class_moments(maps, center[splits], level[splits]) * scale[splits, None, None]
+        totals, extra = split_planes(totals, class_totals)
+    rows = np.concatenate([totals, extra.reshape(-1, MOMENT_CHANNELS)])
+    out = vsgl_parameters(rows, fallback_mean, fallback_variance, positional_distribution)
+    parent = np.concatenate([np.arange(vsgl_count), np.repeat(np.arange(vsgl_count), extra.shape[1])])
+    out["kernel_center"] = center[parent]
+    out["kernel_level"] = level[parent]
     out["rsm_total_power"] = (rsm.flux_diffuse + rsm.flux_specular).reshape(-1, 3).sum(axis=0)
-    return out
+    return compact_plane_split(out, vsgl_count)
