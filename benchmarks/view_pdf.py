@@ -3,7 +3,7 @@
 
     .venv/bin/python benchmarks/view_pdf.py [--only NAME ...] [--results-dir DIR]
         [--flicker-frames F] [--flicker-seeds S] [--skip-flicker] [--defensive B ...] [--repeats R]
-        [--seeds S] [--unnormalized]
+        [--seeds S] [--other-normalization] [--every-light] [--name STEM]
 
 Per scene of benchmarks/validation_suite.py (its cached Cycles truths, 240x180, each scene's saved
 settings: N = 256, visibility on), one frame with ``pdf = light`` and one with ``pdf = view``, after
@@ -17,8 +17,10 @@ whose position is the camera G-buffer's at their pixel, within two texel footpri
 
 Every error is the mean over ``--seeds`` lattice seeds (the scene's seed and the next ones, 4 by
 default; one seed's relative RMSE moves by ±10 % on the sun scenes), each seed's in the JSON.
-``--unnormalized``: also the view PDF's frames without the per-view normalization of the VSGL powers
-to the RSM total (pipeline.NORMALIZE_VIEW_PDF_POWERS).
+``--other-normalization``: also the view PDF's frames with the per-view normalization of the VSGL
+powers to the RSM total the other way (pipeline.NORMALIZE_VIEW_PDF_POWERS flipped; off by default).
+``--every-light``: the view PDF for every light type, not only the planner's
+(planner.VIEW_PDF_LIGHT_TYPES, suns): the measurement behind that rule. ``--name``: the results' stem.
 
 Targets (the issue's): on a scene whose light's footprint is at least 10x the camera's view
 (sun_courtyard: a sun over a 40 m ground; sun_ground: a sun over an open 60 m ground) the view PDF's
@@ -167,7 +169,7 @@ def flicker(name: str, path: Path, frames: int, seeds: int) -> dict:
     return out
 
 
-def measure(name: str, path: Path, defensive=(), repeats: int = 3, seeds: int = 1, unnormalized: bool = False) -> dict:
+def measure(name: str, path: Path, defensive=(), repeats: int = 3, seeds: int = 1, other_normalization: bool = False) -> dict:
 
     from vsgl_addon.passes.contract import LIGHT_PASSES
     from vsgl_addon.reference import brsm
@@ -204,19 +206,21 @@ def measure(name: str, path: Path, defensive=(), repeats: int = 3, seeds: int = 
                 row[pdf]["seeds"][str(seed)] = {"mean_ratio": errors["mean_ratio"], "rel": errors["rel"]}
             row[pdf]["mean_ratio"] = float(np.mean([e["mean_ratio"] for e in row[pdf]["seeds"].values()]))
             row[pdf]["rel"] = float(np.mean([e["rel"] for e in row[pdf]["seeds"].values()]))
-        if unnormalized:  # the view PDF's frames without the per-view power normalization, same seeds
+        if other_normalization:  # the view PDF's frames with the other per-view power normalization, same seeds
             from vsgl_addon import pipeline
 
-            pipeline.NORMALIZE_VIEW_PDF_POWERS = False
+            default_normalization = pipeline.NORMALIZE_VIEW_PDF_POWERS
+            pipeline.NORMALIZE_VIEW_PDF_POWERS = not default_normalization
             try:
                 errors = [Errors(truth, frame.coverage)(frame.indirect_diffuse, frame.indirect_specular)
                           for frame in (renderer.render(description, settings.overridden(pdf="view", seed=int(seed)),
                                                         WIDTH, HEIGHT) for seed in row["light"]["seeds"])]
             finally:
-                pipeline.NORMALIZE_VIEW_PDF_POWERS = True
+                pipeline.NORMALIZE_VIEW_PDF_POWERS = default_normalization
             rel = float(np.mean([e["rel"] for e in errors]))
-            row["unnormalized"] = {"mean_ratio": float(np.mean([e["mean_ratio"] for e in errors])), "rel": rel,
-                                   "rel_change": rel / row["light"]["rel"] - 1.0}
+            row["other_normalization"] = {"normalized": not default_normalization,
+                                          "mean_ratio": float(np.mean([e["mean_ratio"] for e in errors])), "rel": rel,
+                                          "rel_change": rel / row["light"]["rel"] - 1.0}
         default = brsm.DEFENSIVE_SHARE
         try:
             for share in defensive:  # the same frame with another β of the mixture, same run
@@ -267,13 +271,16 @@ def markdown(rows, flicker_result=None, command="") -> str:
     worst = max(rows, key=lambda r: r["rel_change"])
     lines += [f"Worst scene: {worst['scene']} {100 * worst['rel_change']:+.1f} % (target ≤ +5 %: "
               f"{'met' if worst['rel_change'] <= 0.05 else 'missed'})."]
-    if rows and "unnormalized" in rows[0]:
-        lines += ["", "## The view PDF without the per-view power normalization", "",
-                  "Each view's VSGL powers are not scaled to its RSM total (pipeline.NORMALIZE_VIEW_PDF_POWERS "
-                  "off), the same seeds; change against the light PDF's relative RMSE.", "",
-                  "| scene | mean view, not normalized | rel RMSE view, not normalized | change |", "|---|---|---|---|"]
+    if rows and "other_normalization" in rows[0]:
+        normalized = rows[0]["other_normalization"]["normalized"]
+        word = "normalized" if normalized else "not normalized"
+        lines += ["", f"## The view PDF {'with' if normalized else 'without'} the per-view power normalization", "",
+                  f"Each view's VSGL powers {'scaled' if normalized else 'not scaled'} to its RSM total "
+                  f"(pipeline.NORMALIZE_VIEW_PDF_POWERS {'on' if normalized else 'off'}), the same seeds; change "
+                  "against the light PDF's relative RMSE.", "",
+                  f"| scene | mean view, {word} | rel RMSE view, {word} | change |", "|---|---|---|---|"]
         for r in rows:
-            u = r["unnormalized"]
+            u = r["other_normalization"]
             lines.append(f"| {r['scene']} | {u['mean_ratio']:.3f} | {u['rel']:.3f} | {100 * u['rel_change']:+.1f} % |")
     shares = list(rows[0].get("defensive", {})) if rows else []
     if shares:
@@ -317,8 +324,11 @@ def main(argv=None) -> int:
     parser.add_argument("--flicker-seeds", type=int, default=0)
     parser.add_argument("--skip-flicker", action="store_true")
     parser.add_argument("--repeats", type=int, default=3, help="timed frames per PDF (alternating)")
-    parser.add_argument("--unnormalized", action="store_true",
-                        help="also the view PDF without the per-view normalization of the VSGL powers")
+    parser.add_argument("--other-normalization", action="store_true",
+                        help="also the view PDF with the per-view normalization of the VSGL powers the other way")
+    parser.add_argument("--every-light", action="store_true",
+                        help="the view PDF for every light type, not only the planner's (suns)")
+    parser.add_argument("--name", default="view_pdf", help="the results' file stem")
     parser.add_argument("--seeds", type=int, default=4,
                         help="lattice seeds (the scene's and the next ones) whose errors are averaged per PDF")
     parser.add_argument("--defensive", type=float, nargs="+", default=[],
@@ -329,8 +339,13 @@ def main(argv=None) -> int:
 
     register()
     ensure_gpu_context()
+    if args.every_light:
+        from vsgl_addon import planner
+
+        planner.VIEW_PDF_LIGHT_TYPES = ("SUN", "SPOT", "POINT", "AREA")
     scenes = [(name, path) for name, path, _ in suite() if not args.only or name in args.only]
-    rows = [measure(name, path, args.defensive, args.repeats, args.seeds, args.unnormalized) for name, path in scenes]
+    rows = [measure(name, path, args.defensive, args.repeats, args.seeds, args.other_normalization)
+            for name, path in scenes]
     flicker_result = None
     if not args.skip_flicker:
         flicker_result = next((flicker(name, path, args.flicker_frames, args.flicker_seeds)
@@ -342,8 +357,8 @@ def main(argv=None) -> int:
     command = " ".join([".venv/bin/python benchmarks/view_pdf.py"] + given)
     text = markdown(rows, flicker_result, command)
     args.results_dir.mkdir(parents=True, exist_ok=True)
-    (args.results_dir / "view_pdf.md").write_text(text, encoding="utf-8")
-    (args.results_dir / "view_pdf.json").write_text(json.dumps({"scenes": rows, "flicker": flicker_result}, indent=2),
+    (args.results_dir / f"{args.name}.md").write_text(text, encoding="utf-8")
+    (args.results_dir / f"{args.name}.json").write_text(json.dumps({"scenes": rows, "flicker": flicker_result}, indent=2),
                                                     encoding="utf-8")
     print(text)
     return 0

@@ -415,21 +415,27 @@ def test_the_pdf_setting_and_its_command_line_flag():
     from vsgl_addon.cli import build_parser
     from vsgl_addon.settings import SettingsError
 
-    assert VSGLSettings().pdf == "light" and VSGLSettings(pdf="view").pdf == "view"
+    assert VSGLSettings().pdf == "view" and VSGLSettings(pdf="light").pdf == "light"
     with pytest.raises(SettingsError, match="PDF must be one of light, view"):
         VSGLSettings(pdf="eye")
     arguments = build_parser().parse_args(["render", "s.blend", "--out", "o.exr", "--pdf", "view"])
     assert arguments.pdf == "view"
     # The view PDF needs the frame's one view; without it (the viewport) the plan keeps the light PDF.
-    light = point_light((0.0, 0.0, 2.0), power=500.0)
+    sun = _named(point_light((0.0, 0.0, 5.0), power=3.0, kind="SUN"), "Sun")
     camera = _camera()
-    scene = _room([light])
+    scene = _room([sun])
     settings = VSGLSettings(pdf="view")
+    view_projection = camera.projection_matrix() @ camera.view_matrix()
     assert not P.plan_frame(scene, settings, ProxyCache()).runs("view_pdf")
-    assert P.plan_frame(scene, settings, ProxyCache(),
-                        view_projection=camera.projection_matrix() @ camera.view_matrix()).runs("view_pdf")
+    plan = P.plan_frame(scene, settings, ProxyCache(), view_projection=view_projection)
+    assert plan.runs("view_pdf") and plan.decisions["view_pdf"].reason.startswith("Sun:")
+    assert not P.plan_frame(scene, VSGLSettings(pdf="light"), ProxyCache(), view_projection=view_projection).runs("view_pdf")
     assert not P.plan_frame(scene, VSGLSettings(pdf="view", kernel="two-vsgl"), ProxyCache(),
                             view_projection=np.eye(4)).runs("view_pdf")
+    # Local lights keep the light PDF (planner.VIEW_PDF_LIGHT_TYPES): their RSM is their own frustum.
+    point = _room([point_light((0.0, 0.0, 2.0), power=500.0)])
+    plan = P.plan_frame(point, settings, ProxyCache(), view_projection=view_projection)
+    assert not plan.runs("view_pdf") and plan.decisions["view_pdf"].reason.startswith("no sun")
 
 
 @pytest.mark.gpu

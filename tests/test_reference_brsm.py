@@ -67,18 +67,23 @@ def test_the_defensive_mixture_keeps_every_lit_texel_and_sums_to_one():
 
 
 @pytest.mark.gpu
-def test_generation_with_the_view_pdf_keeps_the_rsm_total():
-    """Summed VSGL power equals the RSM total with either PDF (000 Eq. 5; with the view PDF each view's
-    powers are normalized to it, Eq. 5 alone falls short there), and the view PDF moves the kernels
-    towards the reflectors that light what the camera sees."""
+def test_generation_with_the_view_pdf_keeps_the_rsm_total(monkeypatch):
+    """The view PDF's generation on a point light (the planner gives it to suns only; the mechanism is
+    the same): summed VSGL power equals the RSM total with either PDF (000 Eq. 5; with the view PDF
+    and pipeline.NORMALIZE_VIEW_PDF_POWERS each view's powers are normalized to it, Eq. 5 alone
+    falls short there), and the view PDF moves the kernels towards the reflectors that light what
+    the camera sees."""
     from test_planner import _camera, _room
     from test_proxies import point_light
+    from vsgl_addon import pipeline, planner
     from vsgl_addon.passes.rsm import SceneGPU
     from vsgl_addon.pipeline import render_scene_vsgls, view_receivers
     from vsgl_addon.planner import plan_frame
     from vsgl_addon.scene_description import SceneDescription
     from vsgl_addon.settings import VSGLSettings
 
+    monkeypatch.setattr(planner, "VIEW_PDF_LIGHT_TYPES", ("POINT",))
+    monkeypatch.setattr(pipeline, "NORMALIZE_VIEW_PDF_POWERS", True)
     room = _room([point_light((0.0, 0.0, 3.5), power=800.0)])
     camera = _camera(position=(2.5, -1.0, 0.6), looking=(1.0, 0.3, -0.4))  # a corner of the floor
     scene = SceneDescription(room.geometry, room.materials, room.lights, camera, room.object_names)
@@ -110,6 +115,61 @@ def test_generation_with_the_view_pdf_keeps_the_rsm_total():
     # The floor corner in view is lit by the wall above it, not by the floor around it: the view PDF
     # moves the kernels to the texels that light what the camera sees.
     assert centres["view"] > 1.5 * centres["light"]
+
+
+@pytest.mark.gpu
+def test_the_default_view_pdf_weighs_a_sun_and_keeps_its_near_power():
+    """The defaults (pdf "view", no per-view normalization) on a sun over a 40 m ground with a wall,
+    seen from a few metres: the plan weighs the sun's kernels by the view, more of them land within
+    3 m of what the camera sees, and 000 Eq. 5's shortfall (the power it sums short, README
+    "View-dependent PDF") lies away from the view: the VSGL power within 10 m of the view's
+    receivers is the light PDF's within 10 %, the summed power at least 0.6 of the RSM total at
+    N = 64."""
+    from test_planner import _camera
+    from test_proxies import point_light
+    from vsgl_addon.passes.rsm import SceneGPU
+    from vsgl_addon.pipeline import render_scene_vsgls, view_receivers
+    from vsgl_addon.planner import plan_frame
+    from vsgl_addon.scene_description import SceneDescription
+    from vsgl_addon.settings import VSGLSettings
+    from test_proxies import grid, material, scene_of
+
+    sun = point_light((0.0, 0.0, 10.0), power=3.0, kind="SUN", direction=(0.3, 0.2, -1.0))
+    ground = grid(8, 8, 40.0, 40.0, origin=(-20, -20, 0))
+    wall = grid(2, 2, 3.0, 2.0, origin=(-1.5, 2, 0), u=(1, 0, 0), v=(0, 0, 1))
+    mats = (material("Ground", 0.7, metallic=0.0, color=(0.6, 0.6, 0.6)),
+            material("Wall", 0.7, metallic=0.0, color=(0.8, 0.8, 0.8)))
+    built = scene_of([(ground, 1, 0), (wall, 2, 1)], mats, [sun])
+    camera = _camera(position=(0.0, -2.0, 1.5), looking=(0.0, 1.0, -0.3))  # the wall and the ground before it
+    scene = SceneDescription(built.geometry, built.materials, built.lights, camera, built.object_names)
+    view = (camera.view_matrix(), camera.projection_matrix())
+    scene_gpu = SceneGPU(scene)
+    near, totals, counts = {}, {}, {}
+    try:
+        receivers = view_receivers(scene_gpu, *view)
+        centre = receivers["position"].mean(axis=0)
+        for pdf in ("light", "view"):
+            settings = VSGLSettings(vsgl_count=64, rsm_size=64, visibility=False, pdf=pdf)
+            assert VSGLSettings().pdf == "view"
+            plan = plan_frame(scene, settings, view_projection=view[1] @ view[0])
+            assert plan.runs("view_pdf") == (pdf == "view")
+            vsgls = render_scene_vsgls(scene_gpu, settings, plan=plan, receivers=receivers)
+            try:
+                table = vsgls.read()
+            finally:
+                vsgls.free()
+            assert np.all(np.isfinite(table["power"]))
+            lum = table["power"] @ np.array([0.2126, 0.7152, 0.0722])
+            close = np.linalg.norm(table["mean"] - centre, axis=1) < 3.0
+            near[pdf] = lum[np.linalg.norm(table["mean"] - centre, axis=1) < 10.0].sum()
+            totals[pdf] = lum.sum() / (table["rsm_total_power"][0] @ np.array([0.2126, 0.7152, 0.0722]))
+            counts[pdf] = int(close.sum())
+    finally:
+        scene_gpu.free()
+    assert counts["view"] > 2 * counts["light"]
+    assert near["view"] == pytest.approx(near["light"], rel=0.10)
+    assert totals["light"] == pytest.approx(1.0, rel=1e-4)
+    assert 0.6 <= totals["view"] <= 1.0 + 1e-4
 
 
 def test_only_the_sets_that_light_diffuse_lobes_follow_the_view_pdf():

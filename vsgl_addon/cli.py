@@ -434,8 +434,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="asg (001 Eq. 11, default) or sg (the faster Eq. 37)")
     _caustics_flags(render)
     render.add_argument("--pdf", choices=PDFS.names,
-                        help="VSGL generation's PDF: light (the bounce power, default) or view (000 §5: also what "
-                             "the camera sees of it)")
+                        help="VSGL generation's PDF: view (000 §5: also what the camera sees of it, for suns; "
+                             "the default) or light (the bounce power, for every light)")
     _budget_flag(render)
     render.add_argument("--frame", type=int, metavar="F")
     render.add_argument("--report", metavar="REPORT.json", help="write timings, counts and parameters as JSON")

@@ -20,7 +20,7 @@ import numpy as np
 from .layouts import VSGL_TABLE
 from .passes.rsm import SceneGPU, render_rsm_views
 from .passes.vsgl_generation import VSGLGeneration
-from .planner import DeferredPowers, plan_frame, share_counts, view_power
+from .planner import DeferredPowers, plan_frame, share_counts, view_pdf_weighs, view_power
 from .reference.vsgl import LUMINANCE_WEIGHTS
 from .scene_description import LIGHT_TYPES
 from .scene_points import triangle_areas
@@ -169,10 +169,14 @@ VIEW_PDF_RECEIVERS = 256
 #: The view PDF's pole radius r, as a fraction of the scene's bounding diagonal.
 VIEW_PDF_RADIUS = 0.02
 #: With the view PDF, each view's VSGL powers scaled to its RSM total (SceneVSGLs.merge; read when
-#: called, so benchmarks/view_pdf.py can measure the frames without it). One scale per view raises
-#: the near kernels with the far ones it corrects: without it the suite's sun scenes keep the light
-#: PDF's means (benchmarks/results/view_pdf.md), but a room at N = 64 sums 12-19 % short.
-NORMALIZE_VIEW_PDF_POWERS = True
+#: called, so benchmarks/view_pdf.py can measure both). Off: 000 Eq. 5 with this high-frequency PDF
+#: sums short where the PDF is low, far from what the camera sees (the suns' views at N = 64 / 256 /
+#: 1024: 0.77-0.81 / 0.93-0.95 / 0.98 of the RSM total), and one scale per view would raise the near
+#: kernels with them: the sun courtyard's mean 1.08 -> 1.13 of Cycles, the open sun ground's
+#: 1.00 -> 1.08, while without it both keep the light PDF's means (benchmarks/results/view_pdf.md).
+#: (A point-lit room at N = 64 over five views sums 12-19 % short; the view PDF weighs only suns,
+#: planner.VIEW_PDF_LIGHT_TYPES.)
+NORMALIZE_VIEW_PDF_POWERS = False
 
 
 def view_receivers(scene_gpu: SceneGPU, view_matrix, projection_matrix) -> dict:
@@ -270,7 +274,8 @@ def render_scene_vsgls(scene_gpu: SceneGPU, settings: VSGLSettings, receiver_lob
             for view_index, view in enumerate(views):
                 generation = VSGLGeneration()
                 pending.append((light_index, view_index, generation))
-                pdf = _view_pdf_texture(view, uploaded) if view_pdf else None
+                weighs = view_pdf and view_pdf_weighs(scene_gpu.scene.lights[light_index])
+                pdf = _view_pdf_texture(view, uploaded) if weighs else None
                 generation.build_mip_atlas(view.rsm_textures(), pdf,
                                            split_kernels_at_jumps(scene_gpu.scene.lights[light_index]))
         view_counts = {index: len(views) for index, views in result.views_by_light.items()}

@@ -572,9 +572,25 @@ def weigh_passes(shares: dict, frame_seconds, threshold: float | None = None) ->
     return chosen, figures
 
 
+#: The light types whose VSGL kernels follow the view PDF (settings pdf "view", 000 §5). A sun's one
+#: orthographic RSM covers the scene's box grown by its bounce reach (views.sun_fit_rectangle), far
+#: more than the camera sees (38x and 42x on the suite's sun scenes), and there the view PDF takes the
+#: relative RMSE 16 % and 67 % down; a local light's RSM is its own frustum (1.0-2.1x the view on the
+#: suite), where it moved the error by -8 % to +3 % for up to 1.6x the frame time (the 24 point
+#: lights' 141 views each pay its three stages; benchmarks/results/view_pdf.md).
+VIEW_PDF_LIGHT_TYPES = ("SUN",)
+
+
+def view_pdf_weighs(light) -> bool:
+    """Whether this light's kernels follow the view PDF when the plan runs it (VIEW_PDF_LIGHT_TYPES)."""
+    return light.type in VIEW_PDF_LIGHT_TYPES
+
+
 def _pass_decisions(scene, settings: VSGLSettings, has_vsgls: bool, proxy_cache: ProxyCache,
-                    view_projection) -> tuple[dict, list]:
-    """(decisions of every pass after "vsgls", in DECISIONS' order; the proxies MRP-ASG keeps)."""
+                    view_projection, view_pdf_lights=()) -> tuple[dict, list]:
+    """(decisions of every pass after "vsgls", in DECISIONS' order; the proxies MRP-ASG keeps).
+    ``view_pdf_lights``: the names of the lights with RSM views whose kernels the view PDF would
+    place (view_pdf_weighs)."""
     decisions = {}
     if not settings.visibility:
         decisions["visibility"] = Decision(False, "off in the settings")
@@ -629,10 +645,14 @@ def _pass_decisions(scene, settings: VSGLSettings, has_vsgls: bool, proxy_cache:
         decisions["view_pdf"] = Decision(False, "no single view to weigh the texels by (the viewport): the light PDF")
     elif not has_vsgls:
         decisions["view_pdf"] = Decision(False, "no VSGL to place")
+    elif not view_pdf_lights:
+        decisions["view_pdf"] = Decision(False, "no sun: a local light's RSM is its own frustum, about what the view "
+                                                "sees, so the light PDF")
     else:
-        decisions["view_pdf"] = Decision(True, "texels weighted by their form factor with G-buffer samples' diffuse "
-                                               "lobes, mixed with the light PDF (000 §5); VSGL sets that light only "
-                                               "specular lobes keep the light PDF")
+        decisions["view_pdf"] = Decision(True, f"{', '.join(view_pdf_lights)}: texels weighted by their form factor "
+                                               "with G-buffer samples' diffuse lobes, mixed with the light PDF (000 "
+                                               "§5); local lights and VSGL sets that light only specular lobes keep "
+                                               "the light PDF")
     return decisions, proxies
 
 
@@ -739,7 +759,8 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
         decisions["vsgls"] = Decision(False, "no light reaches a reflector")
     has_vsgls = decisions["vsgls"].run
     cache = PROXY_CACHE if proxy_cache is None else proxy_cache
-    rest, proxies = _pass_decisions(scene, settings, has_vsgls, cache, view_projection)
+    view_pdf_lights = [light.name for light in lights if light.gets_rsm and view_pdf_weighs(scene.lights[light.index])]
+    rest, proxies = _pass_decisions(scene, settings, has_vsgls, cache, view_projection, view_pdf_lights)
     decisions.update(rest)
     weighed = {}
     if settings.quality_mode == "auto" and has_vsgls:

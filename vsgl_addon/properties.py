@@ -100,7 +100,7 @@ class VSGLSceneSettings(PropertyGroup):
         description="Where VSGL generation places its kernels: by the light's bounce power, or by what the "
                     "camera sees of it too (000 §5)",
         items=enum_items(PDFS),
-        default="LIGHT",
+        default="VIEW",
     )
     positional_distribution: EnumProperty(
         name="Lobe Positions",

@@ -96,9 +96,10 @@ PDFS = Choices(
     Choice("view", "VIEW", "View (BRSM, 000 §5)",
            "Kernel centres follow the bounce power times each texel's importance to what the camera sees "
            "(its unshadowed form factor with a few hundred G-buffer samples), mixed with the light PDF "
-           "(a quarter) so no lit texel is left out. For a light whose footprint is much larger than the "
-           "view (a sun over a large ground); costs a small G-buffer per frame and a GPU sum over "
-           "texels × receivers per RSM view, and needs the frame's camera (the viewport keeps the light PDF)"),
+           "(a quarter) so no lit texel is left out. Used for suns, whose map reaches far beyond the view "
+           "(a sun over a large ground); other lights keep the light PDF. Costs a small G-buffer per frame "
+           "and a GPU sum over texels × receivers per sun, and needs the frame's camera (the viewport "
+           "keeps the light PDF)"),
 )
 
 #: Where each VSGL's two lobes sit (reference.vsgl explains both): each lobe's own power
@@ -306,12 +307,12 @@ class VSGLSettings:
     # (benchmarks/results/vpl_visibility.md); on the validation suite no scene's relative RMSE is
     # worse than with them off (polished_metal_floor 1.383 -> 1.373, the others equal).
     vpl_visibility: bool = True
-    # VSGL generation's PDF (PDFS): the light's (000 §4), the default, or the view-dependent one (000
-    # §5). With the sun's kernels descending off depth discontinuities (pipeline.SPLIT_LIGHT_TYPES)
-    # the view PDF no longer helps the sun courtyard it was for (relative RMSE 0.416 -> 0.438 over
-    # lattice seeds 0-3, mean 1.22 -> 1.28 of Cycles), and its unshadowed importance lets a wall leak
-    # more (the wall test 3.2 % -> 5.4 %); the Cornell box gains 9 % (benchmarks/results/view_pdf.md).
-    pdf: str = "light"
+    # VSGL generation's PDF (PDFS): the view-dependent one (000 §5), the default, which the planner
+    # gives the suns' kernels only (planner.VIEW_PDF_LIGHT_TYPES: their RSM reaches far beyond the
+    # view), or the light's (000 §4) for every light. On the suite's sun scenes it takes the relative
+    # RMSE 16 % (courtyard) and 67 % (open ground) down at the light PDF's means
+    # (benchmarks/results/view_pdf.md).
+    pdf: str = "view"
     # Quality mode (QUALITY_MODES) and Budget mode's target frame time in ms (vsgl_addon/budget.py).
     quality_mode: str = "manual"
     time_budget_ms: float = 100.0
