@@ -429,6 +429,12 @@ def test_the_pdf_setting_and_its_command_line_flag():
     assert not P.plan_frame(scene, settings, ProxyCache()).runs("view_pdf")
     plan = P.plan_frame(scene, settings, ProxyCache(), view_projection=view_projection)
     assert plan.runs("view_pdf") and plan.decisions["view_pdf"].reason.startswith("Sun:")
+    # Auto quality mode weighs the optional passes (a sharp floor: the VPL pass, MRP-ASG) and plans
+    # them again: the suns keep the view PDF there too.
+    sharp = _room([sun], floor_roughness=0.1)
+    auto = P.plan_frame(sharp, VSGLSettings(pdf="view", quality_mode="auto"), ProxyCache(),
+                        view_projection=view_projection)
+    assert auto.weighed and auto.runs("view_pdf") and auto.decisions["view_pdf"].reason.startswith("Sun:")
     assert not P.plan_frame(scene, VSGLSettings(pdf="light"), ProxyCache(), view_projection=view_projection).runs("view_pdf")
     assert not P.plan_frame(scene, VSGLSettings(pdf="view", kernel="two-vsgl"), ProxyCache(),
                             view_projection=np.eye(4)).runs("view_pdf")

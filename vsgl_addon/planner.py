@@ -586,6 +586,11 @@ def view_pdf_weighs(light) -> bool:
     return light.type in VIEW_PDF_LIGHT_TYPES
 
 
+def _view_pdf_lights(scene, lights) -> list[str]:
+    """The names of the planned lights with RSM views whose kernels the view PDF would place."""
+    return [light.name for light in lights if light.gets_rsm and view_pdf_weighs(scene.lights[light.index])]
+
+
 def _pass_decisions(scene, settings: VSGLSettings, has_vsgls: bool, proxy_cache: ProxyCache,
                     view_projection, view_pdf_lights=()) -> tuple[dict, list]:
     """(decisions of every pass after "vsgls", in DECISIONS' order; the proxies MRP-ASG keeps).
@@ -676,6 +681,7 @@ def _auto_passes(scene, settings: VSGLSettings, lights: list, reaches: list, dec
                 }, proxies, {}
     model = CostModel.fallback() if cost_model is None else cost_model
     size = tuple(scene.camera.resolution) if scene.camera is not None else AUTO_FRAME_SIZE
+    view_pdf_lights = _view_pdf_lights(scene, lights)
     triangles = int(scene.geometry.triangle_count)
     variants = {}
 
@@ -684,7 +690,7 @@ def _auto_passes(scene, settings: VSGLSettings, lights: list, reaches: list, dec
             chosen = settings.overridden(
                 caustics="vpl_pass" in passes if "vpl_pass" in optional else settings.caustics,
                 glossy_reflectors="mrp_asg" in passes if "mrp_asg" in optional else settings.glossy_reflectors)
-            rest, kept = _pass_decisions(scene, chosen, True, proxy_cache, view_projection)
+            rest, kept = _pass_decisions(scene, chosen, True, proxy_cache, view_projection, view_pdf_lights)
             variants[passes] = ({"vsgls": decisions["vsgls"], **rest}, kept)
         return variants[passes]
 
@@ -759,8 +765,8 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
         decisions["vsgls"] = Decision(False, "no light reaches a reflector")
     has_vsgls = decisions["vsgls"].run
     cache = PROXY_CACHE if proxy_cache is None else proxy_cache
-    view_pdf_lights = [light.name for light in lights if light.gets_rsm and view_pdf_weighs(scene.lights[light.index])]
-    rest, proxies = _pass_decisions(scene, settings, has_vsgls, cache, view_projection, view_pdf_lights)
+    rest, proxies = _pass_decisions(scene, settings, has_vsgls, cache, view_projection,
+                                    _view_pdf_lights(scene, lights))
     decisions.update(rest)
     weighed = {}
     if settings.quality_mode == "auto" and has_vsgls:
