@@ -68,8 +68,12 @@ def test_floor_proxy_and_rsm_partition():
 
 
 def test_render_with_and_without_glossy_reflectors(monkeypatch):
+    from vsgl_addon import planner
     from vsgl_addon import renderer as renderer_module
 
+    # The partition's exactness: MRP-ASG's glossy set with the N of the sets it is compared with
+    # (planner.GLOSSY_SET_FACTOR gives it more VSGLs, another lattice, the same light).
+    monkeypatch.setattr(planner, "GLOSSY_SET_FACTOR", 1)
     description = _scene()
     settings = VSGLSettings(vsgl_count=32, rsm_size=32)
     renderer = FrameRenderer()

@@ -80,9 +80,12 @@ def test_render_report_has_timings_counts_parameters_and_renderer(rendered):
     assert {"rsm_and_vsgl_generation", "gbuffer", "direct_light", "vsgl_shading"} <= set(data["timings"])
     # The demo's glossy red floor is a rectangle proxy and a sharp reflector: the diffuse receivers' set
     # leaves its specular flux to the VPLs, the glossy one to MRP-ASG, a third keeps it for the
-    # receivers MRP-ASG leaves (light-paths.md): three VSGL sets.
+    # receivers MRP-ASG leaves (light-paths.md): three VSGL sets, the glossy one with
+    # planner.GLOSSY_SET_FACTOR × N.
+    from vsgl_addon.planner import GLOSSY_SET_FACTOR
+
     assert data["counts"]["proxies"] >= 1 and "mrp_asg" in data["timings"]
-    assert data["counts"]["vsgls"] == 3 * 64 and data["counts"]["lights"] == 1
+    assert data["counts"]["vsgls"] == (2 + GLOSSY_SET_FACTOR) * 64 and data["counts"]["lights"] == 1
     assert data["counts"]["vpls"] > 0 and data["counts"]["vpls_per_pixel"] > 0.0 and "vpl_culling" in data["timings"]
     assert data["settings"]["caustics"] is True and data["settings"]["delta"] == 0.001
     assert data["count_labels"]["vpls_per_pixel"] == "VPLs per Pixel"
@@ -95,9 +98,11 @@ def test_render_report_has_timings_counts_parameters_and_renderer(rendered):
     assert data["settings"]["positional_distribution"] == "per-lobe"
     assert data["resolution"] == [96, 72] and "llvmpipe" in data["gpu_renderer"]
     assert "vsgl_shading" in result.stdout
-    # The frame plan: N = 64 per VSGL set, MRP-ASG and the VPLs on for the floor, each decision's reason.
+    # The frame plan: N = 64 per VSGL set (the glossy one GLOSSY_SET_FACTOR × N), MRP-ASG and the VPLs
+    # on for the floor, each decision's reason.
     plan = data["plan"]
-    assert plan["vsgls"] == {"diffuse": 64, "glossy": 64, "all": 64} and plan["decisions"]["mrp_asg"]["run"]
+    assert plan["vsgls"] == {"diffuse": 64, "glossy": GLOSSY_SET_FACTOR * 64, "all": 64}
+    assert plan["decisions"]["mrp_asg"]["run"]
     assert plan["decisions"]["vpl_pass"]["run"] and plan["decisions"]["whole_set"]["run"]
     assert all(decision["reason"] for decision in plan["decisions"].values())
     assert "frame plan:" in result.stdout and plan["summary"][0] in result.stdout

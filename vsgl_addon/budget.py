@@ -166,7 +166,11 @@ def frame_features(plan, settings: VSGLSettings, size: tuple[int, int], full_siz
     elif settings.kernel == "two-vsgl":
         vsgls = 2.0 * views * sets
     else:
-        vsgls = float(settings.vsgl_count * sets)
+        from .planner import GLOSSY_SET_FACTOR
+
+        # planner.FramePlan.set_budget: the glossy receivers' set has GLOSSY_SET_FACTOR × N.
+        glossy = (GLOSSY_SET_FACTOR - 1) if "glossy" in plan.receiver_sets and plan.runs("mrp_asg") else 0
+        vsgls = float(settings.vsgl_count * (sets + glossy))
     proxies = float(len(plan.proxies))
     out = {
         "upload": (1.0, triangles / 1e5),

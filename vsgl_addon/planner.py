@@ -73,6 +73,15 @@ AUTO_SHARE_PER_COST = 0.08
 AUTO_FRAME_SIZE = (480, 270)
 #: The passes Auto weighs (the others cost little or carry every path).
 AUTO_OPTIONAL = ("vpl_pass", "mrp_asg")
+#: The glossy receivers' VSGL set (with MRP-ASG: every reflector's light but the proxies' specular
+#: flux, for the specular lobes MRP-ASG serves, GGX α up to 0.35) gets this many times N. Its
+#: receivers are sharp and resolve each VSGL's position (a near-mirror floor shows them one by one),
+#: so that set's sampling bounds the specular error (benchmarks/results/glossy_set_sampling.md,
+#: seeds 0-2): twice its VSGLs take the polished metal floor's specular relative RMSE
+#: 3.83 / 3.76 / 3.56 -> 2.47 / 2.53 / 2.51 for 1.11x the frame and the demo's 2.38 / 2.74 / 2.59 ->
+#: 2.05 / 2.19 / 2.11 for 1.19x; four times gain little more (2.2-2.4, 1.9-2.0) for 1.5x, and smaller
+#: kernels instead (K x 0.5) lose the occluded reflector 8 %.
+GLOSSY_SET_FACTOR = 2
 
 #: The plan's decisions, in the order the summary prints them: key -> label.
 DECISIONS = {
@@ -203,7 +212,7 @@ class FramePlan:
             dropped = 0.0
         else:
             # The one view's share is N whatever power it has; its dropped fraction is 0 either way.
-            counts, dropped = allocate_vsgls(self.vsgl_budget, {
+            counts, dropped = allocate_vsgls(self.set_budget(receiver_set), {
                 index: np.ones(deferred[index].views) if index in deferred else powers
                 for index, powers in view_powers.items()})
         by_index = {light.index: light for light in self.lights}
@@ -219,6 +228,16 @@ class FramePlan:
             light.vsgls[receiver_set] = int(np.sum(counts[index]))
         self.dropped_bounce[receiver_set] = dropped
         return counts
+
+    def set_budget(self, receiver_set: str) -> int:
+        """The VSGLs one set shares among the views: N, and GLOSSY_SET_FACTOR × N for the glossy
+        receivers' set when MRP-ASG runs (the set of the receivers it serves; without MRP-ASG a
+        "glossy" set, the VPL split's, lights every receiver's specular lobe and keeps N)."""
+        return self.vsgl_budget * (GLOSSY_SET_FACTOR if self.glossy_set_widened(receiver_set) else 1)
+
+    def glossy_set_widened(self, receiver_set: str = "glossy") -> bool:
+        """Whether ``receiver_set`` gets GLOSSY_SET_FACTOR × N (set_budget)."""
+        return receiver_set == "glossy" and self.runs("mrp_asg")
 
     def total_vsgls(self, receiver_set: str | None = None) -> int:
         sets = self.receiver_sets if receiver_set is None else (receiver_set,)
@@ -629,7 +648,8 @@ def _pass_decisions(scene, settings: VSGLSettings, has_vsgls: bool, proxy_cache:
         decisions["glossy_set"] = Decision(True, "some object is hidden from diffuse or glossy rays")
     elif proxies:
         decisions["glossy_set"] = Decision(True, "the glossy receivers' VSGLs leave the proxies' specular flux "
-                                                 "to MRP-ASG")
+                                                 f"to MRP-ASG; {GLOSSY_SET_FACTOR} × N of them (sharp receivers "
+                                                 "resolve each VSGL)")
     elif vpl_pass.run:
         decisions["glossy_set"] = Decision(True, "the diffuse receivers' VSGLs leave the sharp reflectors' "
                                                  "specular flux to the VPLs")
