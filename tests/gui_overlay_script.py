@@ -150,7 +150,7 @@ def mode_added():
 
 def fewer_vsgls():
     bpy.context.scene.vsgl.overlay_mode = "INDIRECT"
-    bpy.context.scene.vsgl.vsgl_count = 4
+    bpy.context.scene.vsgl.vsgl_count = 1
 
 
 def restore_vsgls():
@@ -217,7 +217,7 @@ STEPS = [
     (None, False, "01_sidebar_overlay_off", None),
     (overlay_on, True, "02_overlay_on_indirect_only", "first"),
     (mode_added, True, "03_overlay_added_to_solid", None),
-    (fewer_vsgls, True, "04_vsgl_count_4", "parameter_change"),
+    (fewer_vsgls, True, "04_vsgl_count_1", "parameter_change"),
     (restore_vsgls, True, None, None),
     (orbit, True, "05_after_orbit_view_only", "view_change"),
     (after_orbit, False, None, None),

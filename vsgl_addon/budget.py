@@ -166,11 +166,11 @@ def frame_features(plan, settings: VSGLSettings, size: tuple[int, int], full_siz
     elif settings.kernel == "two-vsgl":
         vsgls = 2.0 * views * sets
     else:
-        from .planner import GLOSSY_SET_FACTOR
-
-        # planner.FramePlan.set_budget: the glossy receivers' set has GLOSSY_SET_FACTOR × N.
-        glossy = (GLOSSY_SET_FACTOR - 1) if "glossy" in plan.receiver_sets and plan.runs("mrp_asg") else 0
-        vsgls = float(settings.vsgl_count * (sets + glossy))
+        # Each set's share of N (planner.FramePlan.set_budget: the glossy receivers' set may have more).
+        budget = getattr(plan, "vsgl_budget", 0)
+        shares = [plan.set_budget(name) / budget if budget and hasattr(plan, "set_budget") else 1.0
+                  for name in plan.receiver_sets]
+        vsgls = float(settings.vsgl_count * sum(shares))
     proxies = float(len(plan.proxies))
     out = {
         "upload": (1.0, triangles / 1e5),
