@@ -66,6 +66,21 @@ def test_the_defensive_mixture_keeps_every_lit_texel_and_sums_to_one():
     assert np.all(np.isfinite(brsm.view_pdf([np.nan, 1.0, np.inf], [1.0, np.nan, 1.0])))
 
 
+def _planned_vsgls(scene, scene_gpu, settings, view, receivers) -> dict:
+    """The export table of the frame the planner plans for ``view``, its view PDF run exactly when
+    settings.pdf is "view" (the test scenes' lights are of the types it weighs)."""
+    from vsgl_addon.pipeline import render_scene_vsgls
+    from vsgl_addon.planner import plan_frame
+
+    plan = plan_frame(scene, settings, view_projection=view[1] @ view[0])
+    assert plan.runs("view_pdf") == (settings.pdf == "view")
+    vsgls = render_scene_vsgls(scene_gpu, settings, plan=plan, receivers=receivers)
+    try:
+        return vsgls.read()
+    finally:
+        vsgls.free()
+
+
 @pytest.mark.gpu
 def test_generation_with_the_view_pdf_keeps_the_rsm_total(monkeypatch):
     """The view PDF's generation on a point light (the planner gives it to suns only; the mechanism is
@@ -77,8 +92,7 @@ def test_generation_with_the_view_pdf_keeps_the_rsm_total(monkeypatch):
     from test_proxies import point_light
     from vsgl_addon import pipeline, planner
     from vsgl_addon.passes.rsm import SceneGPU
-    from vsgl_addon.pipeline import render_scene_vsgls, view_receivers
-    from vsgl_addon.planner import plan_frame
+    from vsgl_addon.pipeline import view_receivers
     from vsgl_addon.scene_description import SceneDescription
     from vsgl_addon.settings import VSGLSettings
 
@@ -95,13 +109,7 @@ def test_generation_with_the_view_pdf_keeps_the_rsm_total(monkeypatch):
         centres = {}
         for pdf in ("light", "view"):
             settings = VSGLSettings(vsgl_count=64, rsm_size=64, visibility=False, pdf=pdf)
-            plan = plan_frame(scene, settings, view_projection=view[1] @ view[0])
-            assert plan.runs("view_pdf") == (pdf == "view")
-            vsgls = render_scene_vsgls(scene_gpu, settings, plan=plan, receivers=receivers)
-            try:
-                table = vsgls.read()
-            finally:
-                vsgls.free()
+            table = _planned_vsgls(scene, scene_gpu, settings, view, receivers)
             assert len(table["power"]) == 64 and np.all(np.isfinite(table["power"]))
             np.testing.assert_allclose(table["power"].sum(axis=0), table["rsm_total_power"][0], rtol=0.05)
             if pdf == "view":  # each view normalized to its total's luminance (pipeline.SceneVSGLs.merge)
@@ -128,8 +136,7 @@ def test_the_default_view_pdf_weighs_a_sun_and_keeps_its_near_power():
     from test_planner import _camera
     from test_proxies import point_light
     from vsgl_addon.passes.rsm import SceneGPU
-    from vsgl_addon.pipeline import render_scene_vsgls, view_receivers
-    from vsgl_addon.planner import plan_frame
+    from vsgl_addon.pipeline import view_receivers
     from vsgl_addon.scene_description import SceneDescription
     from vsgl_addon.settings import VSGLSettings
     from test_proxies import grid, material, scene_of
@@ -151,13 +158,7 @@ def test_the_default_view_pdf_weighs_a_sun_and_keeps_its_near_power():
         for pdf in ("light", "view"):
             settings = VSGLSettings(vsgl_count=64, rsm_size=64, visibility=False, pdf=pdf)
             assert VSGLSettings().pdf == "view"
-            plan = plan_frame(scene, settings, view_projection=view[1] @ view[0])
-            assert plan.runs("view_pdf") == (pdf == "view")
-            vsgls = render_scene_vsgls(scene_gpu, settings, plan=plan, receivers=receivers)
-            try:
-                table = vsgls.read()
-            finally:
-                vsgls.free()
+            table = _planned_vsgls(scene, scene_gpu, settings, view, receivers)
             assert np.all(np.isfinite(table["power"]))
             lum = table["power"] @ np.array([0.2126, 0.7152, 0.0722])
             close = np.linalg.norm(table["mean"] - centre, axis=1) < 3.0
