@@ -519,8 +519,9 @@ def test_separable_specular_is_worse_on_sharp_receivers(alpha):
     the emission of the mean's direction over the whole positional lobe, which straddles the flat
     cluster's plane, where the product's emission lobe G(ω; −ξv, λv) fades towards grazing: the
     sharp receivers' lobes, aimed at the floor near grazing, then get too much (measured Σ|Δ|/Σ
-    against the exact VPLs: 0.56 against 0.38 at α = 0.1, 0.22 against 0.18 at α = 0.3), the
-    broad ones a little less error (0.25 against 0.27 at α = 1)
+    against the exact VPLs, both with the flat clusters' Lambertian emission: 0.53 against 0.30 at
+    α = 0.1, 0.25 against 0.22 at α = 0.3), the broad ones a little less error (0.26 against 0.28 at
+    α = 1)
     (benchmarks/specular_receiver_split.py on the suite: docs/accuracy.md)."""
     vpls = floor_vpls()
     vpls = vs.VPLs(vpls.position, vpls.normal, vpls.flux, vpls.diffuse_reflectance,
@@ -537,7 +538,7 @@ def test_separable_specular_is_worse_on_sharp_receivers(alpha):
     e_product, e_separable = relative_error(product, exact), relative_error(separable, exact)
     print(f"\nα = {alpha}, N = 16 vs exact VPLs: product {e_product:.3f}, separable {e_separable:.3f}")
     if alpha < 0.5:
-        assert e_separable > e_product + 0.03
+        assert e_separable > e_product + 0.02
     else:
         assert e_separable < e_product + 0.01
     with pytest.raises(ValueError):
@@ -613,3 +614,75 @@ def test_diffuse_emission_of_flat_and_bent_clusters():
     assert np.max(np.abs(np.diff(values))) < 0.01 * values.max()
     extremes = vs.vsgl_diffuse_emission(mu[:, None], np.array([0.0, 1e-6, 2.0, 2.0001, 10.0, 1e6])[None, :])
     assert np.all(np.isfinite(extremes)) and np.all(extremes >= 0.0)
+
+
+def test_diffuse_emission_ratio_is_the_emission_over_the_sg():
+    """vsgl_diffuse_emission_ratio = vsgl_diffuse_emission / e^(λv (μ − 1)) without dividing: equal to
+    the quotient across the SG → Lambert blend, 1 for a cluster that keeps the SG, 0 at and below a
+    flat cluster's horizon; finite, ≥ 0 and bounded for λv 0 … 1e6 and μ −1 … 1."""
+    mu = np.linspace(-1.0, 1.0, 401)
+    for lam in (1.6, 1.8, 1.9, 2.0, 2.0001):
+        quotient = vs.vsgl_diffuse_emission(mu, lam) / np.exp(lam * (mu - 1.0))
+        np.testing.assert_allclose(vs.vsgl_diffuse_emission_ratio(mu, lam), quotient, rtol=1e-12, atol=1e-15)
+    for lam in (0.0, 0.5, 1.5):
+        np.testing.assert_array_equal(vs.vsgl_diffuse_emission_ratio(mu, lam), 1.0)
+    flat = vs.vsgl_diffuse_emission_ratio(mu, 2.0)
+    assert np.all(flat[mu <= 0.0] == 0.0)
+    # Lambert's lobe over the SG at λv = 2: 1.17 at 60° from the normal, 0.87 along it, 0.52 at 84°.
+    assert vs.vsgl_diffuse_emission_ratio(0.5, 2.0) == pytest.approx(1.1752, rel=1e-3)
+    assert vs.vsgl_diffuse_emission_ratio(1.0, 2.0) == pytest.approx(0.8646, rel=1e-3)
+    assert vs.vsgl_diffuse_emission_ratio(0.1, 2.0) == pytest.approx(0.5231, rel=1e-3)
+    extremes = vs.vsgl_diffuse_emission_ratio(mu[:, None], np.array([0.0, 1e-6, 2.0, 2.0001, 10.0, 1e6])[None, :])
+    assert np.all(np.isfinite(extremes)) and np.all(extremes >= 0.0) and np.all(extremes < 200.0)
+
+
+def mirror_receivers(alpha, elevation):
+    """27 glossy specular-only points 0.6 m from 9 targets on the floor patch of ``floor_vpls``, each
+    oriented so that its mirror direction of the view hits its target at ``elevation`` above the floor
+    (from three azimuths): a sharp receiver looking at a lit floor, as the demo's gold sphere does."""
+    points, normals, views = [], [], []
+    for tx in (-0.25, 0.0, 0.25):
+        for ty in (-0.25, 0.0, 0.25):
+            for azimuth in (0.3, 2.0, 4.0):
+                up = np.array([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth),
+                               np.sin(elevation)])
+                view = np.array([np.cos(0.7) * np.cos(azimuth + 0.4), np.cos(0.7) * np.sin(azimuth + 0.4),
+                                 np.sin(0.7)])
+                normal = view - up
+                points.append(np.array([tx, ty, 0.0]) + 0.6 * up)
+                normals.append(normal / np.linalg.norm(normal))
+                views.append(view)
+    count = len(points)
+    return (np.array(points), np.array(normals), np.array(views), np.zeros((count, 3)),
+            np.full((count, 3), 0.9), np.full(count, alpha))
+
+
+def test_flat_cluster_specular_sees_lamberts_emission():
+    """Sharp receivers looking at the floor patch made diffuse-only (Φ Rd alone), their mirror
+    directions meeting it at 14°, 29° and 52° of elevation, α = 0.1, 0.2, 0.4: Eq. 12's product with a
+    flat cluster's Lambertian emission at the direction the receiver gathers from is closer to the
+    exact VPLs (Lambert emitters, exact GGX receiver) than with 000 Eq. 6's SG, on average over the
+    nine cases, per texel and clustered. Measured mean Σ|Δ|/Σ, SG → Lambert: per texel 0.227 → 0.190,
+    N = 64 0.296 → 0.280, N = 16 0.445 → 0.426. The SG is better in 6 of 27 cases: by 0.06 per texel
+    at 29°, α = 0.1 (the receiver's ASG overestimates there and the SG's deficit hides it), by 0.02-0.03
+    clustered at 14° (grazing, where the SG emits more than Lambert), by 0.001 in the last."""
+    vpls = floor_vpls()
+    vpls = dataclasses.replace(vpls, specular_f0=np.zeros_like(vpls.specular_f0))
+    rsm = vpls.rsm()
+    tables = {"per texel": vs.per_texel_vsgls(rsm), "N = 64": generate_vsgls(rsm, 64), "N = 16": generate_vsgls(rsm, 16)}
+    errors = {name: {"sg": [], "lambert": []} for name in tables}
+    for elevation in (0.25, 0.5, 0.9):
+        for alpha in (0.1, 0.2, 0.4):
+            rec = mirror_receivers(alpha, elevation)
+            exact = vs.brute_force_shading(vpls, *rec)[1]
+            assert exact.sum() > 0.0
+            for name, table in tables.items():
+                for emission in ("sg", "lambert"):
+                    specular = vs.shade(table, *rec, diffuse_mode="separable", diffuse_emission=emission)[1]
+                    assert np.all(np.isfinite(specular)) and np.all(specular >= 0.0)
+                    errors[name][emission].append(relative_error(specular, exact))
+    for name, pair in errors.items():
+        sg_error, lambert_error = np.mean(pair["sg"]), np.mean(pair["lambert"])
+        print(f"\n{name}: mean Σ|Δ|/Σ against the exact VPLs, SG {sg_error:.3f}, Lambert {lambert_error:.3f}")
+        assert lambert_error < sg_error - 0.01
+        assert np.all(np.array(pair["lambert"]) < np.array(pair["sg"]) + 0.07)

@@ -107,7 +107,13 @@ def lobe_reference(g):
     separable_lambert = lambert_scale * vs.vsgl_diffuse_factor(xi_mu, lam_sigma, g["normal"], "separable")
     k1 = vs.vsgl_specular_factor(axis_in, lam_in, g["view"], g["normal"], g["roughness"], np.ones((len(lam_in), 3)))[:, 0]
     k0 = vs.vsgl_specular_factor(axis_in, lam_in, g["view"], g["normal"], g["roughness"], np.zeros((len(lam_in), 3)))[:, 0]
+    # The fused function's separable mode scales a diffuse lobe's specular to its Lambertian emission
+    # where the receiver gathers from (vs.shade's product specular).
+    toward = vs.specular_emission_direction(axis_in, lam_in, g["view"], g["normal"], g["roughness"])
+    ratio = vs.vsgl_diffuse_emission_ratio(np.sum(-toward * g["lobe_axis"], -1), g["lobe_sharpness"])
     return {"incoming": np.concatenate([axis_in, lam_in[:, None]], -1), "scale": scale,
+            "specular_separable_f0_1": scale * ratio * k1,
+            "specular_separable_f0_004": scale * ratio * (0.04 * k1 + 0.96 * k0),
             "diffuse_cosine": cosine, "diffuse_convolution": conv, "diffuse_clamped_cosine": clamped,
             "diffuse_separable": separable, "diffuse_separable_lambert": separable_lambert,
             "specular_f0_1": scale * k1, "specular_f0_004": scale * (0.04 * k1 + 0.96 * k0)}
@@ -159,6 +165,18 @@ vsgl_accumulate(rc, vsgl_position(position, mean, variance), vec3(1.0), lobe_axi
                 VSGL_DIFFUSE_SEPARABLE, d, sp, fr);
 diffuse_separable = d.x;
 """}
+
+# Its specular, in a shader of its own.
+SEPARABLE_SPECULAR_BODY = """
+VSGLReceiver rc = vsgl_receiver(position, normal, view, roughness);
+vec3 d = vec3(0.0), sp = vec3(0.0), fr = vec3(0.0);
+vsgl_accumulate(rc, vsgl_position(position, mean, variance), vec3(1.0), lobe_axis, lobe_sharpness,
+                vsgl_position(position, vec3(-7.0, 3.0, 1.0), 0.5), vec3(0.0), vec3(0.0, 0.0, 1.0), 1.0,
+                VSGL_DIFFUSE_SEPARABLE, d, sp, fr);
+specular_separable_f0_1 = sp.x + fr.x;
+specular_separable_f0_004 = 0.04 * sp.x + fr.x;
+"""
+SEPARABLE_SPECULAR_OUTPUTS = {"specular_separable_f0_1": 1, "specular_separable_f0_004": 1}
 
 
 def _conditioning(grid, reference, seed=11):
@@ -224,6 +242,8 @@ def lobe_results(gpu_context):
     for body, source in SEPARABLE_BODIES.items():
         gpu[body]["diffuse_separable"] = evaluate_glsl(source, grid, {"diffuse_separable": 1},
                                                        libraries=["lib/vsgl_shading.glsl"])["diffuse_separable"]
+    gpu["fused"].update(evaluate_glsl(SEPARABLE_SPECULAR_BODY, grid, SEPARABLE_SPECULAR_OUTPUTS,
+                                      libraries=["lib/vsgl_shading.glsl"]))
     elapsed = time.perf_counter() - start
     reference = lobe_reference(grid)
     return grid, groups, gpu, reference, _conditioning(grid, reference), elapsed
@@ -255,6 +275,49 @@ def test_glsl_lobe_matches_reference(lobe_results, output, body):
     print(f"\n{output}: {accuracy.summary()}; {int((~keep).sum())} of {len(keep)} points excluded as "
           f"ill-conditioned (1 ulp of input moves the reference by > 3e-5)")
     assert accuracy.ok, accuracy.report({name: value[keep] for name, value in grid.items()})
+
+
+@pytest.mark.parametrize("output", SEPARABLE_SPECULAR_OUTPUTS)
+def test_glsl_separable_specular_matches_reference(lobe_results, output):
+    """vsgl_accumulate's specular in the separable mode (a flat diffuse lobe's Lambertian emission at
+    vsgl_specular_emission_direction) against the reference over the lobe grid, as the other outputs,
+    where the tested lobe is a diffuse lobe's (λv ≤ 2.1: Toksvig of texels' λd = 2 lobes, rounded).
+    Sharper lobes in the diffuse slot only have to stay finite: there Lambert's lobe over the SG is
+    e^(λv (1 − μ)) of a float32 cosine μ near 1, ill-conditioned (1e-7 of μ is 10 % at λv = 1e6)."""
+    grid, groups, gpu, reference, conditioning, _ = lobe_results
+    values, expected = gpu["fused"][output], reference[output]
+    assert np.all(np.isfinite(values)), "NaN or Inf from the GPU"
+    tiny = np.abs(expected) < 1e-25
+    expected = np.where(tiny, 0.0, expected)
+    values = np.where(tiny & (np.abs(values) < 1e-25), 0.0, values)
+    keep = (conditioning[output] <= 3e-5) & (grid["lobe_sharpness"] <= 2.1)
+    accuracy = Accuracy(values[keep], expected[keep], groups[keep], relative=RELATIVE_TOLERANCE)
+    print(f"\n{output}: {accuracy.summary()}; {int((~keep).sum())} of {len(keep)} points excluded as "
+          f"ill-conditioned (1 ulp of input moves the reference by > 3e-5)")
+    assert accuracy.ok, accuracy.report({name: value[keep] for name, value in grid.items()})
+
+
+def test_diffuse_emission_ratio_matches_reference():
+    """vsgl_diffuse_emission_ratio against its twin across the SG → Lambert blend and out-of-range
+    sharpnesses (λv 0 … 2.1, 1e-6, 10, 1e6), every cosine including below the horizon; finite, ≥ 0."""
+    lam = np.concatenate([np.linspace(0.0, 2.1, 211), [1e-6, 10.0, 1e6]])
+    mu = np.linspace(-1.0, 1.0, 41)
+    grid_lam, grid_mu = (a.ravel() for a in np.meshgrid(lam, mu, indexing="ij"))
+    axis = np.tile([0.0, 0.0, 1.0], (len(grid_mu), 1))
+    direction = np.stack([np.sqrt(np.maximum(1.0 - grid_mu ** 2, 0.0)), np.zeros_like(grid_mu), grid_mu], -1)
+    inputs = {"direction": _f32(direction), "axis": _f32(axis), "lam": _f32(grid_lam)}
+    out = evaluate_glsl("ratio = vsgl_diffuse_emission_ratio(direction, axis, lam);", inputs, {"ratio": 1},
+                        libraries=["lib/vsgl_shading.glsl"])["ratio"]
+    expected = vs.vsgl_diffuse_emission_ratio(inputs["direction"][:, 2], inputs["lam"])
+    assert np.all(np.isfinite(out)) and np.all(out >= 0.0)
+    # As vsgl_diffuse_emission's: where the smoothstep's weight is within 1e-2 of 1, 1 - w carries its
+    # rounding amplified by 1/(1 - w).
+    low, high = vs.FLAT_CLUSTER
+    t = np.clip((vs.mean_normal_length(inputs["lam"]) - low) / (high - low), 0.0, 1.0)
+    tail = (t * t * (3.0 - 2.0 * t) > 0.99) & (t < 1.0)
+    for part, relative in ((~tail, 1e-4), (tail, 1e-3)):
+        accuracy = Accuracy(out[part], expected[part], inputs["lam"][part], relative=relative)
+        assert accuracy.ok, accuracy.report({k: v[part] for k, v in inputs.items()})
 
 
 def test_diffuse_emission_matches_reference():

@@ -20,7 +20,9 @@
 // (vsgl_accumulate: a flat diffuse lobe's texels' Lambertian lobe, vsgl_diffuse_emission; the specular
 // lobe's, and vsgl_accumulate_lobe's, the SG c_v G(-xi_mu; xi_v, lam_v)) times the positional lobe,
 // not multiplied into Eq. 12's SG, whose axis a broad positional lobe tilts towards -xi_v (behind the walls of a cluster spanning a corner; the reference's module
-// documentation). The specular always takes Eq. 12's product c_in G(xi_in, lam_in).
+// documentation). The specular always takes Eq. 12's product c_in G(xi_in, lam_in); in the separable
+// mode a flat diffuse lobe's c_in is scaled to its Lambertian emission where the receiver's specular
+// gathers the lobe's light (vsgl_diffuse_emission_ratio at vsgl_specular_emission_direction).
 // k = D(1) <xi_in, n> / ((c_i + s_i)(c_o + s_o)) * pi / sqrt((eta_x + nu)(eta_y + nu))
 //     * exp(-eta_x' (xi_in.x)^2 - eta_y' (xi_in.y)^2), m = 1 - xi_in.h (Schlick), so that the
 // specular radiance is F0 * specular + fresnel (Schlick is linear in F0) and the diffuse radiance
@@ -65,6 +67,23 @@ float vsgl_diffuse_emission(vec3 direction, vec3 axis, float lobe_sharpness)
   float mu = dot(direction, axis);
   float lambert = sg_integral(lobe_sharpness) / DIFFUSE_HEMISPHERE_SCALE * max(mu, 0.0) * (1.0 / PI);
   return (1.0 - weight) * sg_evaluate(direction, axis, lobe_sharpness) + weight * lambert;
+}
+
+// Cap on the exponent of vsgl_diffuse_emission_ratio (reference EMISSION_RATIO_EXPONENT_MAX): a
+// diffuse lobe's lam_v (<= lam_d = 2) keeps the exponent <= 2 where Lambert's lobe is non-zero; the
+// cap only bounds out-of-range sharpnesses.
+const float VSGL_EMISSION_RATIO_EXPONENT_MAX = 2.0 * DIFFUSE_SHARPNESS;
+
+// vsgl_diffuse_emission over 000 Eq. 6's SG at the same direction, without the division (reference
+// vsgl_diffuse_emission_ratio): (1 - w) + w P max(mu, 0) / pi e^min(lam_v (1 - mu), cap). 1 for a
+// cluster that keeps the SG; Lambert's lobe over the SG for a flat one, 0 at and below its horizon.
+float vsgl_diffuse_emission_ratio(vec3 direction, vec3 axis, float lobe_sharpness)
+{
+  float weight = smoothstep(VSGL_FLAT_CLUSTER.x, VSGL_FLAT_CLUSTER.y, vsgl_mean_normal_length(lobe_sharpness));
+  float mu = min(dot(direction, axis), 1.0);
+  float exponent = min(lobe_sharpness * (1.0 - mu), VSGL_EMISSION_RATIO_EXPONENT_MAX);
+  float lambert = sg_integral(lobe_sharpness) / DIFFUSE_HEMISPHERE_SCALE * max(mu, 0.0) * (1.0 / PI) * exp(exponent);
+  return (1.0 - weight) + weight * lambert;
 }
 
 // Incoming radiance SG of one VSGL lobe at `position` (000 Eq. 12), without c_v:
@@ -124,6 +143,8 @@ struct VSGLReceiver {
   vec3 y_axis;
   float eta_x;
   float eta_y;
+  vec3 reflection;             // the specular lobe warped to the reflection direction (000 Eq. 7)
+  float reflection_sharpness;
 };
 
 VSGLReceiver vsgl_receiver(vec3 position, vec3 normal, vec3 view, float roughness)
@@ -140,7 +161,21 @@ VSGLReceiver vsgl_receiver(vec3 position, vec3 normal, vec3 view, float roughnes
   // limit D(1) / (alpha (c_o + s_o)); a plain dot product gets the sign of c_o ~ 1e-7 wrong.
   float co = dot_accurate(view, normal);
   rc.d1_view = co > 0.0 ? 1.0 / (PI * rc.a2 * ggx_g1_denominator(co, rc.a2)) : 0.0;
+  specular_lobe_warp(view, normal, alpha, rc.reflection, rc.reflection_sharpness);
   return rc;
+}
+
+// Where the receiver's specular gathers a lobe's light from (reference specular_emission_direction):
+// the axis of the product of the incoming SG (axis_in, sharpness_in) and the receiver's warped
+// specular lobe, the incoming lobe's peak for a broad receiver, its mirror direction for a sharp one.
+vec3 vsgl_specular_emission_direction(VSGLReceiver rc, vec3 axis_in, float sharpness_in)
+{
+  // The sharpnesses as weights in [0, 1] (lam_in reaches ~1e20: its square would overflow); the
+  // reflection's is > 0. A sum that cancels (the lobes opposite and equally sharp) gives a short
+  // vector, whose emission ratio is the SG's share, finite.
+  float total = sharpness_in + rc.reflection_sharpness;
+  vec3 summed = (sharpness_in / total) * axis_in + (rc.reflection_sharpness / total) * rc.reflection;
+  return summed * inversesqrt(max(dot(summed, summed), 1e-24));
 }
 
 // k of the module comment without c_in and Fresnel; `m5` = (1 - xi_in.h)^5.
@@ -273,6 +308,11 @@ void vsgl_accumulate(VSGLReceiver rc, VSGLPosition diffuse_position, vec3 diffus
       float emission = lobe == 0 ? vsgl_diffuse_emission(xi_sep, lobe_axis, lobe_sharpness) :
                                    sg_evaluate(xi_sep, lobe_axis, lobe_sharpness);
       diffuse += amplitude * (emission * inv_area * vsgl_diffuse_factor(xi_sep, lam_sigma, rc.normal, diffuse_mode));
+      // The specular keeps Eq. 12's lobe but sees a flat diffuse lobe's Lambertian emission too, taken
+      // where it gathers the lobe's light (the reference's shade; docs/accuracy.md).
+      float ratio = vsgl_diffuse_emission_ratio(vsgl_specular_emission_direction(rc, axis_in, sharpness_in),
+                                                lobe_axis, lobe_sharpness);
+      c_in *= lobe == 0 ? ratio : 1.0;
     }
     else {
       diffuse += c_in * vsgl_diffuse_factor(axis_in, sharpness_in, rc.normal, diffuse_mode);

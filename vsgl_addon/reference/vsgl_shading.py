@@ -81,7 +81,16 @@ lobes in the paper's "shared" form, 000 app. B.2). Then, per lobe:
   (``specular_cosine="lobe-axis"``, C = F G2 D(1)/(4 ci co) literally) overestimates by up to
   1/cos θo (×2 at 60°); against brute force (tests/test_reference_vsgl_shading.py) its specular
   error is 40-59 % where the default's is 24-38 %.
-  Specular mode ``"product"`` (the default, the GPU's) is that, with Eq. 12's SG. Mode
+  Specular mode ``"product"`` (the default, the GPU's) is that, with Eq. 12's SG, whose cin, for a
+  diffuse lobe with the separable diffuse and ``diffuse_emission="lambert"``, is scaled to the flat
+  cluster's Lambertian emission (:func:`vsgl_diffuse_emission_ratio`) at the direction the receiver
+  gathers the lobe's light from (:func:`specular_emission_direction`): the peak of the incoming SG
+  times the receiver's lobe warped to its reflection direction (000 Eq. 7). The SG's emission is
+  below Lambert's by up to 20 % at 45-70° from a flat reflector's normal and above it near grazing,
+  so a sharp receiver facing a lit floor got too little of it: the demo's gold 0.87 of Cycles in the
+  bright band of the floor's reflection, 0.93 with Lambert's (docs/accuracy.md, "A flat cluster's
+  emission seen by glossy receivers"). At the point-light limit (λσ → ∞) the direction is between
+  ξµ and the mirror direction by the two lobes' sharpness. Mode
   ``"separable"`` (measured, not shipped) carries the diffuse's separable form to the receiver:
   Ls ≈ cv G(−ξµ; ξv, λv)/(2πσv²) · C(ξµ) ∫ G(ω; ξµ, λσ) Ǵ(ω) dω, the positional lobe convolved
   with the receiver's ASG and the emission taken at the mean's direction. It is the point light at
@@ -230,6 +239,39 @@ def vsgl_diffuse_emission(cosine, lobe_sharpness):
     return (1.0 - weight) * sg + weight * lambert
 
 
+#: Cap on the exponent λv (1 − μ) of :func:`vsgl_diffuse_emission_ratio`. A diffuse lobe's λv is at
+#: most λd = 2 (Toksvig of its texels' λd-lobes, 000 app. B.1) and Lambert's lobe is 0 below μ = 0, so
+#: the exponent stays ≤ 2 wherever the ratio is used; the cap 2 λd only bounds out-of-range sharpnesses
+#: (the ratio then stays ≤ e⁴ A(λv)/π, finite times any float32 amplitude).
+EMISSION_RATIO_EXPONENT_MAX = 2.0 * DIFFUSE_SHARPNESS
+
+
+def vsgl_diffuse_emission_ratio(cosine, lobe_sharpness):
+    """:func:`vsgl_diffuse_emission` over 000 Eq. 6's SG e^(λv (μ − 1)) at the same cosine μ,
+    without the division: (1 − w) + w P max(μ, 0)/π e^(min(λv (1 − μ), EMISSION_RATIO_EXPONENT_MAX)),
+    w the flat-cluster weight and P the hemisphere-normalized flux of vsgl_diffuse_emission. 1 for a
+    cluster that keeps the SG; for a flat one Lambert's lobe over the SG, 0 at and below the horizon."""
+    mu = np.minimum(f64(cosine), 1.0)
+    lam = f64(lobe_sharpness)
+    low, high = FLAT_CLUSTER
+    t = np.clip((mean_normal_length(lam) - low) / (high - low), 0.0, 1.0)
+    weight = t * t * (3.0 - 2.0 * t)
+    exponent = np.minimum(lam * (1.0 - mu), EMISSION_RATIO_EXPONENT_MAX)
+    lambert = sg_integral(lam) / DIFFUSE_HEMISPHERE_SCALE * np.maximum(mu, 0.0) / np.pi * np.exp(exponent)
+    return (1.0 - weight) + weight * lambert
+
+
+def specular_emission_direction(axis_in, sharpness_in, view, normal, roughness):
+    """Where a receiver's specular gathers one lobe's light from: the axis of the product of Eq. 12's
+    incoming SG G(ω; ξin, λin) and the receiver's specular lobe warped to the reflection direction
+    G(ω; ξs, λs) (000 Eq. 7, ``sg.specular_lobe_warp``), (λin ξin + λs ξs)/|λin ξin + λs ξs|
+    (ξin where the sum vanishes). A broad receiver takes ξin, the incoming lobe's peak; a sharp one its
+    mirror direction, as far as the incoming lobe reaches there."""
+    reflection, lam_s = specular_lobe_warp(view, normal, np.maximum(f64(roughness), ALPHA_MIN))
+    summed = f64(sharpness_in)[..., None] * f64(axis_in) + lam_s[..., None] * reflection
+    return safe_normalize(summed, f64(axis_in), norm(summed))
+
+
 def vsgl_diffuse_factor(axis_in, sharpness_in, normal, mode="cosine"):
     """Ld / (cin Rd): A(λin)/π ⟨ξin, n⟩ ("cosine", 000 app. C; also "separable", called with the
     positional lobe ξµ, λσ of :func:`vsgl_separable_lobe` and its scale as cin),
@@ -344,12 +386,23 @@ def shade(vsgls, position, normal, view, diffuse_reflectance, specular_f0, rough
                 ld = c_in * vsgl_diffuse_factor(axis_in, lam_in, normal[:, None], diffuse_mode)[..., None] \
                     * rd[:, None]
             if specular_mode == "separable":
+                if lobe == "diffuse" and diffuse_mode == "separable" and diffuse_emission != "sg":
+                    sep_scale = emitted
                 ls = (amplitude * sep_scale[..., None] * seen
                       * vsgl_specular_factor(xi_mu, lam_sigma, view[:, None], normal[:, None], alpha[:, None],
                                              f0[:, None], specular_cosine))
             else:
-                ls = c_in * vsgl_specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
-                                                 alpha[:, None], f0[:, None], specular_cosine)
+                c_spec = c_in
+                if lobe == "diffuse" and diffuse_mode == "separable" and diffuse_emission != "sg":
+                    # The receiver's specular sees the flat cluster's Lambertian emission too, taken
+                    # where it gathers the lobe's light (specular_emission_direction).
+                    toward = specular_emission_direction(axis_in, lam_in, view[:, None], normal[:, None],
+                                                         alpha[:, None])
+                    c_spec = c_in * vsgl_diffuse_emission_ratio(
+                        dot(-toward, f64(vsgls[axis_key]).reshape(-1, 3)[rows][None]),
+                        f64(vsgls[sharp_key]).reshape(-1)[rows][None])[..., None]
+                ls = c_spec * vsgl_specular_factor(axis_in, lam_in, view[:, None], normal[:, None],
+                                                   alpha[:, None], f0[:, None], specular_cosine)
             diffuse += ld.sum(axis=1)
             specular += ls.sum(axis=1)
             if per_term:
