@@ -134,15 +134,15 @@ def test_shadow_map_lookup_glsl_matches_numpy(kind):
     inputs = {f"r{i}": np.tile(view_projection[i], (count, 1)) for i in range(4)}
     inputs.update(proj=np.tile(projection, (count, 1)), shadow=shadow, p=p, n=n, inc=incoming)
     out = evaluate_glsl(
-        "ivec2 texel; float receiver, bias; float tan_theta = shadow_tan_incidence(n, inc);"
+        "ivec2 texel; vec2 at; float receiver, bias; float tan_theta = shadow_tan_incidence(n, inc);"
         " bool inside = shadow_map_lookup(transpose(mat4(r0, r1, r2, r3)), proj, shadow.x, shadow.y,"
-        " shadow.z, tan_theta, p, n, texel, receiver, bias);"
-        " lookup = vec4(inside ? 1.0 : 0.0, receiver, bias, tan_theta); cell = vec2(texel);",
-        {k: as_gpu_floats(v) for k, v in inputs.items()}, {"lookup": 4, "cell": 2},
+        " shadow.z, tan_theta, p, n, texel, at, receiver, bias);"
+        " lookup = vec4(inside ? 1.0 : 0.0, receiver, bias, tan_theta); cell = vec2(texel); coordinate = at;",
+        {k: as_gpu_floats(v) for k, v in inputs.items()}, {"lookup": 4, "cell": 2, "coordinate": 2},
         libraries=["lib/shadow.glsl"])
     tan_theta = ref.shadow_tan_incidence(n, incoming)
-    inside, texel, receiver, bias = ref.shadow_map_lookup(view_projection, projection, size, 1.5, 0.75,
-                                                          tan_theta, p, n)
+    inside, texel, at, receiver, bias = ref.shadow_map_lookup(view_projection, projection, size, 1.5, 0.75,
+                                                              tan_theta, p, n)
     lookup, cell = out["lookup"], out["cell"]
     assert 0.2 < inside.mean() < 0.8, "the points must straddle the frustum"
     # float32 decides only for points on the frustum's boundary.
@@ -156,6 +156,8 @@ def test_shadow_map_lookup_glsl_matches_numpy(kind):
     assert np.mean(np.all(cell[both] == texel[both], axis=-1)) > 0.995
     assert np.all(np.abs(cell[both] - texel[both]) <= 1)
     assert np.all(cell[~(lookup[:, 0] > 0.5)] == 0)
+    # The continuous coordinate (the bilinear PCF's input), to float32's precision in texels.
+    np.testing.assert_allclose(out["coordinate"][both], at[both], atol=2e-3 * size / 64)
 
 
 @pytest.mark.gpu
@@ -178,6 +180,71 @@ def test_shadow_map_test_glsl_matches_numpy(kind):
     assert 0.2 < expected[400:].mean() < 0.8 and np.all(expected[:400] == 1.0)
     clear = (stored >= 1.0) | (np.abs(receiver - occluder - bias) > 1e-4 * np.maximum(occluder, 1.0))
     np.testing.assert_array_equal(out[clear], expected[clear])
+
+
+def test_bilinear_pcf_is_the_nearest_texel_test_box_filtered():
+    """The bilinear PCF (reference shadow_pcf_first, shadow_map_test_bilinear) against brute force:
+    the nearest-texel test averaged over a one-texel square around the point (a 64 x 64 grid of
+    sub-points, each tap clamped to the map as the pass clamps), on a random occluder pattern of an
+    8 x 8 map, at the map's edges and corners too. Box ⊗ box is the tent, so they agree to the grid's
+    resolution; inside a fully lit or shadowed 2 x 2 block the result is exactly 0 or 1."""
+    rng = np.random.default_rng(7)
+    size = 8
+    projection = np.array([0.0, 1.0, -0.25, -1.0])  # orthographic: linear depth = (-1 - ndc) / -0.25
+    depth = np.where(rng.random((size, size)) < 0.4, 0.2, 1.0)  # an occluder in 40 % of the texels
+    receiver, bias = ref.shadow_linear_depth(0.6, projection), 0.0
+    at = rng.uniform(0.0, size, (300, 2))
+    at[:8] = [(0.0, 0.0), (size, size), (0.0, size), (size, 0.0), (0.5, 0.5), (size - 0.5, 3.0), (3.7, 0.1), (7.9, 4.2)]
+
+    def nearest(points):
+        texel = np.clip(np.floor(points), 0, size - 1).astype(int)
+        return ref.shadow_map_test(depth[texel[..., 1], texel[..., 0]], projection, receiver, bias)
+
+    first, fraction = ref.shadow_pcf_first(at)
+    taps = [np.clip(first + np.array(offset), 0, size - 1) for offset in ((0, 0), (1, 0), (0, 1), (1, 1))]
+    stored = np.stack([depth[t[:, 1], t[:, 0]] for t in taps], axis=-1)
+    pcf = ref.shadow_map_test_bilinear(stored, fraction, projection, receiver, bias)
+    grid = (np.arange(64) + 0.5) / 64 - 0.5
+    sub = at[:, None, None, :] + np.stack(np.meshgrid(grid, grid, indexing="xy"), axis=-1)[None]
+    brute = nearest(sub).mean(axis=(1, 2))
+    assert np.abs(pcf - brute).max() <= 2.0 / 64 + 1e-12
+    assert 0.2 < pcf.mean() < 0.8 and np.any((pcf > 0.05) & (pcf < 0.95))
+    block = np.all(stored == 0.2, axis=-1) | np.all(stored == 1.0, axis=-1)  # four occluded or four empty taps
+    np.testing.assert_array_equal(pcf[block], nearest(at)[block])
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("kind", ["perspective", "orthographic"])
+def test_shadow_map_test_bilinear_glsl_matches_numpy(kind):
+    """lib/shadow.glsl's bilinear PCF (shadow_pcf_first, shadow_map_test_bilinear) against its float64
+    twin: random coordinates, four taps each lit, shadowed or empty."""
+    rng = np.random.default_rng(8)
+    count = 4000
+    _, projection = _shadow_view(kind)
+    at = as_gpu_floats(rng.uniform(-0.5, 64.5, (count, 2)))
+    stored = as_gpu_floats(rng.uniform(0.05, 0.999, (count, 4)))
+    stored[rng.random((count, 4)) < 0.2] = 1.0
+    occluder = ref.shadow_linear_depth(stored, projection)
+    bias = as_gpu_floats(rng.uniform(0.0, 0.05, count))
+    receiver = as_gpu_floats(np.median(np.where(stored < 1.0, occluder, 4.0), axis=-1) + rng.uniform(-0.05, 0.05, count))
+    stored[:200] = 0.3  # four occluders in front: shadowed
+    receiver[:200] = as_gpu_floats(ref.shadow_linear_depth(0.3, projection) + 1.0)
+    stored[200:400] = 1.0  # the view saw nothing: lit
+    occluder = ref.shadow_linear_depth(stored, projection)
+    out = evaluate_glsl(
+        "vec2 fraction; ivec2 first = shadow_pcf_first(at, fraction);"
+        " lit = shadow_map_test_bilinear(stored, fraction, proj, receiver, bias); corner = vec2(first);",
+        {"at": at, "stored": stored, "proj": np.tile(projection, (count, 1)), "receiver": receiver,
+         "bias": bias}, {"lit": 1, "corner": 2}, libraries=["lib/shadow.glsl"])
+    first, fraction = ref.shadow_pcf_first(at)
+    expected = ref.shadow_map_test_bilinear(stored, fraction, projection, receiver, bias)
+    assert np.any((expected > 0.05) & (expected < 0.95)) and np.any(expected == 0.0) and np.any(expected == 1.0)
+    # A tap's comparison flips only within float32 of its threshold; the rest agree to float32.
+    clear = np.all((stored >= 1.0) | (np.abs(receiver[:, None] - occluder - bias[:, None])
+                                       > 1e-4 * np.maximum(occluder, 1.0)), axis=-1)
+    assert clear.mean() > 0.99
+    np.testing.assert_array_equal(out["corner"][clear], first[clear])
+    np.testing.assert_allclose(out["lit"][clear], expected[clear], atol=1e-5)
 
 
 @pytest.mark.gpu
@@ -229,8 +296,10 @@ def build_scene(kind, material="glossy"):
     sb.camera(location=(0, -5, 3), look_at_point=(0, 0, 0.3), resolution=(64, 48))
 
 
-def render_ours(shadows=True, rsm_size=RSM_SIZE):
-    """(diffuse, glossy, gbuffer arrays, camera vector, scene, seconds) of the context scene."""
+def render_ours(shadows=True, rsm_size=RSM_SIZE, view_data=None):
+    """(diffuse, glossy, gbuffer arrays, camera vector, scene, seconds) of the context scene.
+    ``view_data``: a dict that receives, per light index, its views as the reference
+    direct_light_visibility takes them (depth read back, view-projection, projection vector)."""
     import scene_builders as sb
     from vsgl_addon.passes.direct_light import render_direct_light
     from vsgl_addon.passes.gbuffer import render_camera_gbuffer
@@ -247,6 +316,13 @@ def render_ours(shadows=True, rsm_size=RSM_SIZE):
     seconds = time.perf_counter() - start
     arrays = gbuffer.to_numpy()
     camera = gbuffer.camera_vector
+    if view_data is not None:
+        from vsgl_addon.passes.direct_light import light_constants
+
+        for index, light_views in views.items():
+            constants = light_constants(scene.lights[index], light_views)[0].astype(np.float64)
+            view_data[index] = [(view.to_numpy().depth, constants[8 + 5 * k:12 + 5 * k], constants[12 + 5 * k])
+                                for k, view in enumerate(light_views)]
     direct.free()
     gbuffer.free()
     for light_views in views.values():
@@ -296,6 +372,37 @@ def test_pass_without_shadows_matches_reference(kind):
         accuracy = Accuracy(ours.reshape(-1, 3), reference.reshape(-1, 3), relative=5e-3, absolute=1e-5)
         print(kind, name, accuracy.summary())
         assert accuracy.ok, accuracy.report()
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("kind", ["POINT", "SPOT", "SUN", "AREA"])
+def test_pass_with_shadows_matches_reference(kind):
+    """The pass with its filtered shadows (direct_light/light_visibility.glsl) against the reference
+    (direct_light_visibility on the RSM depths read back, then shade), at a 32^2 RSM so that the
+    bilinear PCF's ramps span several pixels: the shadowed, penumbra and lit pixels all agree, but
+    for the few whose tap comparison float32 decides."""
+    from vsgl_addon.passes.direct_light import DEPTH_BIAS, NORMAL_OFFSET
+
+    build_scene(kind, "diffuse")
+    view_data = {}
+    diffuse, glossy, arrays, camera, scene, _ = render_ours(rsm_size=32, view_data=view_data)
+    coverage = arrays["position"][..., 3] > 0.5
+    p = arrays["position"][..., :3].astype(np.float64)
+    n = arrays["normal"][..., :3].astype(np.float64)
+    light = scene.lights[0]
+    _, incoming = ref.direct_light_irradiance(light, p, np.where(coverage[..., None], n, (0.0, 0.0, 1.0)))
+    visibility = ref.direct_light_visibility(view_data[0], p, n, incoming, NORMAL_OFFSET, DEPTH_BIAS)
+    ref_diffuse, _ = ref.shade(arrays, camera, scene.lights, visibility=[visibility])
+    front = coverage & (_luminance(ref.shade(arrays, camera, scene.lights)[0]) > 0)
+    penumbra = front & (visibility > 0.02) & (visibility < 0.98)
+    print(kind, "front", int(front.sum()), "shadowed", int((front & (visibility <= 0.02)).sum()),
+          "penumbra", int(penumbra.sum()))
+    assert penumbra.sum() >= 5 and (front & (visibility < 0.5)).sum() > 20
+    assert np.all(np.isfinite(diffuse))
+    error = np.abs(_luminance(diffuse) - _luminance(ref_diffuse)) / np.maximum(_luminance(ref_diffuse).max(), 1e-30)
+    # A tap flips where the receiver sits within float32 of its occluder plus the bias.
+    assert np.mean(error[front] < 5e-3) > 0.99
+    assert np.mean(error[penumbra] < 5e-3) > 0.9
 
 
 @pytest.mark.gpu

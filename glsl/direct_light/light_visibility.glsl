@@ -25,10 +25,22 @@ float view_depth_texel(int k, ivec2 texel)
   return texelFetch(rsm_depth_5, texel, 0).r;
 }
 
-// 1 when the RSM of the light sees `position` (or nothing in front of it), 0 in shadow; the first
-// view whose frustum contains the point decides (lib/shadow.glsl). Normal offset and depth bias
-// scale with the view's texel footprint at the point. 0 when no view contains the point (outside a
-// spot cone, behind an area light).
+// The four depths of a bilinear PCF footprint (lib/shadow.glsl shadow_pcf_first), each tap
+// clamped to the view's map.
+vec4 view_depth_taps(int k, ivec2 first, int size)
+{
+  ivec2 last = ivec2(size - 1);
+  return vec4(view_depth_texel(k, clamp(first, ivec2(0), last)),
+              view_depth_texel(k, clamp(first + ivec2(1, 0), ivec2(0), last)),
+              view_depth_texel(k, clamp(first + ivec2(0, 1), ivec2(0), last)),
+              view_depth_texel(k, clamp(first + ivec2(1, 1), ivec2(0), last)));
+}
+
+// 1 when the RSM of the light sees `position` (or nothing in front of it), 0 in shadow, and
+// between them within a texel of a shadow edge (bilinear PCF, lib/shadow.glsl); the first view
+// whose frustum contains the point decides. Normal offset and depth bias scale with the view's
+// texel footprint at the point. 0 when no view contains the point (outside a spot cone, behind an
+// area light).
 float direct_light_visibility(vec3 position, vec3 normal, vec3 incoming, int view_count)
 {
   float size = shadow_params.x;
@@ -42,12 +54,15 @@ float direct_light_visibility(vec3 position, vec3 normal, vec3 incoming, int vie
                                           light_constant(base + 2), light_constant(base + 3)));
     vec4 projection = light_constant(base + 4);
     ivec2 texel;
+    vec2 at, fraction;
     float receiver, bias;
     if (!shadow_map_lookup(view_projection, projection, size, shadow_params.y, shadow_params.z,
-                           tan_theta, position, normal, texel, receiver, bias)) {
+                           tan_theta, position, normal, texel, at, receiver, bias)) {
       continue;
     }
-    return shadow_map_test(view_depth_texel(k, texel), projection, receiver, bias);
+    ivec2 first = shadow_pcf_first(at, fraction);
+    return shadow_map_test_bilinear(view_depth_taps(k, first, int(size + 0.5)), fraction, projection,
+                                    receiver, bias);
   }
   return 0.0;
 }

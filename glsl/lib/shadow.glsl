@@ -29,13 +29,16 @@ float shadow_tan_incidence(vec3 normal, vec3 incoming)
 
 // Where `position` (unit `normal`) falls in a view: false when it lies outside the view's frustum.
 // Else `texel` is the shadow-map texel to read, of the point pushed along its normal by
-// `normal_offset` texels of the view's footprint at the point, `receiver` that point's linear depth
-// and `bias` the depth tolerance: `depth_bias` texels times (1 + tan theta), tan theta capped.
+// `normal_offset` texels of the view's footprint at the point, `at` that point's continuous
+// coordinate in texels (texel centres at integer + 0.5; the filtered test's input), `receiver` its
+// linear depth and `bias` the depth tolerance: `depth_bias` texels times (1 + tan theta), tan theta
+// capped.
 bool shadow_map_lookup(mat4 view_projection, vec4 projection, float size, float normal_offset,
                        float depth_bias, float tan_theta, vec3 position, vec3 normal,
-                       out ivec2 texel, out float receiver, out float bias)
+                       out ivec2 texel, out vec2 at, out float receiver, out float bias)
 {
   texel = ivec2(0);
+  at = vec2(0.0);
   receiver = 0.0;
   bias = 0.0;
   vec4 clip = view_projection * vec4(position, 1.0);
@@ -50,7 +53,8 @@ bool shadow_map_lookup(mat4 view_projection, vec4 projection, float size, float 
   vec3 offset_position = position + normal * (normal_offset * texel_world);
   vec4 offset_clip = view_projection * vec4(offset_position, 1.0);
   vec3 offset_ndc = offset_clip.xyz / max(offset_clip.w, 1e-30);
-  texel = clamp(ivec2(floor((offset_ndc.xy * 0.5 + 0.5) * size)), ivec2(0), ivec2(int(size) - 1));
+  at = (offset_ndc.xy * 0.5 + 0.5) * size;
+  texel = clamp(ivec2(floor(at)), ivec2(0), ivec2(int(size) - 1));
   receiver = shadow_linear_depth(offset_ndc.z * 0.5 + 0.5, projection);
   bias = depth_bias * texel_world * (1.0 + min(tan_theta, SHADOW_MAX_SLOPE));
   return true;
@@ -65,4 +69,26 @@ float shadow_map_test(float stored, vec4 projection, float receiver, float bias)
   }
   float occluder = shadow_linear_depth(stored, projection);
   return receiver <= occluder + bias ? 1.0 : 0.0;
+}
+
+// Bilinear percentage-closer filtering (PCF): the 2x2 texels whose centres surround `at` (from
+// shadow_map_lookup), each tested against the one receiver depth and the results weighted
+// bilinearly. A shadow edge becomes a ramp one texel wide instead of the nearest texel's staircase;
+// inside a lit or a shadowed region the result is the nearest texel's. `first`: the lower-left tap
+// (the others are +x, +y, +xy; the caller clamps each to the map), `fraction` the weights' (x, y).
+ivec2 shadow_pcf_first(vec2 at, out vec2 fraction)
+{
+  vec2 corner = floor(at - 0.5);
+  fraction = (at - 0.5) - corner;
+  return ivec2(corner);
+}
+
+// The bilinear PCF of the four taps' stored window depths (order: first, +x, +y, +xy).
+float shadow_map_test_bilinear(vec4 stored, vec2 fraction, vec4 projection, float receiver, float bias)
+{
+  float lit_00 = shadow_map_test(stored.x, projection, receiver, bias);
+  float lit_10 = shadow_map_test(stored.y, projection, receiver, bias);
+  float lit_01 = shadow_map_test(stored.z, projection, receiver, bias);
+  float lit_11 = shadow_map_test(stored.w, projection, receiver, bias);
+  return mix(mix(lit_00, lit_10, fraction.x), mix(lit_01, lit_11, fraction.x), fraction.y);
 }

@@ -38,9 +38,10 @@ float mrp_mirror_visibility(int i, vec3 position, vec3 normal, vec3 peak)
   float size = mirror_params.y;
   float tan_theta = shadow_tan_incidence(normal, safe_normalize(peak - position, normal));
   ivec2 texel;
+  vec2 at;
   float receiver, bias;
   if (!shadow_map_lookup(view_projection, projection, size, shadow_params.y, shadow_params.z, tan_theta,
-                         position, normal, texel, receiver, bias)) {
+                         position, normal, texel, at, receiver, bias)) {
     return 1.0;
   }
   float stored = texelFetch(mirror_depth, texel + ivec2(i * int(size + 0.5), 0), 0).r;

@@ -26,9 +26,13 @@ dielectric GGX layer, metallic GGX, multiple scattering).
 Shadows: for each light, the first of its RSM views whose frustum contains the point decides (a
 point light's cube face by direction); the point, pushed along its normal by ``normal_offset``
 texels of that view's footprint, is lit when its linear depth is within ``depth_bias`` texels
-(× (1 + tan θ), θ the light's incidence, tan capped at 8) of the RSM's stored depth. Nearest texel,
-no filtering. The per-view lookup and depth comparison are the shared ``glsl/lib/shadow.glsl``
-(float64 twin: the ``shadow_*`` functions of :mod:`vsgl_addon.reference.direct_light`). A point
+(× (1 + tan θ), θ the light's incidence, tan capped at 8) of the RSM's stored depth. The test is
+filtered by bilinear percentage-closer filtering over the 2×2 texels around the point: the
+nearest-texel test box-filtered over one texel, so a shadow edge is a ramp one texel wide, not the
+map's staircase magnified on screen (the light's size is not modelled: the penumbra is the map's,
+not Cycles'). The per-view lookup and depth comparison are the shared ``glsl/lib/shadow.glsl``
+(float64 twin: the ``shadow_*`` functions and ``direct_light_visibility`` of
+:mod:`vsgl_addon.reference.direct_light`). A point
 inside no view (outside a spot's frustum, behind an area light) is unlit. Without views for a light
 (it hits nothing) the light is skipped; ``shadows=False`` ignores the views and lights every point
 in front of the light.

@@ -98,10 +98,12 @@ def shadow_tan_incidence(normals, incoming):
 def shadow_map_lookup(view_projection, projection, size, normal_offset, depth_bias, tan_theta,
                       positions, normals):
     """Where ``positions`` (..., 3) with unit ``normals`` fall in one view of side ``size`` texels:
-    (inside, texel, receiver, bias). ``inside``: the point lies in the view's frustum; ``texel``
+    (inside, texel, at, receiver, bias). ``inside``: the point lies in the view's frustum; ``texel``
     (..., 2) int (x, y): the texel of the point pushed along its normal by ``normal_offset`` texels
-    of the view's footprint; ``receiver``: that point's linear depth; ``bias``: ``depth_bias``
-    texels × (1 + tan θ), tan θ capped at SHADOW_MAX_SLOPE. Outside points give texel 0 and zeros."""
+    of the view's footprint; ``at`` (..., 2): that point's continuous coordinate in texels (texel
+    centres at integer + 0.5), the input of the bilinear PCF; ``receiver``: its linear depth;
+    ``bias``: ``depth_bias`` texels × (1 + tan θ), tan θ capped at SHADOW_MAX_SLOPE. Outside points
+    give texel 0 and zeros."""
     matrix = f64(view_projection)
     p, n = f64(positions), f64(normals)
     clip = np.concatenate([p, np.ones(p.shape[:-1] + (1,))], axis=-1) @ matrix.T
@@ -114,12 +116,13 @@ def shadow_map_lookup(view_projection, projection, size, normal_offset, depth_bi
     offset = p + n * (normal_offset * texel_world)[..., None]
     offset_clip = np.concatenate([offset, np.ones(p.shape[:-1] + (1,))], axis=-1) @ matrix.T
     offset_ndc = offset_clip[..., :3] / np.maximum(offset_clip[..., 3:4], 1e-30)
-    cell = np.floor(np.clip((offset_ndc[..., :2] * 0.5 + 0.5) * size, -1.0, size))
+    at = np.where(inside[..., None], (offset_ndc[..., :2] * 0.5 + 0.5) * size, 0.0)
+    cell = np.floor(np.clip(at, -1.0, size))
     texel = np.clip(cell, 0, int(size) - 1).astype(np.int64)
     receiver = shadow_linear_depth(offset_ndc[..., 2] * 0.5 + 0.5, projection)
     bias = depth_bias * texel_world * (1.0 + np.minimum(f64(tan_theta), SHADOW_MAX_SLOPE))
     texel[~inside] = 0
-    return inside, texel, np.where(inside, receiver, 0.0), np.where(inside, bias, 0.0)
+    return inside, texel, at, np.where(inside, receiver, 0.0), np.where(inside, bias, 0.0)
 
 
 def shadow_map_test(stored, projection, receiver, bias):
@@ -129,3 +132,57 @@ def shadow_map_test(stored, projection, receiver, bias):
     occluder = shadow_linear_depth(stored, projection)
     lit = (stored >= 1.0) | (f64(receiver) <= occluder + f64(bias))
     return lit.astype(np.float64)
+
+
+def shadow_pcf_first(at):
+    """Bilinear percentage-closer filtering (PCF): (first, fraction) of the 2×2 texels whose centres
+    surround ``at`` (..., 2): ``first`` (..., 2) int the lower-left tap (the others +x, +y, +xy; the
+    caller clamps each to the map), ``fraction`` (..., 2) the bilinear weights' (x, y)."""
+    corner = np.floor(f64(at) - 0.5)
+    return corner.astype(np.int64), (f64(at) - 0.5) - corner
+
+
+def shadow_map_test_bilinear(stored, fraction, projection, receiver, bias):
+    """The bilinear PCF of the four taps' stored window depths ``stored`` (..., 4; order first, +x,
+    +y, +xy), each tested by :func:`shadow_map_test` against the one receiver depth: 0 or 1 inside a
+    shadowed or lit region, a ramp one texel wide across a shadow edge."""
+    stored, fraction = f64(stored), f64(fraction)
+    lit = [shadow_map_test(stored[..., k], projection, receiver, bias) for k in range(4)]
+    fx, fy = fraction[..., 0], fraction[..., 1]
+    return ((lit[0] * (1.0 - fx) + lit[1] * fx) * (1.0 - fy)
+            + (lit[2] * (1.0 - fx) + lit[3] * fx) * fy)
+
+
+def shadow_visibility(depth, view_projection, projection, normal_offset, depth_bias, tan_theta,
+                      positions, normals):
+    """One view's filtered visibility of ``positions`` (direct_light/light_visibility.glsl's
+    per-view step): the lookup, the bilinear PCF's four taps of ``depth`` (size, size) window depths
+    ([row y, column x]) clamped to the map, and their test; NaN where the point lies outside the
+    view."""
+    depth = f64(depth)
+    size = depth.shape[0]
+    inside, _, at, receiver, bias = shadow_map_lookup(view_projection, projection, size, normal_offset,
+                                                      depth_bias, tan_theta, positions, normals)
+    first, fraction = shadow_pcf_first(at)
+    taps = [np.clip(first + np.array(offset), 0, size - 1) for offset in ((0, 0), (1, 0), (0, 1), (1, 1))]
+    stored = np.stack([depth[tap[..., 1], tap[..., 0]] for tap in taps], axis=-1)
+    lit = shadow_map_test_bilinear(stored, fraction, projection, receiver, bias)
+    return np.where(inside, lit, np.nan)
+
+
+def direct_light_visibility(views, positions, normals, incoming, normal_offset, depth_bias):
+    """A light's filtered shadow at ``positions`` (direct_light/light_visibility.glsl): ``views`` a
+    list of (depth (size, size) window depths [row y, column x], view_projection (4, 4), projection
+    (4,) as :func:`shadow_map_lookup`'s), the first view whose frustum contains the point deciding;
+    0 where none does. ``incoming``: unit directions towards the light (the slope-scaled bias's)."""
+    positions = f64(positions)
+    tan_theta = shadow_tan_incidence(normals, incoming)
+    result = np.zeros(positions.shape[:-1])
+    decided = np.zeros(positions.shape[:-1], bool)
+    for depth, view_projection, projection in views:
+        lit = shadow_visibility(depth, view_projection, projection, normal_offset, depth_bias, tan_theta,
+                                positions, normals)
+        take = ~decided & ~np.isnan(lit)
+        result[take] = lit[take]
+        decided |= take
+    return result
