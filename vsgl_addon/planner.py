@@ -58,16 +58,18 @@ RECEIVER_ALPHA_RANGE = (0.0, 0.35)
 
 #: Auto quality mode: the VPL pass or MRP-ASG runs when the share s of the frame's bounce power its
 #: cell carries (cell_powers / the lights' bounce estimates) is at least this times the fraction f of
-#: the frame time it adds (the built-in cost model: its own steps and the VSGL sets it splits off).
-#: s / f on the suite's scenes (each at its saved resolution): below it glossy_floor_object's MRP-ASG
-#: 0.056 and VPL pass 0.026, sun_courtyard's 0.005 and 0.003, closed_room's VPL pass 0.0001 (a
-#: scene's passes together took at most 8.5 % off its relative RMSE for 2-9x the frame time,
-#: benchmarks/results/tradeoff_suite.md); above it the VPL pass and MRP-ASG of caustic_panel,
-#: polished_metal_floor and occluded_reflector (0.59-0.80), the demo's VPL pass 0.42 and, once that
-#: runs, the demo's MRP-ASG 0.117 (4.2 % of the bounce for a third VSGL set, +36 %; it bought 28 %).
-#: 0.08 is the geometric mean of the closest pair (0.056, 0.117). What the cell's receivers make of
-#: its light is not weighed: the demo's MRP-ASG is worth more than its 4 % suggests.
-AUTO_SHARE_PER_COST = 0.08
+#: the frame time it adds (the built-in cost model: its own steps and the VSGL sets it splits off,
+#: the glossy receivers' at GLOSSY_SET_FACTOR x N). s / f on the suite's scenes (each at its saved
+#: resolution): below it glossy_floor_object's MRP-ASG 0.028 and VPL pass 0.026, sun_courtyard's
+#: 0.003 and 0.003, closed_room's VPL pass 0.0001 (a scene's passes together took at most 8.5 % off
+#: its relative RMSE for 2-9x the frame time, benchmarks/results/tradeoff_suite.md); above it the VPL
+#: pass and MRP-ASG of caustic_panel, polished_metal_floor and occluded_reflector (0.32-1.0), the
+#: demo's VPL pass 0.43 and, once that runs, the demo's MRP-ASG 0.059 (4.2 % of the bounce for a
+#: third VSGL set at 2 N, +71 %; it halves the demo's error, 0.52 -> 0.27). 0.04 is the geometric
+#: mean of the closest pair (0.028, 0.059); with the glossy set at N that pair was (0.056, 0.117) and
+#: the threshold 0.08. What the cell's receivers make of its light is not weighed: the demo's MRP-ASG
+#: is worth more than its 4 % suggests.
+AUTO_SHARE_PER_COST = 0.04
 #: The frame size Auto predicts its costs at when the scene has no camera (the ratios it weighs
 #: hardly depend on it: the passes' costs are nearly all per pixel).
 AUTO_FRAME_SIZE = (480, 270)
