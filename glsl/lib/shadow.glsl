@@ -71,7 +71,8 @@ float shadow_map_test(float stored, vec4 projection, float receiver, float bias)
   return receiver <= occluder + bias ? 1.0 : 0.0;
 }
 
-// Bilinear percentage-closer filtering (PCF): the 2x2 texels whose centres surround `at` (from
+// Bilinear percentage-closer filtering (PCF; Reeves, Salesin and Cook 1987, bilinear weights as in
+// hardware shadow-map comparison): the 2x2 texels whose centres surround `at` (from
 // shadow_map_lookup), each tested against the one receiver depth and the results weighted
 // bilinearly. A shadow edge becomes a ramp one texel wide instead of the nearest texel's staircase;
 // inside a lit or a shadowed region the result is the nearest texel's. `first`: the lower-left tap

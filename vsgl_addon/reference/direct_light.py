@@ -135,9 +135,10 @@ def shadow_map_test(stored, projection, receiver, bias):
 
 
 def shadow_pcf_first(at):
-    """Bilinear percentage-closer filtering (PCF): (first, fraction) of the 2×2 texels whose centres
-    surround ``at`` (..., 2): ``first`` (..., 2) int the lower-left tap (the others +x, +y, +xy; the
-    caller clamps each to the map), ``fraction`` (..., 2) the bilinear weights' (x, y)."""
+    """Bilinear percentage-closer filtering (PCF; Reeves, Salesin and Cook 1987): (first, fraction)
+    of the 2×2 texels whose centres surround ``at`` (..., 2): ``first`` (..., 2) int the lower-left
+    tap (the others +x, +y, +xy; the caller clamps each to the map), ``fraction`` (..., 2) the
+    bilinear weights' (x, y)."""
     corner = np.floor(f64(at) - 0.5)
     return corner.astype(np.int64), (f64(at) - 0.5) - corner
 
