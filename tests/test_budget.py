@@ -210,6 +210,30 @@ def test_a_step_the_plan_does_not_run_costs_nothing():
     assert half["upscale"][0] > 0.0 and half["vsgl_shading"][2] == pytest.approx(0.25 * on["vsgl_shading"][2])
 
 
+def test_budget_runs_the_passes_auto_would_and_pins_them_in_its_settings():
+    """The dielectric floor of test_planner's Auto test: Budget's plan weighs the VPL pass and
+    MRP-ASG as Auto's does and leaves both out, so the budget goes to N, RSM and resolution (no δ or
+    interleave on its path); the chosen settings turn their toggles off and are Manual, so the frame
+    runs the passes the path was timed for. A metal floor keeps both, toggles as the user set them."""
+    light = point_light((0.0, 0.0, 2.0), power=500.0)
+    for floor_metallic, kept in ((0.0, False), (1.0, True)):
+        room = _room([light], floor_roughness=0.1, wall_roughness=0.5, floor_metallic=floor_metallic)
+        settings = VSGLSettings(quality_mode="budget", delta=0.02, vpl_interleave="2")
+        plan = P.plan_frame(room, settings, ProxyCache())
+        auto = P.plan_frame(room, settings.overridden(quality_mode="auto"), ProxyCache())
+        assert {k: d.run for k, d in plan.decisions.items()} == {k: d.run for k, d in auto.decisions.items()}
+        assert set(plan.weighed) == set(P.AUTO_OPTIONAL)
+        assert plan.runs("vpl_pass") is kept and plan.runs("mrp_asg") is kept
+        for target in (50.0, 6e5):
+            choice = B.choose(plan, settings, *SIZE, target, B.CostModel.fallback(), room.geometry.triangle_count)
+            assert choice.settings.quality_mode == "manual"
+            assert (choice.settings.caustics, choice.settings.glossy_reflectors) == (kept, kept)
+            pinned = P.plan_frame(room, choice.settings, ProxyCache())
+            assert {k: d.run for k, d in pinned.decisions.items()} == {k: d.run for k, d in plan.decisions.items()}
+            if not kept:  # δ and the interleave are not the budget's without a VPL pass
+                assert (choice.settings.delta, choice.settings.vpl_interleave) == (0.02, "2")
+
+
 def test_the_plan_reports_the_budget():
     room, plan = _plan()
     choice = B.choose(plan, VSGLSettings(), *SIZE, 200.0, B.CostModel.fallback(), room.geometry.triangle_count)

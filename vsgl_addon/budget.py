@@ -19,7 +19,9 @@ bpy-free and GPU-free (the caller renders). Three parts:
   8 × 8 interleave, quarter resolution) to the richest, each step raising the one parameter whose
   predicted error falls most per predicted second (:func:`predicted_error`), and takes the last point
   of the path whose predicted frame time fits the target. The path does not depend on the target, so
-  a larger target never gets a lower setting of any parameter (monotone in the budget).
+  a larger target never gets a lower setting of any parameter (monotone in the budget). The passes
+  are the plan's: in Budget mode the planner weighs the VPL pass and MRP-ASG as in Auto
+  (planner.WEIGHING_MODES), and the chosen settings pin its decisions.
 """
 
 from __future__ import annotations
@@ -540,7 +542,13 @@ def choose(plan, settings: VSGLSettings, width: int, height: int, target_ms: flo
                 candidate = replace(candidate, vsgl_count=low)
                 seconds = predicted_seconds(plan, settings, candidate, width, height, model, triangles,
                                             vpl_fraction, scene)
-    chosen = candidate.apply(settings)
+    # The plan's passes, fixed: those it weighed and left out (planner.WEIGHING_MODES) turned off, the
+    # mode Manual, so the frame runs what the path's times were predicted for (a plan of the chosen N
+    # would weigh them again at another frame time).
+    from .planner import AUTO_TOGGLES
+
+    chosen = candidate.apply(settings).overridden(quality_mode="manual", **{
+        toggle: False for name, toggle in AUTO_TOGGLES.items() if name in plan.weighed and not plan.runs(name)})
     size = scaled_size(width, height, candidate.scale)
     features = frame_features(plan, chosen, size, (width, height), triangles, vpl_fraction)
     return BudgetChoice(target, candidate, chosen, seconds, model.predict_steps(features, scene), size, (width, height),

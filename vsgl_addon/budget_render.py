@@ -117,4 +117,7 @@ def render_budgeted(renderer, scene, settings, width: int, height: int, model: C
     features = _features(model, scene, images.plan, choice.settings, choice.size, (width, height))
     _remember_vpls(model, scene, images.plan, choice.settings, images.counts)
     images.plan.budget = choice
+    # The frame ran the choice's Manual settings; the passes the budget's plan weighed keep its reasons.
+    images.plan.decisions.update({name: plan.decisions[name] for name in plan.weighed})
+    images.plan.weighed = plan.weighed
     return images, choice, model.add_frame(features, images.timings, key)

@@ -73,8 +73,13 @@ AUTO_SHARE_PER_COST = 0.04
 #: The frame size Auto predicts its costs at when the scene has no camera (the ratios it weighs
 #: hardly depend on it: the passes' costs are nearly all per pixel).
 AUTO_FRAME_SIZE = (480, 270)
-#: The passes Auto weighs (the others cost little or carry every path).
-AUTO_OPTIONAL = ("vpl_pass", "mrp_asg")
+#: The passes Auto weighs (the others cost little or carry every path), each with its settings toggle.
+AUTO_TOGGLES = {"vpl_pass": "caustics", "mrp_asg": "glossy_reflectors"}
+AUTO_OPTIONAL = tuple(AUTO_TOGGLES)
+#: The quality modes whose plan weighs AUTO_OPTIONAL: Auto, and Budget, which spends its time on N,
+#: RSM size, δ, interleave and resolution for the passes Auto would run (a pass not worth its time at
+#: the settings' N is not worth it on a budget either; budget.choose turns its toggle off).
+WEIGHING_MODES = ("auto", "budget")
 #: The glossy receivers' VSGL set (with MRP-ASG: every reflector's light but the proxies' specular
 #: flux, for the specular lobes MRP-ASG serves, GGX α up to 0.35) gets this many times N. Its
 #: receivers are sharp and resolve each VSGL's position (a near-mirror floor shows them one by one),
@@ -709,9 +714,8 @@ def _auto_passes(scene, settings: VSGLSettings, lights: list, reaches: list, dec
 
     def variant(passes):
         if passes not in variants:
-            chosen = settings.overridden(
-                caustics="vpl_pass" in passes if "vpl_pass" in optional else settings.caustics,
-                glossy_reflectors="mrp_asg" in passes if "mrp_asg" in optional else settings.glossy_reflectors)
+            chosen = settings.overridden(**{toggle: name in passes for name, toggle in AUTO_TOGGLES.items()
+                                            if name in optional})
             rest, kept = _pass_decisions(scene, chosen, True, proxy_cache, view_projection, view_pdf_lights)
             variants[passes] = ({"vsgls": decisions["vsgls"], **rest}, kept)
         return variants[passes]
@@ -791,7 +795,7 @@ def plan_frame(scene, settings: VSGLSettings, proxy_cache: ProxyCache | None = N
                                     _view_pdf_lights(scene, lights))
     decisions.update(rest)
     weighed = {}
-    if settings.quality_mode == "auto" and has_vsgls:
+    if settings.quality_mode in WEIGHING_MODES and has_vsgls:
         decisions, proxies, weighed = _auto_passes(scene, settings, lights, reaches, decisions, proxies, cache,
                                                    view_projection, cost_model)
     return FramePlan(settings.vsgl_count, settings.kernel, lights, decisions, proxies, weighed=weighed)

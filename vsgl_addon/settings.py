@@ -205,7 +205,8 @@ QUALITY_MODES = Choices(
     Choice("budget", "BUDGET", "Budget",
            "A target frame time: VSGL count, RSM resolution, delta, VPL interleave and the resolution are "
            "chosen from a cost model of this machine (calibrated at first use, a few frames; kept in the "
-           "user's cache), the rest as set below. The statistics show the predicted and measured time",
+           "user's cache), the passes as Auto weighs them, the rest as set below. The statistics show the "
+           "predicted and measured time",
            ignores=("vsgl_count", "rsm_size", "delta_log10", "vpl_interleave")),
     Choice("auto", "AUTO", "Auto",
            "The settings below, but the frame planner leaves out the VPL pass or MRP-ASG where the share of "
