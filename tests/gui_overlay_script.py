@@ -112,6 +112,18 @@ def refined_and_drawn():
     return pipeline.lights_settings == current and pipeline.pending(*pipeline.step_args) is None
 
 
+def lit_and_drawn():
+    """The overlay's view pipeline has an image of the current settings' light passes (its coarse
+    image after the change), its samples still to come."""
+    views = overlay_module().views
+    if views.error:
+        raise RuntimeError(views.error)
+    pipeline = viewport_pipeline()
+    if pipeline is None or pipeline.step_args is None or not pipeline.has_image:
+        return False
+    return pipeline.lights_settings == settings_module().VSGLSettings.from_properties(bpy.context.scene.vsgl)
+
+
 def setup():
     window, area, region, space = viewport()
     space.shading.type = "SOLID"
@@ -210,7 +222,8 @@ def render_properties_and_preview():
     result["properties_rect"] = [properties.x, properties.y, properties.width, properties.height]
 
 
-# (action, wait for the refined overlay?, screenshot name or None, timing label or None)
+# (action, wait: False, True (the refined overlay) or "lit" (lit_and_drawn), screenshot name or None,
+# timing label or None)
 STEPS = [
     (setup, False, None, None),
     (vsgl_tab, False, None, None),
@@ -218,7 +231,7 @@ STEPS = [
     (overlay_on, True, "02_overlay_on_indirect_only", "first"),
     (mode_added, True, "03_overlay_added_to_solid", None),
     (fewer_vsgls, True, "04_vsgl_count_1", "parameter_change"),
-    (restore_vsgls, True, None, None),
+    (restore_vsgls, "lit", None, None),
     (orbit, True, "05_after_orbit_view_only", "view_change"),
     (after_orbit, False, None, None),
     (move_light, True, "06_after_moving_the_spot", "scene_change"),
@@ -271,12 +284,13 @@ def tick():
                 log(f"did {action.__name__}")
             start_redraw()
             if wait:
-                state["phase"] = "refine"
+                state.update(phase="refine", wait=wait)
             return POLL
         if state["phase"] == "refine":
             # The overlay learns the viewport's new view when the viewport draws: before that, the
             # cache can still call the old view refined.
-            if draws["viewport"] == state["draws"]["viewport"] or not refined_and_drawn():
+            ready = lit_and_drawn if state["wait"] == "lit" else refined_and_drawn
+            if draws["viewport"] == state["draws"]["viewport"] or not ready():
                 _check_timeout("no refined overlay")
                 return POLL
             if label:
