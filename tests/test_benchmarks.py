@@ -111,3 +111,40 @@ def test_tradeoff_suite_quick_run_writes_table_plot_and_targets():
     rows = scene["cycles"]["rows"]
     assert rows[0]["rel"] / rows[1]["rel"] == pytest.approx(2.0)
     assert (results / "tradeoff_suite_quick.png").stat().st_size > 10_000
+
+
+def test_budget_error_terms_fit_recovers_the_slopes_it_was_made_with():
+    """benchmarks/budget_error_terms.py's fit on made-up scenes (no rendering): each scene's error is
+    its base error times 1 + the term weights times the feature moves, so every slope comes back,
+    the RSM's also under its scene's kind, and the medians in budget.py's units."""
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    try:
+        import budget_error_terms as T
+    finally:
+        sys.path.remove(str(REPO / "benchmarks"))
+    from vsgl_addon.budget import ERROR_WEIGHTS
+
+    def scene(name, base, weights, vpl_pass, orthographic):
+        at_base = T.features(T.BASE, vpl_pass)
+        rows = []
+        grids = (T.GRID, T.VPL_GRID) if vpl_pass else (T.GRID,)
+        for point in [dict(T.BASE)] + [dict(T.BASE, **{k: v}) for grid in grids
+                                       for k, values in grid.items() for v in values]:
+            moved = [a - b for a, b in zip(T.features(point, vpl_pass), at_base)]
+            rows.append({**point, "rel": base * (1.0 + sum(w * m for w, m in zip(weights, moved)))})
+        return {"scene": name, "vpl_pass": vpl_pass, "orthographic": orthographic, "rows": rows}
+
+    results = [scene("local", 0.2, (8.0, 0.5, 0.0, 0.1), False, False),
+               scene("sun", 0.4, (6.0, 40.0, 0.0, 0.2), False, True),
+               scene("caustics", 0.1, (10.0, 12.0, 0.02, 1.0), True, False)]
+    slopes = {r["scene"]: T.slopes(r) for r in results}
+    assert slopes["local"]["rsm"] == slopes["local"]["rsm_local"] == pytest.approx(0.5)
+    assert "rsm_orthographic" not in slopes["local"]
+    assert slopes["sun"]["rsm_orthographic"] == pytest.approx(40.0)
+    assert slopes["caustics"]["rsm_vpls"] == pytest.approx(12.0) and slopes["caustics"]["vpls"] == pytest.approx(0.02)
+    fitted = T.fit(results)
+    assert fitted["vsgls"]["median"] == pytest.approx(8.0) and fitted["rsm"]["median"] == pytest.approx(12.0)
+    assert fitted["vsgls"]["weight"] == pytest.approx(ERROR_WEIGHTS["vsgls"])
+    assert fitted["scale"]["weight"] == pytest.approx(0.2 * ERROR_WEIGHTS["vsgls"] / 8.0)
+    text = T.markdown(results, fitted, "budget_error_terms.py", 1.0)
+    assert "| rsm_orthographic | sun 40 | 40 |" in text
