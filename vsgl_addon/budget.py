@@ -542,13 +542,9 @@ def choose(plan, settings: VSGLSettings, width: int, height: int, target_ms: flo
                 candidate = replace(candidate, vsgl_count=low)
                 seconds = predicted_seconds(plan, settings, candidate, width, height, model, triangles,
                                             vpl_fraction, scene)
-    # The plan's passes, fixed: those it weighed and left out (planner.WEIGHING_MODES) turned off, the
-    # mode Manual, so the frame runs what the path's times were predicted for (a plan of the chosen N
-    # would weigh them again at another frame time).
-    from .planner import AUTO_TOGGLES
-
-    chosen = candidate.apply(settings).overridden(quality_mode="manual", **{
-        toggle: False for name, toggle in AUTO_TOGGLES.items() if name in plan.weighed and not plan.runs(name)})
+    # The plan's passes, fixed (planner.FramePlan.pinned), so the frame runs what the path's times
+    # were predicted for.
+    chosen = plan.pinned(candidate.apply(settings))
     size = scaled_size(width, height, candidate.scale)
     features = frame_features(plan, chosen, size, (width, height), triangles, vpl_fraction)
     return BudgetChoice(target, candidate, chosen, seconds, model.predict_steps(features, scene), size, (width, height),

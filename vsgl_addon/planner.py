@@ -185,6 +185,13 @@ class FramePlan:
     def runs(self, name: str) -> bool:
         return self.decisions[name].run
 
+    def pinned(self, settings: VSGLSettings) -> VSGLSettings:
+        """``settings`` in Manual mode with the toggles of the passes this plan weighed and left out
+        turned off: a plan of them runs this plan's passes whatever N they carry (Budget's chosen
+        settings: a plan at another N would weigh the passes at another frame time)."""
+        left_out = [name for name in self.weighed if not self.runs(name)]
+        return settings.overridden(quality_mode="manual", **{AUTO_TOGGLES[name]: False for name in left_out})
+
     @property
     def receiver_sets(self) -> tuple[str, ...]:
         """The VSGL sets the frame generates (scene_description.RECEIVER_LOBES names)."""
