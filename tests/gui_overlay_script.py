@@ -99,29 +99,24 @@ def viewport_pipeline():
     return overlay_module().views.pipelines.get(space.region_3d.as_pointer())
 
 
+def lit_and_drawn():
+    """The overlay's view pipeline of the viewport, once it has an image of the current settings'
+    light passes (its coarse image after the change; its samples may be still to come); else None."""
+    views = overlay_module().views
+    if views.error:
+        raise RuntimeError(views.error)
+    pipeline = viewport_pipeline()
+    if pipeline is None or pipeline.step_args is None or not pipeline.has_image:
+        return None
+    current = settings_module().VSGLSettings.from_properties(bpy.context.scene.vsgl)
+    return pipeline if pipeline.lights_settings == current else None
+
+
 def refined_and_drawn():
     """The overlay's view pipeline of the viewport has all its samples for the current view,
     scene state and settings."""
-    views = overlay_module().views
-    if views.error:
-        raise RuntimeError(views.error)
-    pipeline = viewport_pipeline()
-    if pipeline is None or pipeline.step_args is None or not pipeline.has_image:
-        return False
-    current = settings_module().VSGLSettings.from_properties(bpy.context.scene.vsgl)
-    return pipeline.lights_settings == current and pipeline.pending(*pipeline.step_args) is None
-
-
-def lit_and_drawn():
-    """The overlay's view pipeline has an image of the current settings' light passes (its coarse
-    image after the change), its samples still to come."""
-    views = overlay_module().views
-    if views.error:
-        raise RuntimeError(views.error)
-    pipeline = viewport_pipeline()
-    if pipeline is None or pipeline.step_args is None or not pipeline.has_image:
-        return False
-    return pipeline.lights_settings == settings_module().VSGLSettings.from_properties(bpy.context.scene.vsgl)
+    pipeline = lit_and_drawn()
+    return pipeline is not None and pipeline.pending(*pipeline.step_args) is None
 
 
 def setup():
@@ -289,7 +284,7 @@ def tick():
         if state["phase"] == "refine":
             # The overlay learns the viewport's new view when the viewport draws: before that, the
             # cache can still call the old view refined.
-            ready = lit_and_drawn if state["wait"] == "lit" else refined_and_drawn
+            ready = (lambda: lit_and_drawn() is not None) if state["wait"] == "lit" else refined_and_drawn
             if draws["viewport"] == state["draws"]["viewport"] or not ready():
                 _check_timeout("no refined overlay")
                 return POLL

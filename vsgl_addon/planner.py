@@ -20,8 +20,8 @@ bpy-free and GPU-free: from a SceneDescription and VSGLSettings, :func:`plan_fra
 * which passes run, from the cells of ../shared/reference/light-paths.md the scene fills: VSGL
   visibility (000 §5), MRP-ASG (001: a lit rectangle proxy and a glossy receiver it can serve),
   the glossy receivers' second VSGL set, the VPL caustics pass (004: a lit sharp reflector). In
-  Auto quality mode the VPL pass and MRP-ASG must also be worth their cost: each runs when the
-  share of the bounce its cell carries (CPU estimate, :func:`cell_powers`) is at least
+  Auto and Budget quality modes (WEIGHING_MODES) the VPL pass and MRP-ASG must also be worth their
+  cost: each runs when the share of the bounce its cell carries (CPU estimate, :func:`cell_powers`) is at least
   AUTO_SHARE_PER_COST times the fraction of the frame time the built-in cost model (budget.py)
   predicts it adds, the extra VSGL sets it needs included (:func:`weigh_passes`); a pass left out
   hands its cell to the VSGLs, as switching it off does.
