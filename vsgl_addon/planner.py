@@ -21,10 +21,10 @@ bpy-free and GPU-free: from a SceneDescription and VSGLSettings, :func:`plan_fra
   visibility (000 §5), MRP-ASG (001: a lit rectangle proxy and a glossy receiver it can serve),
   the glossy receivers' second VSGL set, the VPL caustics pass (004: a lit sharp reflector). In
   Auto and Budget quality modes (WEIGHING_MODES) the VPL pass and MRP-ASG must also be worth their
-  cost: each runs when the share of the bounce its cell carries (CPU estimate, :func:`cell_powers`) is at least
-  AUTO_SHARE_PER_COST times the fraction of the frame time the built-in cost model (budget.py)
-  predicts it adds, the extra VSGL sets it needs included (:func:`weigh_passes`); a pass left out
-  hands its cell to the VSGLs, as switching it off does.
+  cost: each runs when the share of the bounce its cell carries (CPU estimate, :func:`cell_powers`)
+  is at least AUTO_SHARE_PER_COST times the fraction of the frame time the built-in cost model
+  (budget.py) predicts it adds, the extra VSGL sets it needs included (:func:`weigh_passes`); a pass
+  left out hands its cell to the VSGLs, as switching it off does.
 
 Each decision carries a one-line reason; :meth:`FramePlan.summary_lines` are what the statistics
 panel and the command line print, :meth:`FramePlan.to_dict` what the JSON report holds.
@@ -78,7 +78,8 @@ AUTO_TOGGLES = {"vpl_pass": "caustics", "mrp_asg": "glossy_reflectors"}
 AUTO_OPTIONAL = tuple(AUTO_TOGGLES)
 #: The quality modes whose plan weighs AUTO_OPTIONAL: Auto, and Budget, which spends its time on N,
 #: RSM size, δ, interleave and resolution for the passes Auto would run (a pass not worth its time at
-#: the settings' N is not worth it on a budget either; budget.choose turns its toggle off).
+#: the settings' N is not worth it on a budget either; FramePlan.pinned turns its toggle off in the
+#: settings the budget chooses).
 WEIGHING_MODES = ("auto", "budget")
 #: The glossy receivers' VSGL set (with MRP-ASG: every reflector's light but the proxies' specular
 #: flux, for the specular lobes MRP-ASG serves, GGX α up to 0.35) gets this many times N. Its
