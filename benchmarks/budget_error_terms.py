@@ -61,9 +61,9 @@ def features(point: dict, vpl_pass: bool) -> list[float]:
 
 
 def measure_scene(name, path) -> dict:
-    from vsgl_addon.budget import Candidate
+    from vsgl_addon.budget import Candidate, scaled_size
     from vsgl_addon.budget_render import _render
-    from vsgl_addon.planner import AUTO_TOGGLES, plan_frame
+    from vsgl_addon.planner import plan_frame
     from vsgl_addon.renderer import FrameRenderer
 
     width, height = RESOLUTION
@@ -71,9 +71,8 @@ def measure_scene(name, path) -> dict:
     camera = description.camera
     plan = plan_frame(description, saved.overridden(quality_mode="budget"), None,
                       camera.projection_matrix() @ camera.view_matrix())
-    # The passes Budget runs here, held fixed: each optional pass's toggle as its plan decided.
-    fixed = saved.overridden(quality_mode="manual", **{toggle: plan.runs(name_) and getattr(saved, toggle)
-                                                     for name_, toggle in AUTO_TOGGLES.items()})
+    # The passes Budget runs here, held fixed over the grid, as budget.choose fixes them.
+    fixed = plan.pinned(saved)
     vpl_pass = plan.runs("vpl_pass")
     points = [dict(BASE)]
     for grid in (GRID, VPL_GRID) if vpl_pass else (GRID,):
@@ -85,8 +84,8 @@ def measure_scene(name, path) -> dict:
         check = None
         for index, point in enumerate([points[0], *points]):  # the first frame warms up
             candidate = Candidate(**point)
-            size = (max(int(round(width * point["scale"])), 1), max(int(round(height * point["scale"])), 1))
-            images = _render(renderer, description, candidate.apply(fixed), size, (width, height), None)
+            images = _render(renderer, description, candidate.apply(fixed), scaled_size(width, height, point["scale"]),
+                             (width, height), None)
             if check is None:
                 check = Errors(truth, images.coverage)
             if index == 0:
