@@ -195,6 +195,33 @@ def test_interleaved_subsets_average_to_full_estimate(interleave):
         run_pass(position, normal, albedo, vpls, w2v, proj, 1e-3, interleave=3)
 
 
+@pytest.mark.parametrize("interleave, offset", [(2, 1), (8, 37)])
+def test_each_sub_image_shades_exactly_its_subset_across_chunks(interleave, offset):
+    """Over several 256-VPL chunks, each pixel's sub-image ((x % N) + N (y % N) + offset) % N^2 is the
+    reference's sum over the VPLs i with i % N^2 equal to it, weighted N^2 (004 section 6): the pass
+    partitions each chunk's list by subset, so a pixel loops over its own subset only."""
+    position, normal, albedo, w2v, proj, *_ = wall_gbuffer(64, 48)
+    count, delta, seed = 700, 1e-3, 3
+    vpls = _vpls(count)
+    xi = vc.vpl_xi(np.arange(count), seed, 0)
+    image, _, _ = run_pass(position, normal, albedo, vpls, w2v, proj, delta, seed, interleave=interleave,
+                           offset=offset)
+    n2 = interleave * interleave
+    h, w = position.shape[:2]
+    ys, xs = np.mgrid[0:h, 0:w]
+    pixel_subset = (xs % interleave + interleave * (ys % interleave) + offset) % n2
+    members_of = np.arange(count) % n2
+    reference = np.zeros((h, w, 3))
+    for sub in np.unique(pixel_subset):
+        members = np.nonzero(members_of == sub)[0]
+        part = reference_image(position, normal, albedo, {k: v[members] for k, v in vpls.items()}, delta,
+                               xi[members])
+        reference[pixel_subset == sub] = (n2 * part)[pixel_subset == sub]
+    assert reference.max() > 0.0 and np.all(np.isfinite(image))
+    err = np.abs(image[..., :3] - reference)
+    assert np.all(err <= 2e-3 * reference + 1e-6 * reference.max()), f"worst {np.max(err / (reference + 1e-30)):.3g}"
+
+
 def test_progressive_samples_and_denoise():
     """S frames average towards brute force (error falls with S); the filter keeps a flat wall's
     mean and lowers the interleaved image's error."""

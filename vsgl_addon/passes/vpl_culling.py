@@ -57,7 +57,8 @@ def _interface(visibility: bool = False) -> ShaderInterface:
         shared="shared uint tile_depth_min; shared uint tile_depth_max; shared uint tile_covered; "
                "shared uint tile_total; shared uint tile_x_min; shared uint tile_y_min; "
                "shared uint tile_x_max; shared uint tile_y_max; "
-               "shared uint chunk_count; shared uint chunk_list[256];",
+               # A chunk's listed VPLs, partitioned by interleave subset (at most 8 x 8 of them).
+               "shared uint subset_count[64]; shared uint chunk_list[256];",
     )
 
 
