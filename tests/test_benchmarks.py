@@ -148,3 +148,33 @@ def test_budget_error_terms_fit_recovers_the_slopes_it_was_made_with():
     assert fitted["scale"]["weight"] == pytest.approx(0.2 * ERROR_WEIGHTS["vsgls"] / 8.0)
     text = T.markdown(results, fitted, "budget_error_terms.py", 1.0)
     assert "| rsm_orthographic | sun 40 | 40 |" in text
+
+
+def test_cost_model_fit_recovers_the_model_its_frames_were_timed_with():
+    """benchmarks/cost_model_fit.py's fit and table on made-up frames (no rendering): frames timed
+    with known coefficients give a refitted model that predicts them (ratio 1.00) and a table with
+    the VPL pass's interleave rows."""
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    try:
+        import cost_model_fit as T
+    finally:
+        sys.path.remove(str(REPO / "benchmarks"))
+    import numpy as np
+
+    from vsgl_addon import budget as B
+
+    rng = np.random.default_rng(2)
+    truth = {step: [2.0 * v + 1e-3 for v in values] for step, values in B.FALLBACK_COEFFICIENTS.items()}
+    samples = []
+    for _ in range(40):
+        features = {step: rng.uniform(0.1, 5.0, len(names)).tolist() for step, names in B.STEP_FEATURES.items()}
+        samples.append({"features": features,
+                        "timings": {step: float(np.dot(truth[step], f)) for step, f in features.items()}})
+    sweep = [{"interleave": n, "vpl_pass_ms": 100.0 / int(n), "vpls": 10, "features": [1.0, 4.0 / int(n) ** 2, 2.0]}
+             for n in T.INTERLEAVES]
+    results = [{"scene": "made_up", "vpl_pass": True, "samples": samples, "sweep": sweep}]
+    refitted = B.fit(samples)
+    assert np.median(T.ratios(refitted, samples)) == pytest.approx(1.0, abs=0.01)
+    assert np.median(T.ratios(dict(B.FALLBACK_COEFFICIENTS), samples)) < 0.7
+    text = T.markdown(results, dict(B.FALLBACK_COEFFICIENTS), refitted, "cost_model_fit.py", 1.0)
+    assert "| made_up | 10 | 8 | 12 | 0.12 |" in text and '"vpl_culling": (' in text

@@ -56,11 +56,12 @@ def test_the_fit_recovers_synthetic_coefficients_and_keeps_them_non_negative():
     fitted = B.fit(_synthetic_samples(theta, count=48))
     for step in B.STEP_FEATURES:
         # The prior's pull (PRIOR_WEIGHT samples' worth) is small against 48 exact frames: each
-        # coefficient within 5 % of the step's largest, and predictions of new frames within 1 %.
+        # coefficient within 5 % of the step's largest, and predictions of new frames within 3 % (the
+        # prior is up to 2x off each coefficient here, and pulls the correlated ones together).
         np.testing.assert_allclose(fitted[step], theta[step], atol=0.05 * max(theta[step]))
     for sample in _synthetic_samples(theta, count=8, seed=9):
         for step, values in sample["features"].items():
-            assert np.dot(fitted[step], values) == pytest.approx(sample["timings"][step], rel=0.01)
+            assert np.dot(fitted[step], values) == pytest.approx(sample["timings"][step], rel=0.03)
     noisy = B.fit(_synthetic_samples(theta, count=48, noise=0.2, seed=1))
     assert all(min(values) >= 0.0 for values in noisy.values())
     predicted = np.dot(noisy["vsgl_shading"], [1.0, 5.0, 5.0])
@@ -72,7 +73,7 @@ def test_a_step_the_samples_never_ran_keeps_the_built_in_coefficients():
     samples = _synthetic_samples(theta, count=8)
     for sample in samples:
         del sample["features"]["mrp_asg"]
-        sample["features"]["vpl_culling"] = [0.0, 0.0]
+        sample["features"]["vpl_culling"] = [0.0, 0.0, 0.0]
     fitted = B.fit(samples)
     assert fitted["mrp_asg"] == list(B.FALLBACK_COEFFICIENTS["mrp_asg"])
     assert fitted["vpl_culling"] == list(B.FALLBACK_COEFFICIENTS["vpl_culling"])
@@ -142,6 +143,29 @@ def test_a_bad_cache_file_gives_one_clear_warning_and_the_built_in_model(tmp_pat
     # Saving over it replaces the bad file with a readable one.
     B.save_model("gpu", model, path)
     assert B.load_model("gpu", path).warning is None
+
+
+def test_a_cache_of_an_earlier_format_is_replaced_silently(tmp_path):
+    """An earlier version's cache (fewer features) gives the built-in model without a warning, so the
+    caller recalibrates (budget_render.model_for), and saving replaces the file."""
+    path = tmp_path / B.CACHE_NAME
+    path.write_text(json.dumps({"format": B.CACHE_FORMAT - 1, "models": {"gpu": {"coefficients": {
+        "vpl_culling": [2.4, 1.53]}, "samples": [{"features": {}, "timings": {}}]}}}))
+    model = B.load_model("gpu", path)
+    assert model.warning is None and model.samples == [] and model.coefficients == B.CostModel.fallback().coefficients
+    B.save_model("gpu", model, path)
+    assert json.loads(path.read_text())["format"] == B.CACHE_FORMAT
+
+
+def test_the_vpl_pass_features_test_every_vpl_and_shade_the_sub_image_s_share():
+    """Each tile tests every VPL's spheroid whatever the interleave; a pixel shades the listed VPLs
+    of its sub-image, 1/N² of them (vpl_cull_shade.comp.glsl)."""
+    room, plan = _plan(sharp=True)
+    triangles = room.geometry.triangle_count
+    rows = {n: B.frame_features(plan, VSGLSettings(vpl_interleave=n), SIZE, SIZE, triangles, 0.5)["vpl_culling"]
+            for n in ("1", "2", "8")}
+    assert rows["1"][2] > 0.0 and rows["2"][2] == rows["1"][2] == rows["8"][2]
+    assert rows["2"][1] == pytest.approx(rows["1"][1] / 4) and rows["8"][1] == pytest.approx(rows["1"][1] / 64)
 
 
 # --- The choice ----------------------------------------------------------------------------------
@@ -354,7 +378,7 @@ def test_the_view_prediction_counts_the_resolve_the_kept_guide_and_the_preview_s
     strided = B.view_seconds(plan, settings, low, full, model, triangles, vpl_fraction=0.5, vpl_stride=16)
     every = B.view_seconds(plan, settings, low, full, model, triangles, vpl_fraction=0.5)
     culled = B.frame_features(plan, settings, low, low, triangles, 0.5)["vpl_culling"]
-    per_vpl = model.coefficients["vpl_culling"][1] * culled[1]
+    per_vpl = np.dot(model.coefficients["vpl_culling"][1:], culled[1:])
     assert every - strided == pytest.approx(per_vpl * 15 / 16)
     # At full size the coarse image is a sample: the stride is not applied there.
     assert B.coarse_factor(plan, settings, full, 1.0, 1e3, model, triangles, 0.5, 16) == (

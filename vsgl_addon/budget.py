@@ -5,8 +5,8 @@ bpy-free and GPU-free (the caller renders). Three parts:
 
 * **Features**: :func:`frame_features` turns a frame plan (planner.plan_frame) and candidate settings
   into the quantities each timed step's cost is linear in (``STEP_FEATURES``): pixels, pixels × VSGLs
-  for the shading, RSM texels × VSGL sets for the light passes, shadow-map splats, culled VPLs per
-  pixel for the VPL pass, and so on. A step the plan does not run has no features, hence no cost.
+  for the shading, RSM texels × VSGL sets for the light passes, shadow-map splats, tested and culled
+  VPLs per pixel for the VPL pass, and so on. A step the plan does not run has no features, hence no cost.
 * **Cost model**: :class:`CostModel` holds per step one non-negative coefficient per feature (seconds),
   fitted by non-negative least squares to per-pass timings measured on this machine
   (FrameImages.timings: a short calibration at first use, :data:`CALIBRATION`, and the budgeted
@@ -51,30 +51,31 @@ STEP_FEATURES = {
     "gbuffer": ("one", "pixels", "triangles"),
     "direct_light": ("pixels", "pixel_lights"),
     "vsgl_shading": ("pixels", "vsgls", "pixel_vsgls"),
-    "vpl_culling": ("pixels", "pixel_vpls"),
+    "vpl_culling": ("pixels", "pixel_vpls", "pixel_vpl_tests"),
     "mrp_asg": ("pixels", "pixel_proxies"),
     "read_back": ("pixels",),
     "upscale": ("full_pixels",),
 }
 
-#: Seconds per feature unit, fitted on the reference machine (2 shared cores, llvmpipe 256 bits) to
-#: budget_render.CALIBRATION's frames of the ten scenes of the validation suite at 240x180 (70 frames;
-#: predicted / measured frame time 0.42 to 2.0, median 1.04, before any scene's correction; the
-#: shading's per-VSGL term came later and starts at 0): the model when no cache exists, and the prior
-#: of every fit.
+#: Seconds per feature unit, fitted on the reference machine (2 shared cores, llvmpipe 256 bits) by
+#: benchmarks/cost_model_fit.py (committed results/cost_model_fit.md): budget_render.CALIBRATION's
+#: frames of the eleven scenes of the validation suite at 240x180 and the VPL pass's interleave
+#: sweeps, 125 frames; predicted / measured frame time 0.55 to 1.30, median 0.97, before any scene's
+#: correction (the coefficients before them predicted 1.6 to 10× the measured frames): the model
+#: when no cache exists, Auto's weighing of the passes, and the prior of every fit.
 FALLBACK_COEFFICIENTS = {
-    "upload": (5.3e-4, 3.2e-2),
-    "rsm_and_vsgl_generation": (1.9e-3, 0.149, 3.1e-2),
-    "ism": (0.315, 7.8e-2, 7.8e-2),
-    "vpl_extraction": (6.5e-3, 0.164),
-    "mrp_visibility": (8.7e-4,),
-    "gbuffer": (2.8e-3, 1.15e-2, 0.131),
-    "direct_light": (6.5e-3, 5.1e-2),
-    "vsgl_shading": (1.0e-3, 0.0, 13.8),
-    "vpl_culling": (2.4, 1.53),
-    "mrp_asg": (5.9e-2, 1.1e-2),
-    "read_back": (3.1e-3,),
-    "upscale": (2.6e-2,),
+    "upload": (1.5e-4, 3.1e-2),
+    "rsm_and_vsgl_generation": (1.0e-3, 4.7e-2, 7.2e-3),
+    "ism": (0.13, 3.2e-2, 3.2e-2),
+    "vpl_extraction": (5.3e-3, 0.18),
+    "mrp_visibility": (2.5e-4,),
+    "gbuffer": (3.0e-4, 4.7e-3, 6.0e-2),
+    "direct_light": (4.6e-4, 2.0e-2),
+    "vsgl_shading": (3.7e-2, 6.1e-2, 1.4),
+    "vpl_culling": (0.17, 7.1e-2, 2.2e-2),
+    "mrp_asg": (1.5e-2, 5.0e-3),
+    "read_back": (1.8e-3,),
+    "upscale": (1.2e-2,),
 }
 
 #: Seconds per 10⁵ of the region's pixels of the viewport's joint bilateral resolve (view_gpu.py,
@@ -96,7 +97,8 @@ MAX_SAMPLES = 64
 #: Weight of the prior (built-in coefficients) in a fit, as a number of samples' worth per coefficient.
 PRIOR_WEIGHT = 0.05
 
-CACHE_FORMAT = 1
+#: 2: the VPL pass's tested VPLs per pixel (STEP_FEATURES["vpl_culling"]), a third feature.
+CACHE_FORMAT = 2
 CACHE_NAME = "cost_model.json"
 
 # The choice's parameters, cheapest first (the path starts at each list's first value).
@@ -191,9 +193,14 @@ def frame_features(plan, settings: VSGLSettings, size: tuple[int, int], full_siz
         vpl_texels = vpl_views * settings.rsm_size * settings.rsm_size
         fraction = DEFAULT_VPL_FRACTION if vpl_fraction is None else vpl_fraction
         factor = interleave_factor(settings.vpl_interleave, w, h)
-        listed = fraction * vpl_texels * delta_listed(settings.delta) / (factor * factor * max(int(vpl_stride), 1))
+        stride = max(int(vpl_stride), 1)
+        # Every tile tests every (strided) VPL's spheroid, whatever the interleave; a pixel shades
+        # only the listed VPLs of its sub-image (vpl_cull_shade.comp.glsl).
+        tested = fraction * vpl_texels / stride
+        listed = tested * delta_listed(settings.delta) / (factor * factor)
         out["vpl_extraction"] = (float(vpl_views), vpl_texels / 1e5)
-        out["vpl_culling"] = (pixels, pixels * settings.vpl_samples * listed / 1e3)
+        out["vpl_culling"] = (pixels, pixels * settings.vpl_samples * listed / 1e3,
+                              pixels * settings.vpl_samples * tested / 1e3)
     if runs("mrp_asg") and proxies:
         if settings.visibility:
             out["mrp_visibility"] = (proxies,)
@@ -372,12 +379,17 @@ def cache_path() -> Path:
 
 def load_model(gpu: str, path: Path | None = None) -> CostModel:
     """The cached model of ``gpu`` (the GPU renderer's name), or the built-in one: silently when the
-    cache has none, with one ``warning`` (model.warning) when the file cannot be read."""
+    cache has none or was written by an earlier version (an older ``format``, whose features differ:
+    the caller recalibrates and replaces it), with one ``warning`` (model.warning) when the file
+    cannot be read."""
     path = cache_path() if path is None else Path(path)
     if not path.is_file():
         return CostModel.fallback()
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
+        older = data.get("format")
+        if isinstance(older, int) and not isinstance(older, bool) and 1 <= older < CACHE_FORMAT:
+            return CostModel.fallback()
         if data.get("format") != CACHE_FORMAT:
             raise ValueError(f"format {data.get('format')!r}, expected {CACHE_FORMAT}")
         models = data["models"]
