@@ -61,7 +61,6 @@ class FakeBackend:
         self.displayed = []
         self.previews = []  # render_view's preview flag (the coarse image's thinned VPLs)
         self.guides = 0  # full-resolution guide G-buffers rendered
-        self.interleaves = []  # render_view's settings.vpl_interleave
 
     def frame_renderer(self):
         return Thing()
@@ -74,7 +73,6 @@ class FakeBackend:
     def render_view(self, renderer, lights, settings, width, height, view, projection, preview=False):
         assert not lights.freed and settings.seed == lights.seed
         self.previews.append(preview)
-        self.interleaves.append(settings.vpl_interleave)
         self.clock.now += FIXED_SECONDS + SECONDS_PER_PIXEL * width * height
         self.renders.append((width, height))
         return View(value=float(lights.seed), size=(width, height), counts={"vsgls": 16},
@@ -272,20 +270,6 @@ def test_where_a_strip_exceeds_the_step_the_bands_are_runs_of_cells_covering_eac
     np.testing.assert_array_equal(pipeline.backend.displayed[-1][0], np.mean([5, 6]))
 
 
-@pytest.mark.parametrize("choice, expected", [("auto", "8"), ("2", "2")])
-def test_a_band_takes_the_vpl_interleave_of_the_whole_region(pipeline, choice, expected):
-    """"auto" picks the VPL interleave by the image's pixels: a band of a 1920 x 1080 sample is
-    shaded with the whole image's 8 x 8 (its CELL-aligned sub-images are the image's), not with the
-    1 a band's few pixels would get; an explicit choice stays."""
-    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (1920, 1080))
-    settings = SETTINGS.overridden(vpl_interleave=choice)
-    pipeline.step(describe, settings, 0.25, 1)
-    for _ in range(3):
-        pipeline.step(describe, settings, 0.25, 1)
-    bands = [i for (w, h), i in zip(pipeline.backend.renders, pipeline.backend.interleaves) if w * h < 1920 * 1080 // 16]
-    assert bands and set(bands) == {expected}
-
-
 @pytest.mark.parametrize("cheap", ["top", "bottom"])
 def test_rows_of_unequal_cost_keep_every_band_within_the_budget(pipeline, monkeypatch, cheap):
     """Rows that cost almost nothing (sky above the scene, or empty floor below it) and rows that
@@ -464,8 +448,7 @@ def test_the_coarse_image_after_a_change_has_preview_light_passes_and_the_sample
             return scene_lights(description, used)
 
         def view_of(renderer, lights, used, *rest, **keywords):
-            # The bands take the region's VPL interleave (its own test): the passes' settings else.
-            rendered.append(replace(used, vpl_interleave=settings.vpl_interleave))
+            rendered.append(used)
             return render_view(renderer, lights, used, *rest, **keywords)
 
         backend.scene_lights, backend.render_view = lights_of, view_of

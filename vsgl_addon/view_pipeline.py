@@ -38,7 +38,7 @@ import numpy as np
 
 from dataclasses import dataclass
 
-from .settings import VSGLSettings, interleave_factor
+from .settings import VSGLSettings
 from .views import band_projection
 
 #: Seconds one step should take (one frame here): bands of full-resolution samples are sized to it.
@@ -492,13 +492,8 @@ class ViewPipeline:
         remaining = max(self.step_budget - (self.clock() - started), self.step_budget / 4)
         fixed = self._band_fixed_seconds or 0.0
         x0, y0, x1, y1 = self._next_band(width, height, remaining - fixed)
-        # A band is shaded as the whole sample would be: with the VPL interleave of the region's size
-        # ("auto" picks it by the image's pixels, not the band's), whose sub-images the bands, CELL
-        # aligned, share with the whole image.
-        settings = self._seeded_settings()
-        settings = settings.overridden(vpl_interleave=str(interleave_factor(settings.vpl_interleave, width, height)))
         clock = self.clock()
-        view = self.backend.render_view(self.renderer, self.lights, settings, x1 - x0, y1 - y0,
+        view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), x1 - x0, y1 - y0,
                                         request.view_matrix, band_projection(request.projection_matrix,
                                                                              y0, y1, height, (x0, x1, width)))
         try:
