@@ -359,16 +359,6 @@ def test_renderer_takes_a_view_and_projection_and_reuses_scene_lights(demo):
             np.testing.assert_allclose(again.indirect, default.indirect, rtol=1e-5, atol=1e-7)
             band = renderer.render_view(lights, SETTINGS, 48, 18, view, band_projection(projection, 0, 18, 36))
             np.testing.assert_allclose(band.indirect, default.indirect[:18], rtol=1e-4, atol=1e-6)
-            # A block of cells (the viewport's band where a strip exceeds its step): rows 16..32,
-            # columns 16..32 of the 48 x 36 image.
-            block = renderer.render_view(lights, SETTINGS, 16, 16, view,
-                                         band_projection(projection, 16, 32, 36, (16, 32, 48)))
-            # The crop's float rounding may move a triangle edge that passes through a pixel centre
-            # by a pixel: a few pixels may differ slightly, the rest agree as the rows' band does.
-            expected = default.indirect[16:32, 16:32]
-            close = np.isclose(block.indirect, expected, rtol=1e-4, atol=1e-6)
-            assert close.mean() > 0.99, close.mean()
-            np.testing.assert_allclose(block.indirect, expected, rtol=1e-2, atol=1e-6)
         finally:
             lights.free()
         assert lights.scene_gpu is None and lights.vsgls is None

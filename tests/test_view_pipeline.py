@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from vsgl_addon.settings import VSGLSettings
-from vsgl_addon.view_pipeline import (CELL, COARSE, LIGHTS, SAMPLE, STEP_BUDGET, OverlayLook, ViewPipeline,
-                                      ViewportSet, view_size)
+from vsgl_addon.view_pipeline import (COARSE, LIGHTS, SAMPLE, STEP_BUDGET, OverlayLook, ViewPipeline, ViewportSet,
+                                      view_size)
 
 REGION = (200, 100)
 SETTINGS = VSGLSettings(vsgl_count=16, rsm_size=32, seed=5)
@@ -89,14 +89,13 @@ class FakeBackend:
     def target(self, width, height):
         return Thing(size=(width, height), image=np.zeros((height, width)))
 
-    def resolve(self, view, guide, target, rows, weight=1.0, add=False, columns=None):
+    def resolve(self, view, guide, target, rows, weight=1.0, add=False):
         first, end = rows if rows is not None else (0, target.size[1])
-        left, right = columns if columns is not None else (0, target.size[0])
-        assert guide.size == (right - left, end - first)
+        assert guide.size[0] == target.size[0] and guide.size[1] == end - first
         if add:
-            target.image[first:end, left:right] += view.value * weight
+            target.image[first:end] += view.value * weight
         else:
-            target.image[first:end, left:right] = view.value * weight
+            target.image[first:end] = view.value * weight
 
     def accumulate(self, source, target, weight=1.0, add=True):
         target.image = target.image + source.image * weight if add else source.image * weight
@@ -254,22 +253,6 @@ def test_a_fixed_cost_per_band_does_not_shrink_the_bands_to_a_row(pipeline, monk
     assert max(seconds for _, seconds in done[3:]) <= STEP_BUDGET * 1.3, done
 
 
-def test_where_a_strip_exceeds_the_step_the_bands_are_runs_of_cells_covering_each_pixel_once(pipeline, monkeypatch):
-    """At 1e-4 s per pixel one 200-pixel strip of CELL rows takes 0.32 s: the bands are runs of
-    CELL x CELL cells within a strip (never a one-row band, which costs llvmpipe twice per pixel),
-    aligned to the cells, each step within the budget, and every sample covers each pixel once."""
-    monkeypatch.setattr(__import__(__name__), "SECONDS_PER_PIXEL", 1e-4)
-    done = run(pipeline, samples=2, limit=400)
-    assert pipeline.samples == 2
-    bands = [(e["columns"], e["rows"]) for e in pipeline.history if e.get("columns")]
-    assert bands and all(x1 - x0 < REGION[0] and y1 - y0 == min(CELL, REGION[1] - y0)
-                         for (x0, x1, _), (y0, y1, _) in bands)
-    assert all(x0 % CELL == 0 and y0 % CELL == 0 for (x0, _, _), (y0, _, _) in bands)
-    assert max(seconds for work, seconds in done if work == SAMPLE) <= STEP_BUDGET * 1.05, done
-    pipeline.draw("combined")
-    np.testing.assert_array_equal(pipeline.backend.displayed[-1][0], np.mean([5, 6]))
-
-
 @pytest.mark.parametrize("cheap", ["top", "bottom"])
 def test_rows_of_unequal_cost_keep_every_band_within_the_budget(pipeline, monkeypatch, cheap):
     """Rows that cost almost nothing (sky above the scene, or empty floor below it) and rows that
@@ -283,18 +266,16 @@ def test_rows_of_unequal_cost_keep_every_band_within_the_budget(pipeline, monkey
     render = pipeline.backend.render_view
 
     def costly_rows(renderer, lights, settings, w, h, view, projection, preview=False):
-        # A band of the full-resolution sample starts at the strip of the cells done; a coarse image
-        # spans all rows.
-        first = pipeline._cells_done // -(-width // CELL) * CELL
-        rows = np.arange(first, first + h) if not preview else np.arange(h) * height // h
+        # A band of the full-resolution sample starts at the rows done; a coarse image spans all.
+        rows = np.arange(pipeline._rows_done, pipeline._rows_done + h) if w == width else np.arange(h) * height // h
         costly = rows >= height // 3 if cheap == "top" else rows < height // 3
         pipeline.clock.now += 0.03 + w * (1e-8 * np.sum(~costly) + 2e-5 * np.sum(costly))
         return render(renderer, lights, settings, w, h, view, projection, preview)
 
     monkeypatch.setattr(pipeline.backend, "render_view", costly_rows)
     done = run(pipeline, samples=3, limit=2000)
-    steps = [(work, seconds, entry.get("cells")) for (work, seconds), entry in zip(done, list(pipeline.history)[-len(done):])]
-    first_sample = next(i for i, (_, _, cells) in enumerate(steps) if cells and cells[0] == cells[1])
+    steps = [(work, seconds, entry.get("rows")) for (work, seconds), entry in zip(done, list(pipeline.history)[-len(done):])]
+    first_sample = next(i for i, (_, _, rows) in enumerate(steps) if rows and rows[1] == rows[2])
     assert pipeline.samples == 3
     # The first sample learns the rows' costs band by band: a band that enters the costly rows
     # from cheap ones may overshoot once; the later samples size their bands from the rows' costs.

@@ -40,19 +40,6 @@ def test_band_projection_maps_the_band_to_the_full_viewport():
     assert cropped[0] == full[0] and cropped[3] == full[3]
 
 
-def test_band_projection_of_a_block_maps_its_rows_and_columns_to_the_full_viewport():
-    projection = np.array([[1.2, 0, 0.1, 0], [0, 1.6, 0.05, 0], [0, 0, -1.002, -0.2], [0, 0, -1, 0]])
-    # Rows 30..60 of 120 (NDC y in [-0.5, 0]), columns 48..64 of 160 (NDC x in [-0.4, -0.2]).
-    block = views.band_projection(projection, 30, 60, 120, (48, 64, 160))
-    point = np.array([0.3, -0.1, -5.0, 1.0])
-    full, cropped = projection @ point, block @ point
-    assert cropped[1] / cropped[3] == pytest.approx((full[1] / full[3] + 0.25) / 0.25)
-    assert cropped[0] / cropped[3] == pytest.approx((full[0] / full[3] + 0.3) / 0.1)
-    assert cropped[3] == full[3] and cropped[2] == full[2]
-    np.testing.assert_array_equal(views.band_projection(projection, 30, 60, 120, (0, 160, 160)),
-                                  views.band_projection(projection, 30, 60, 120))
-
-
 def test_band_projection_of_the_whole_image_is_the_projection():
     projection = np.array([[2.0, 0, 0, -0.1], [0, 1.5, 0, 0.2], [0, 0, -0.1, -1.01], [0, 0, 0, 1.0]])
     np.testing.assert_array_equal(views.band_projection(projection, 0, 48, 48), projection)

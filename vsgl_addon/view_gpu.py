@@ -135,22 +135,21 @@ class ViewTarget:
         return len(self.textures) + (self.framebuffer is not None)
 
 
-def _draw_into(target: ViewTarget, rows, blend: str, shader: str, set_inputs, columns=None) -> None:
+def _draw_into(target: ViewTarget, rows, blend: str, shader: str, set_inputs) -> None:
     """Draw the full-screen triangle with VIEW's `shader` (inputs set by `set_inputs(program)`) into
-    rows [first, end) of `target` (and columns [first, end) with `columns`), with `blend`; the GPU
-    state is restored after. The shader and batch are made before the framebuffer is bound:
-    compiling while it is bound leaves another one bound in Blender 5.2 (the bind's exit then fails)."""
+    rows [first, end) of `target`, with `blend`; the GPU state is restored after. The shader and
+    batch are made before the framebuffer is bound: compiling while it is bound leaves another one
+    bound in Blender 5.2 (the bind's exit then fails)."""
     import gpu
 
     program = VIEW.shader(shader)
     batch = _batch()
     first, end = rows if rows is not None else (0, target.size[1])
-    left, right = columns if columns is not None else (0, target.size[0])
     saved = (gpu.state.blend_get(), gpu.state.depth_test_get(), gpu.state.depth_mask_get(),
              tuple(gpu.state.viewport_get()))
     try:
         with target.framebuffer.bind():
-            gpu.state.viewport_set(int(left), int(first), int(right - left), int(end - first))
+            gpu.state.viewport_set(0, int(first), target.size[0], int(end - first))
             gpu.state.depth_test_set("NONE")
             gpu.state.depth_mask_set(False)
             gpu.state.blend_set(blend)
@@ -165,10 +164,9 @@ def _draw_into(target: ViewTarget, rows, blend: str, shader: str, set_inputs, co
 
 
 def resolve(view, guide_position, guide_normal, camera, projection_11: float, target: ViewTarget,
-            rows=None, weight: float = 1.0, add: bool = False, columns=None) -> None:
+            rows=None, weight: float = 1.0, add: bool = False) -> None:
     """`view` (renderer.ViewTextures) upsampled to the guide's pixels into rows [first, end) of
-    `target` (and columns [first, end) with `columns`; the guide covers that block), times
-    `weight`; added to what is there if `add`."""
+    `target` (the guide covers those rows), times `weight`; added to what is there if `add`."""
     def set_inputs(program):
         program.uniform_float("camera", tuple(float(v) for v in camera))
         program.uniform_float("projection_11", float(projection_11))
@@ -181,7 +179,7 @@ def resolve(view, guide_position, guide_normal, camera, projection_11: float, ta
         program.uniform_sampler("guide_position", guide_position)
         program.uniform_sampler("guide_normal", guide_normal)
 
-    _draw_into(target, rows, "ADDITIVE" if add else "NONE", "resolve", set_inputs, columns)
+    _draw_into(target, rows, "ADDITIVE" if add else "NONE", "resolve", set_inputs)
 
 
 def accumulate(source: ViewTarget, target: ViewTarget, weight: float = 1.0, add: bool = True) -> None:
@@ -291,13 +289,13 @@ class GPUViewBackend:
     def target(self, width, height) -> ViewTarget:
         return ViewTarget(width, height)
 
-    def resolve(self, view, guide, target, rows, weight=1.0, add=False, columns=None) -> None:
-        """`guide`: the GBuffer whose pixels are the band's (the view's own for a full-resolution band)."""
+    def resolve(self, view, guide, target, rows, weight=1.0, add=False) -> None:
+        """`guide`: the GBuffer whose pixels are the rows' (the view's own for a full-resolution band)."""
         from .views import camera_vector
 
         camera = camera_vector(guide.view_matrix, guide.projection_matrix)
         resolve(view, guide.textures["position"], guide.textures["normal"], camera,
-                float(np.asarray(guide.projection_matrix)[1, 1]), target, rows, weight, add, columns)
+                float(np.asarray(guide.projection_matrix)[1, 1]), target, rows, weight, add)
 
     def guide_of(self, view):
         """The G-buffer a full-resolution view render carries (its own guide)."""

@@ -12,9 +12,8 @@ STEP_BUDGET seconds, so the interface stays responsive:
   the full-resolution G-buffer (glsl/lib/bilateral.glsl), so edges stay sharp;
 * after a view-only change, the coarse image alone: the light passes are kept; the full-resolution
   guide is kept across changes that leave the view and the triangles (a light, a material);
-* then, while nothing changes, **samples** at full resolution, each in bands sized to the budget
-  from the measured time per pixel (whole strips of CELL rows, or runs of CELL × CELL cells of one
-  strip where a strip exceeds the budget); every sample after the first one has light passes of a
+* then, while nothing changes, **samples** at full resolution, each in bands of rows sized to the
+  budget from the measured time per pixel; every sample after the first one has light passes of a
   new seed (a new rotation of the VSGL lattice per light and view, pipeline._rotation), and the
   samples are averaged, so the image converges to the techniques' expected value over the lattice
   rotation, as Cycles' viewport samples converge to its render.
@@ -29,7 +28,6 @@ pipeline whose turn it is, for the overlay's timer and the engine's alike.
 
 from __future__ import annotations
 
-import math
 import time
 import traceback
 from collections import deque
@@ -43,14 +41,6 @@ from .views import band_projection
 
 #: Seconds one step should take (one frame here): bands of full-resolution samples are sized to it.
 STEP_BUDGET = 0.06
-#: Side of the cells a full-resolution sample is rendered in, in pixels: a band is whole strips of
-#: CELL rows, or a run of cells of one strip when a strip does not fit the step. A band of one or two
-#: full-width rows costs about twice as much per pixel as a block of the same pixels (llvmpipe
-#: shades fragments in 4 × 4 blocks, and the VPL pass tests every VPL per 16 × 16 tile: on the demo
-#: at 1311 × 786, 131 ms for a 1311 × 1 band against 74 ms for 82 × 16), and one row may already
-#: exceed the step. CELL is the VPL pass's tile, and a multiple of every VPL interleave, so a band's
-#: tiles and sub-images are the whole image's.
-CELL = 16
 #: Samples averaged before the viewport stops refining (the property viewport_samples overrides it).
 DEFAULT_SAMPLES = 16
 LIGHTS, COARSE, SAMPLE = "lights", "coarse", "sample"
@@ -164,7 +154,7 @@ class ViewPipeline:
         self._accumulated_for = None  # (lights_version, request, scale) of the target's content
         self.samples = 0  # full-resolution samples in the target (0: it holds the coarse image)
         self._seeds_used: set[int] = set()
-        self._cells_done = 0  # of the full-resolution sample, strip by strip (CELL)
+        self._rows_done = 0
         self._band_seed = None
         self._seconds_per_pixel: float | None = None
         # A band's cost is a fixed part (passes set up per light, the resolve, the wait for the GPU)
@@ -172,9 +162,9 @@ class ViewPipeline:
         # alone, a slow machine's fixed cost shrinks the bands to a row each.
         self._band_times: deque = deque(maxlen=8)
         self._band_fixed_seconds: float | None = None
-        # Seconds of each cell beyond the band's fixed part, measured band by band over the last
-        # sample of this view: the next sample's cells cost the same, so its bands are sized from it.
-        self._cell_seconds: np.ndarray | None = None
+        # Seconds of each row beyond the band's fixed part, measured band by band over the last
+        # sample of this view: the next sample's rows cost the same, so its bands are sized from it.
+        self._row_seconds: np.ndarray | None = None
         # The coarse image's resolution as a fraction of the asked scale: lowered when a coarse image
         # took longer than the step budget, raised again when it took well under (never above 1).
         self.coarse_factor = 1.0
@@ -399,9 +389,9 @@ class ViewPipeline:
             self.coarse_factor = min(self.coarse_factor * min((0.7 * self.step_budget / seconds) ** 0.5, 2.0), 1.0)
         self._accumulated_for = (self.lights_version, request, scale)
         self._seeds_used = set()
-        self._cells_done = 0
+        self._rows_done = 0
         self._band_seed = None
-        self._cell_seconds = None  # a new view, scene or setting: its cells cost what they cost
+        self._row_seconds = None  # a new view, scene or setting: its rows cost what they cost
         # At scale 1 the coarse image is a full-resolution sample already (unless preview-lit).
         self.samples = 1 if (width, height) == tuple(full) and not self.lights_preview else 0
         if self.samples:
@@ -476,7 +466,7 @@ class ViewPipeline:
 
     def _refine(self, describe_scene, settings: VSGLSettings, started: float, max_samples: int) -> dict:
         entry: dict = {"level": SAMPLE}
-        if self._cells_done == 0 and (self.lights_preview or self.lights_seed in self._seeds_used):
+        if self._rows_done == 0 and (self.lights_preview or self.lights_seed in self._seeds_used):
             # The preview's passes lit the coarse image only: the samples' are the settings' own,
             # of the same seed. Else the next sample needs light passes of a seed this accumulation
             # has not used yet.
@@ -491,75 +481,43 @@ class ViewPipeline:
         sample = self._ensure_target("sample_target", (width, height))
         remaining = max(self.step_budget - (self.clock() - started), self.step_budget / 4)
         fixed = self._band_fixed_seconds or 0.0
-        x0, y0, x1, y1 = self._next_band(width, height, remaining - fixed)
+        rows = height if not self._seconds_per_pixel else int((remaining - fixed) / (self._seconds_per_pixel * width))
+        # At least one row, so a sample always progresses; not more, so that a wide viewport on a
+        # slow GPU (a 1311-pixel row costs about 13 ms on llvmpipe) still keeps each step near the
+        # budget: a floor of height / 64 rows made steps of 150-800 ms there.
+        rows = max(rows, 1)
+        first = self._rows_done
+        profile = self._row_seconds
+        if profile is not None and len(profile) == height and np.all(np.isfinite(profile[first:])):
+            rows = max(int(np.searchsorted(np.cumsum(profile[first:]), remaining - fixed, side="right")), 1)
+        elif self._band_times:
+            # Without it a band at most doubles the last: rows differ in cost (sky above the scene
+            # costs nothing), so a rate measured on cheap rows must not size one band for the rest.
+            rows = min(rows, 2 * max(int(self._band_times[-1][0]) // width, 1))
+        end = min(height, first + max(1, rows))
         clock = self.clock()
-        view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), x1 - x0, y1 - y0,
+        view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, end - first,
                                         request.view_matrix, band_projection(request.projection_matrix,
-                                                                             y0, y1, height, (x0, x1, width)))
+                                                                             first, end, height))
         try:
-            self.backend.resolve(view, self.backend.guide_of(view), sample, (y0, y1), 1.0, add=False, columns=(x0, x1))
+            self.backend.resolve(view, self.backend.guide_of(view), sample, (first, end), 1.0, add=False)
         finally:
             view.free()
         self.backend.finish(sample)
         seconds = self.clock() - clock
-        pixels = (x1 - x0) * (y1 - y0)
-        self._fit_band_cost(pixels, seconds)
-        cells = self._cells(width, height)
-        if self._cell_seconds is None or self._cell_seconds.shape != cells:
-            self._cell_seconds = np.full(cells, np.nan)
-        # The band's time beyond its fixed part, shared by its cells in proportion to their pixels.
-        rate = max(seconds - self._band_fixed_seconds, 0.0) / pixels
-        c0, c1 = x0 // CELL, -(-x1 // CELL)
-        for strip in range(y0 // CELL, -(-y1 // CELL)):
-            rows = min(height, (strip + 1) * CELL) - strip * CELL
-            for column in range(c0, c1):
-                self._cell_seconds[strip, column] = rate * rows * (min(width, (column + 1) * CELL) - column * CELL)
-        self._cells_done = (y1 // CELL if x1 == width else y0 // CELL) * cells[1] + (0 if x1 == width else c1)
-        if y1 == height and x1 == width:
-            self._cells_done = cells[0] * cells[1]
-        entry["rows"] = (y0, y1, height)
-        entry["columns"] = (x0, x1, width)
-        entry["cells"] = (self._cells_done, cells[0] * cells[1])
-        if self._cells_done >= cells[0] * cells[1]:
+        self._fit_band_cost(width * (end - first), seconds)
+        if self._row_seconds is None or len(self._row_seconds) != height:
+            self._row_seconds = np.full(height, np.nan)
+        self._row_seconds[first:end] = max(seconds - self._band_fixed_seconds, 0.0) / (end - first)
+        self._rows_done = end
+        entry["rows"] = (first, end, height)
+        if end >= height:
             self.backend.accumulate(sample, self.target, 1.0, add=self.samples > 0)
             self.backend.finish(self.target)
             self.samples += 1
             self._seeds_used.add(self.lights_seed)
-            self._cells_done = 0
+            self._rows_done = 0
         return entry
-
-    @staticmethod
-    def _cells(width: int, height: int) -> tuple[int, int]:
-        """(strips, columns) of CELL × CELL cells covering a width × height sample."""
-        return -(-height // CELL), -(-width // CELL)
-
-    def _next_band(self, width: int, height: int, seconds: float) -> tuple[int, int, int, int]:
-        """(x0, y0, x1, y1) of the sample's next band, predicted to take ``seconds`` beyond the fixed
-        part: whole strips of CELL rows (full width) when at least one fits, else a run of cells of
-        the current strip (at least one cell, so a sample always progresses). Costs come from the
-        last sample's cells of this view when known, else from the measured time per pixel, a band
-        at most doubling the last one's pixels (rows differ in cost: sky above the scene costs
-        nothing, so a rate measured on cheap rows must not size one band for the rest)."""
-        strips, columns = self._cells(width, height)
-        strip, column = divmod(self._cells_done, columns)
-        profile = self._cell_seconds
-        known = (profile is not None and profile.shape == (strips, columns)
-                 and np.all(np.isfinite(profile.ravel()[self._cells_done:])))
-        if known:
-            whole = 0
-            if column == 0:
-                whole = int(np.searchsorted(np.cumsum(profile[strip:].sum(axis=1)), seconds, side="right"))
-            run = max(int(np.searchsorted(np.cumsum(profile[strip, column:]), seconds, side="right")), 1)
-        else:
-            pixels = math.inf if not self._seconds_per_pixel else max(seconds, 0.0) / self._seconds_per_pixel
-            if self._band_times:
-                pixels = min(pixels, 2.0 * max(self._band_times[-1][0], CELL * CELL))
-            whole = int(min(pixels // (width * CELL), strips)) if column == 0 else 0
-            run = max(int(min(pixels // (CELL * CELL), columns)), 1)
-        if whole >= 1:
-            return 0, strip * CELL, width, min(height, (strip + whole) * CELL)
-        end = min(columns, column + run)
-        return column * CELL, strip * CELL, min(width, end * CELL), min(height, (strip + 1) * CELL)
 
     def _fit_band_cost(self, pixels: int, seconds: float) -> None:
         """seconds ≈ fixed + per_pixel × pixels over the last bands (least squares; the fixed part
@@ -634,11 +592,11 @@ class ViewPipeline:
         self.samples = 0
         self.has_image = False
         self.step_args = None
-        self._cells_done = 0
+        self._rows_done = 0
         self._seconds_per_pixel = None
         self._band_fixed_seconds = None
         self._band_times.clear()
-        self._cell_seconds = None
+        self._row_seconds = None
 
     def gpu_resource_count(self) -> int:
         """GPU objects held (0 after free()): light passes, renderer, accumulation targets, guide."""

@@ -7,8 +7,8 @@
   here. :func:`render_size` is Blender's output size (resolution × percentage, integer division as
   BKE_render_resolution), the one rule the render engine, the operators and the camera extraction
   share, so the image and the camera's aspect always agree.
-* **Bands** (:func:`band_projection`): the projection of a band of image rows (or a block of rows
-  and columns), for rendering an image in strips or blocks.
+* **Bands** (:func:`band_projection`): the projection of a band of image rows, for rendering an
+  image in horizontal strips.
 * **RSM views per light** (:func:`light_view_specs`; formulas.md §4, 000 §4):
 
   - spot: one perspective view along the spot axis covering the cone (the light's local frame,
@@ -142,20 +142,14 @@ def camera_vector(view_matrix, projection_matrix) -> np.ndarray:
     return np.r_[inverse[:3, 3], 1.0]
 
 
-def band_projection(projection_matrix, first_row: int, end_row: int, height: int,
-                    columns: tuple[int, int, int] | None = None) -> np.ndarray:
+def band_projection(projection_matrix, first_row: int, end_row: int, height: int) -> np.ndarray:
     """The projection of rows [first_row, end_row) of an image `height` rows high (row 0 at the
-    bottom), and with ``columns`` = (first, end, width) of those columns only: the same view, NDC y
-    (and x) of that band stretched to [-1, 1]. Perspective or orthographic."""
+    bottom): the same view, NDC y of that band stretched to [-1, 1]. Perspective or orthographic."""
+    y0 = -1.0 + 2.0 * first_row / height
+    y1 = -1.0 + 2.0 * end_row / height
     crop = np.eye(4)
-    spans = [(1, first_row, end_row, height)]
-    if columns is not None:
-        spans.append((0, *columns))
-    for axis, first, end, size in spans:
-        low = -1.0 + 2.0 * first / size
-        high = -1.0 + 2.0 * end / size
-        crop[axis, axis] = 2.0 / (high - low)
-        crop[axis, 3] = -(high + low) / (high - low)
+    crop[1, 1] = 2.0 / (y1 - y0)
+    crop[1, 3] = -(y1 + y0) / (y1 - y0)
     return crop @ np.asarray(projection_matrix, np.float64)
 
 
