@@ -90,7 +90,7 @@ def analyse_move(events: list) -> dict:
             entry = extra.get("entry", {})
             steps.append({"begin": begin, "end": t, "work": entry.get("work"), "level": entry.get("level"),
                           "light_seconds": entry.get("light_seconds"), "view_seconds": entry.get("view_seconds"),
-                          "rows": entry.get("rows"), "seconds": entry.get("seconds"),
+                          "rows": entry.get("rows"), "columns": entry.get("columns"), "seconds": entry.get("seconds"),
                           "spans": entry.get("spans")})
             begin = None
     coarse = next(s for s in steps if s["work"] == "lights")
@@ -121,7 +121,9 @@ def analyse_move(events: list) -> dict:
                                     for space in ("view3d", "properties", "outliner")},
             "refinement": [{"work": s["work"], "level": s["level"], "ms": (s["end"] - s["begin"]) * 1000,
                             "light_ms": None if s["light_seconds"] is None else s["light_seconds"] * 1000,
-                            "rows": s["rows"], "spans": s.get("spans")} for s in refinement]}
+                            "rows": s["rows"], "columns": s.get("columns"),
+                            "pipeline_ms": None if s.get("seconds") is None else s["seconds"] * 1000,
+                            "spans": s.get("spans")} for s in refinement]}
 
 
 def summarise(results: list[dict]) -> dict:

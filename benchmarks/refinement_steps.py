@@ -9,7 +9,9 @@ llvmpipe) through the camera at 1311 × 786, scale 0.25 (the window of benchmark
 after a warm-up move, the first light is moved ``--repeats`` times and the pipeline stepped
 ``--steps`` times after each move (the coarse image, then the samples' light passes and bands).
 Per step its kind: the coarse image (light passes and view), a step of the samples' light passes
-(a whole build before the staged builds, a part of one since), a band. Variants in ``--rounds``
+(a whole build before the staged builds, a part of one since), a band. After the moves, one more
+move and the steps until the first full-resolution sample is complete: their summed time (the work
+of one sample at 1311 × 786), their count and the longest. Variants in ``--rounds``
 fresh processes each, alternating (checkout_ab.alternate; the shared 2-core machine's load varies:
 read the ratios): this checkout and, with ``--baseline REV``, an export of commit REV. Each process
 also converges 2 samples at 164 × 98 with the default step budget (so the staged builds are split)
@@ -67,6 +69,16 @@ def measure(repo: Path, repeats: int, steps: int, image: Path) -> dict:
                 moves.append([{"work": e["work"], "seconds": e["seconds"],
                                "light": "light_seconds" in e and e["work"] != "lights",
                                "complete": e.get("lights_complete", "light_seconds" in e)} for e in entries])
+        # One more move, then steps until the first full-resolution sample is in: its work.
+        light.location.x += 0.05
+        bpy.context.view_layer.update()
+        pipeline.mark_scene_dirty()
+        pipeline.step(describe, settings, SCALE, 8)
+        sample_steps = []
+        while pipeline.samples < 1 and len(sample_steps) < 20000:
+            pipeline.step(describe, settings, SCALE, 8)
+            sample_steps.append(pipeline.history[-1]["seconds"])
+        full_sample = {"seconds": sum(sample_steps), "steps": len(sample_steps), "max": max(sample_steps)}
     finally:
         pipeline.free()
     converge = ViewPipeline()
@@ -77,7 +89,7 @@ def measure(repo: Path, repeats: int, steps: int, image: Path) -> dict:
         np.save(image, _draw(converge, np, CONVERGE_REGION))
     finally:
         converge.free()
-    return {"moves": moves}
+    return {"moves": moves, "full_sample": full_sample}
 
 
 def summarise(children: list[dict]) -> dict:
@@ -94,7 +106,10 @@ def summarise(children: list[dict]) -> dict:
             "light_step_max_ms": max(light) * 1000 if light else None, "light_steps": len(light),
             "builds": sum(1 for s in refinement if s["light"] and s["complete"]),
             "band_median_ms": statistics.median(bands) * 1000, "band_max_ms": max(bands) * 1000,
-            "steps": len(refinement)}
+            "steps": len(refinement),
+            "full_sample_s": statistics.median(child["full_sample"]["seconds"] for child in children),
+            "full_sample_steps": statistics.median(child["full_sample"]["steps"] for child in children),
+            "full_sample_max_ms": max(child["full_sample"]["max"] for child in children) * 1000}
 
 
 def main(argv=None) -> int:
@@ -142,10 +157,13 @@ def main(argv=None) -> int:
                       ("refinement_median_ms", "refinement step median"), ("refinement_max_ms", "refinement step max"),
                       ("light_step_median_ms", "samples' light-pass step median"),
                       ("light_step_max_ms", "samples' light-pass step max"),
-                      ("band_median_ms", "band median"), ("band_max_ms", "band max")):
+                      ("band_median_ms", "band median"), ("band_max_ms", "band max"),
+                      ("full_sample_s", "first full-resolution sample after a move: work (s)"),
+                      ("full_sample_steps", "its steps"), ("full_sample_max_ms", "its longest step")):
         values = [rows[label][key] for label in labels]
         ratio = f" {values[1] / values[0]:.2f} |" if len(values) == 2 and None not in values else ""
-        lines.append(f"| {name} | " + " | ".join("–" if v is None else f"{v:.0f}" for v in values) + f" |{ratio}")
+        digits = 1 if key == "full_sample_s" else 0
+        lines.append(f"| {name} | " + " | ".join("–" if v is None else f"{v:.{digits}f}" for v in values) + f" |{ratio}")
     lines.append("| refinement steps > 60 ms | " + " | ".join(f"{100 * rows[l]['over_budget']:.0f} %" for l in labels)
                  + " |" + (" |" if len(labels) == 2 else ""))
     lines.append("| light-pass steps / builds completed | " + " | ".join(
