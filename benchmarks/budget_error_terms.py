@@ -41,7 +41,7 @@ for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
 from build_validation_scenes import RESOLUTION  # noqa: E402
-from validation_suite import scene_with_truth, suite  # noqa: E402
+from validation_suite import measure_suite, scene_with_truth  # noqa: E402
 from tradeoff.demo import log  # noqa: E402
 from tradeoff.metrics import Errors  # noqa: E402
 
@@ -176,13 +176,7 @@ def main(argv=None) -> int:
     parser.add_argument("--results-dir", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
     started = time.perf_counter()
-    from vsgl_addon import register
-
-    register()  # scene.vsgl exists only with the add-on registered
-    from vsgl_addon.gpu_context import ensure_gpu_context
-
-    ensure_gpu_context()
-    results = [measure_scene(name, path) for name, path, _ in suite() if not args.only or name in args.only]
+    results = measure_suite(measure_scene, args.only)
     weights = fit(results)
     command = "benchmarks/budget_error_terms.py" + (f" --only {' '.join(args.only)}" if args.only else "")
     text = markdown(results, weights, f".venv/bin/python {command}", time.perf_counter() - started)

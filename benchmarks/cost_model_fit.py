@@ -29,7 +29,7 @@ for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
 from build_validation_scenes import RESOLUTION  # noqa: E402
-from validation_suite import scene_with_truth, suite  # noqa: E402
+from validation_suite import measure_suite, scene_with_truth  # noqa: E402
 from tradeoff.demo import log  # noqa: E402
 
 RESULTS = REPO / "benchmarks" / "results"
@@ -139,15 +139,9 @@ def main(argv=None) -> int:
     parser.add_argument("--results-dir", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
     started = time.perf_counter()
-    from vsgl_addon import register
-
-    register()  # scene.vsgl exists only with the add-on registered
-    from vsgl_addon.gpu_context import ensure_gpu_context
-
-    ensure_gpu_context()
+    results = measure_suite(measure_scene, args.only)
     from vsgl_addon.budget import FALLBACK_COEFFICIENTS, fit
 
-    results = [measure_scene(name, path) for name, path, _ in suite() if not args.only or name in args.only]
     old = {step: list(values) for step, values in FALLBACK_COEFFICIENTS.items()}
     new = fit([sample for result in results for sample in result["samples"]])
     command = "benchmarks/cost_model_fit.py" + (f" --only {' '.join(args.only)}" if args.only else "")

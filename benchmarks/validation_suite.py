@@ -85,6 +85,17 @@ def suite() -> list[tuple[str, Path, str]]:
     return [(name, scene_path(name), purpose(name)) for name in SCENES] + [("demo", DEMO, DEMO_PURPOSE)]
 
 
+def measure_suite(measure, only=None) -> list:
+    """``measure(name, path)`` of every scene of the suite (of ``only``'s names when given), the add-on
+    registered (scene.vsgl exists only then) on a GPU context: the per-scene benchmarks' loop."""
+    from vsgl_addon import register
+    from vsgl_addon.gpu_context import ensure_gpu_context
+
+    register()
+    ensure_gpu_context()
+    return [measure(name, path) for name, path, _ in suite() if not only or name in only]
+
+
 def open_scene(path: Path):
     import bpy
 
