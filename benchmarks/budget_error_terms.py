@@ -41,7 +41,7 @@ for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
 from build_validation_scenes import RESOLUTION  # noqa: E402
-from validation_suite import measure_suite, scene_with_truth  # noqa: E402
+from validation_suite import budget_scene, measure_suite  # noqa: E402
 from tradeoff.demo import log  # noqa: E402
 from tradeoff.metrics import Errors  # noqa: E402
 
@@ -63,16 +63,11 @@ def features(point: dict, vpl_pass: bool) -> list[float]:
 def measure_scene(name, path) -> dict:
     from vsgl_addon.budget import Candidate, scaled_size
     from vsgl_addon.budget_render import _render
-    from vsgl_addon.planner import plan_frame
     from vsgl_addon.renderer import FrameRenderer
 
     width, height = RESOLUTION
-    saved, truth, description = scene_with_truth(name, path, width, height)
-    camera = description.camera
-    plan = plan_frame(description, saved.overridden(quality_mode="budget"), None,
-                      camera.projection_matrix() @ camera.view_matrix())
-    # The passes Budget runs here, held fixed over the grid, as budget.choose fixes them.
-    fixed = plan.pinned(saved)
+    # The passes Budget runs here, held fixed over the grid.
+    _, truth, description, plan, fixed = budget_scene(name, path)
     vpl_pass = plan.runs("vpl_pass")
     points = [dict(BASE)]
     for grid in (GRID, VPL_GRID) if vpl_pass else (GRID,):

@@ -29,7 +29,7 @@ for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
 from build_validation_scenes import RESOLUTION  # noqa: E402
-from validation_suite import measure_suite, scene_with_truth  # noqa: E402
+from validation_suite import budget_scene, measure_suite  # noqa: E402
 from tradeoff.demo import log  # noqa: E402
 
 RESULTS = REPO / "benchmarks" / "results"
@@ -40,15 +40,10 @@ SWEEP_FRAMES = 3
 def measure_scene(name, path) -> dict:
     from vsgl_addon.budget import Candidate, CostModel, scaled_size
     from vsgl_addon.budget_render import CALIBRATION, _features, _remember_vpls, _render
-    from vsgl_addon.planner import plan_frame
     from vsgl_addon.renderer import FrameRenderer
 
     width, height = RESOLUTION
-    saved, _, description = scene_with_truth(name, path, width, height)
-    camera = description.camera
-    plan = plan_frame(description, saved.overridden(quality_mode="budget"), None,
-                      camera.projection_matrix() @ camera.view_matrix())
-    fixed = plan.pinned(saved)
+    _, _, description, plan, fixed = budget_scene(name, path)
     model = CostModel.fallback()  # only its per-scene VPL count is used
     renderer = FrameRenderer()
     samples, sweep = [], []

@@ -96,6 +96,20 @@ def measure_suite(measure, only=None) -> list:
     return [measure(name, path) for name, path, _ in suite() if not only or name in only]
 
 
+def budget_scene(name: str, path: Path):
+    """(saved settings, Cycles truth, SceneDescription, the frame plan in Budget mode through the
+    camera, that plan's pinned settings) of a scene at RESOLUTION: the passes Budget runs there,
+    held fixed as budget.choose fixes them (the Budget benchmarks' start)."""
+    from vsgl_addon.planner import plan_frame
+
+    width, height = RESOLUTION
+    saved, truth, description = scene_with_truth(name, path, width, height)
+    camera = description.camera
+    plan = plan_frame(description, saved.overridden(quality_mode="budget"), None,
+                      camera.projection_matrix() @ camera.view_matrix())
+    return saved, truth, description, plan, plan.pinned(saved)
+
+
 def open_scene(path: Path):
     import bpy
 
