@@ -28,7 +28,6 @@ view ("rsm_orthographic"), scenes running the VPL pass without one ("rsm_vpls"),
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -41,6 +40,7 @@ for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
 from build_validation_scenes import RESOLUTION  # noqa: E402
+from checkout_ab import write_results  # noqa: E402
 from validation_suite import budget_scene, measure_suite  # noqa: E402
 from tradeoff.demo import log  # noqa: E402
 from tradeoff.metrics import Errors  # noqa: E402
@@ -175,10 +175,7 @@ def main(argv=None) -> int:
     weights = fit(results)
     command = "benchmarks/budget_error_terms.py" + (f" --only {' '.join(args.only)}" if args.only else "")
     text = markdown(results, weights, f".venv/bin/python {command}", time.perf_counter() - started)
-    args.results_dir.mkdir(parents=True, exist_ok=True)
-    (args.results_dir / "budget_error_terms.md").write_text(text)
-    (args.results_dir / "budget_error_terms.json").write_text(json.dumps(
-        {"results": results, "weights": weights}, indent=1))
+    write_results("budget_error_terms", {"results": results, "weights": weights}, text, args.results_dir)
     print(text)
     return 0
 

@@ -142,8 +142,8 @@ def baseline_sentence(baseline: str | None) -> str:
             "process by process in alternation.")
 
 
-def write_results(stem: str, rows, text: str) -> None:
-    """benchmarks/results/STEM.json (the rows) and STEM.md (``text``)."""
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / f"{stem}.json").write_text(json.dumps(rows, indent=2))
-    (RESULTS / f"{stem}.md").write_text(text)
+def write_results(stem: str, rows, text: str, folder: Path = RESULTS) -> None:
+    """``folder``/STEM.json (the rows) and STEM.md (``text``); benchmarks/results by default."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{stem}.json").write_text(json.dumps(rows, indent=2))
+    (folder / f"{stem}.md").write_text(text)

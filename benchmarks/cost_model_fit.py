@@ -17,7 +17,6 @@ measured frame time of the built-in and the refitted model (no per-scene correct
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -29,6 +28,7 @@ for folder in (REPO, REPO / "tests", REPO / "benchmarks", REPO / "tools"):
     sys.path.insert(0, str(folder))
 
 from build_validation_scenes import RESOLUTION  # noqa: E402
+from checkout_ab import write_results  # noqa: E402
 from validation_suite import budget_scene, measure_suite  # noqa: E402
 from tradeoff.demo import log  # noqa: E402
 
@@ -141,10 +141,7 @@ def main(argv=None) -> int:
     new = fit([sample for result in results for sample in result["samples"]])
     command = "benchmarks/cost_model_fit.py" + (f" --only {' '.join(args.only)}" if args.only else "")
     text = markdown(results, old, new, f".venv/bin/python {command}", time.perf_counter() - started)
-    args.results_dir.mkdir(parents=True, exist_ok=True)
-    (args.results_dir / "cost_model_fit.md").write_text(text)
-    (args.results_dir / "cost_model_fit.json").write_text(json.dumps(
-        {"results": results, "built_in": old, "refitted": new}, indent=1))
+    write_results("cost_model_fit", {"results": results, "built_in": old, "refitted": new}, text, args.results_dir)
     print(text)
     return 0
 
