@@ -387,11 +387,11 @@ def load_model(gpu: str, path: Path | None = None) -> CostModel:
         return CostModel.fallback()
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-        older = data.get("format")
-        if isinstance(older, int) and not isinstance(older, bool) and 1 <= older < CACHE_FORMAT:
+        written = data.get("format")
+        if isinstance(written, int) and not isinstance(written, bool) and 1 <= written < CACHE_FORMAT:
             return CostModel.fallback()
-        if data.get("format") != CACHE_FORMAT:
-            raise ValueError(f"format {data.get('format')!r}, expected {CACHE_FORMAT}")
+        if written != CACHE_FORMAT:
+            raise ValueError(f"format {written!r}, expected {CACHE_FORMAT}")
         models = data["models"]
         if gpu not in models:
             return CostModel.fallback()
