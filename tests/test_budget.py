@@ -347,6 +347,20 @@ def test_the_viewport_s_first_coarse_image_follows_the_cost_model():
         sizes[budget] = backend.renders[0]
         pipeline.free()
     assert sizes[10.0] == (400, 300) and sizes[0.01][0] < 400
+    # Below full size the coarse image is lit by the preview's passes: the prediction is of those.
+    from vsgl_addon.reference.vpl_culling import preview_stride
+    from vsgl_addon.view_pipeline import preview_light_settings
+
+    clock = V.Clock()
+    pipeline = ViewPipeline(ModelBackend(clock), clock, step_budget=0.05)
+    pipeline.request_view(np.eye(4), np.eye(4), (400, 300))
+    pipeline.step(lambda: room, budgeted, 0.5)
+    preview = preview_light_settings(budgeted)
+    assert pipeline.lights_preview and preview != budgeted
+    _, predicted = B.coarse_factor(plan, preview, (400, 300), 0.5, 0.05, B.CostModel.fallback(),
+                                   room.geometry.triangle_count, None, preview_stride(preview.rsm_size ** 2))
+    assert pipeline.statistics["predicted_view_seconds"] == pytest.approx(predicted)
+    pipeline.free()
     # Manual mode: the first coarse image at the asked scale, whatever the model says.
     clock = V.Clock()
     backend = ModelBackend(clock)

@@ -13,7 +13,10 @@ from vsgl_addon.view_pipeline import (COARSE, LIGHTS, SAMPLE, STEP_BUDGET, Overl
                                       view_size)
 
 REGION = (200, 100)
-SETTINGS = VSGLSettings(vsgl_count=16, rsm_size=32, seed=5)
+# At the preview's floors and without the techniques it leaves out: the coarse image's light passes
+# are the settings' own (test_the_coarse_image_after_a_change_has_preview_light_passes... tests the preview).
+SETTINGS = VSGLSettings(vsgl_count=16, rsm_size=32, seed=5, caustics=False, glossy_reflectors=False, ism_size=32,
+                        ism_points=1024)
 SECONDS_PER_PIXEL = 1e-5  # a full 200 x 100 sample costs 0.2 s: about four 60 ms bands
 LIGHT_SECONDS = 0.02
 FIXED_SECONDS = 0.0  # of every view render (passes set up per light, the wait for the GPU)
@@ -413,9 +416,21 @@ def test_the_coarse_image_after_a_change_has_preview_light_passes_and_the_sample
 
     from vsgl_addon.view_pipeline import preview_light_settings
 
-    settings = replace(SETTINGS, vsgl_count=256, rsm_size=128)
-    assert preview_light_settings(settings) == replace(settings, vsgl_count=32, rsm_size=64)
-    assert preview_light_settings(SETTINGS) is SETTINGS  # N = 16 and 32² are the floors
+    settings = replace(SETTINGS, vsgl_count=256, rsm_size=128, ism_size=64, ism_points=4096,
+                       caustics=True, glossy_reflectors=True)
+    # Smaller shadow maps; the VPLs' and MRP-ASG's light stays in the one VSGL set, unless the
+    # viewport shows their own pass.
+    preview = replace(settings, vsgl_count=32, rsm_size=64, ism_size=32, ism_points=1024)
+    alone = dict(caustics=False, glossy_reflectors=False)
+    assert preview_light_settings(settings) == replace(preview, **alone)
+    assert preview_light_settings(settings, "indirect") == replace(preview, **alone)
+    assert preview_light_settings(settings, "indirect_caustics") == replace(preview, glossy_reflectors=False)
+    assert preview_light_settings(settings, "indirect_glossy_reflectors") == replace(preview, caustics=False)
+    # N = 16, 32² RSMs, 32² maps of 1024 points and no technique to leave out: nothing is cheaper.
+    assert preview_light_settings(SETTINGS) is SETTINGS
+    assert preview_light_settings(replace(SETTINGS, ism_size=8, ism_points=64)).ism_size == 8
+    for cells in ({"caustics": True}, {"glossy_reflectors": True}, {"ism_size": 64}, {"ism_points": 4096}):
+        assert preview_light_settings(replace(SETTINGS, **cells)) == SETTINGS
 
     def record(preview_lights, scale, samples=2):
         Thing.alive = 0

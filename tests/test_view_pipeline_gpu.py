@@ -99,7 +99,9 @@ def test_view_updates_make_no_cpu_round_trip(demo):
     pipeline = ViewPipeline()
     try:
         pipeline.request_view(view, projection, REGION)
-        pipeline.step(lambda: demo, SETTINGS, 0.25, 1)  # light passes + coarse
+        # Light passes + coarse image, then the sample's own light passes (the preview's are smaller
+        # shadow maps of other point sets): what a view change keeps.
+        _run(pipeline, lambda: demo, 0.25, 1)
         for shift in (0.1, 0.2, 0.3):
             moved = view.copy()
             moved[0, 3] += shift
@@ -311,7 +313,10 @@ def test_coarse_preview_thins_the_vpls_and_the_samples_shade_them_all(demo, monk
         # measured time per pixel, and a split band gives the VPL filter a different image.
         pipeline = ViewPipeline(step_budget=1e9)
         try:
+            pipeline.view_pass = "indirect_caustics"  # a viewport showing the VPLs' pass: the preview keeps them
             pipeline.request_view(view, projection, REGION)
+            assert pipeline.step(lambda: demo, SETTINGS, 0.25, 2) == "lights"
+            assert pipeline.lights_preview and pipeline.lights.vpls is not None
             _run(pipeline, lambda: demo, 0.25, 2)
             return _draw(pipeline)
         finally:
@@ -325,9 +330,10 @@ def test_coarse_preview_thins_the_vpls_and_the_samples_shade_them_all(demo, monk
 
 
 def test_preview_light_passes_light_only_the_coarse_image_and_the_converged_image_is_unchanged(demo):
-    """The coarse image after a change is lit by preview_light_settings' passes (here 16 VSGLs per set
-    of 32² RSMs); the samples rebuild them at the settings' own, so two samples converge to the very
-    image of a pipeline without the preview, bit for bit, every pass."""
+    """The coarse image after a change is lit by preview_light_settings' passes (here 16 VSGLs of 32²
+    RSMs with 32² shadow maps, in one set that keeps the VPLs' and MRP-ASG's light); the samples
+    rebuild them at the settings' own, so two samples converge to the very image of a pipeline
+    without the preview, bit for bit, every pass."""
     from vsgl_addon.view_pipeline import preview_light_settings
 
     view, projection = demo.camera.view_matrix(), demo.camera.projection_matrix()
@@ -340,6 +346,9 @@ def test_preview_light_passes_light_only_the_coarse_image_and_the_converged_imag
             pipeline.request_view(view, projection, REGION)
             assert pipeline.step(lambda: demo, SETTINGS, 0.25, 2) == "lights"
             assert pipeline.history[-1]["preview_lights"] == preview_lights
+            # The preview leaves the VPLs' and MRP-ASG's light in the one VSGL set of every reflector.
+            lights = pipeline.lights
+            assert (lights.vpls is None and not lights.proxies and lights.glossy_vsgls is None) == preview_lights
             coarse = _draw(pipeline)
             assert np.isfinite(coarse).all() and coarse[..., :3].max() > 0.0
             _run(pipeline, lambda: demo, 0.25, 2)

@@ -50,10 +50,11 @@ class PointTextureCache:
     """passes/ism.py upload_points of the scene's point sets, kept across SceneGPUs of the same
     triangles, counts and seed (scene_points.point_sets_key): the viewport makes a SceneGPU per
     light build, two per change at two samples, and a light moved leaves the triangles as they were;
-    the sets are 8 MB at the default 16384 points × 64 sets. The last ENTRIES draws are kept (two
-    seeds of two geometry states); its owner frees it with the viewport."""
+    the sets are 8 MB at the default 16384 points × 64 sets. The last ENTRIES draws are kept (the
+    coarse preview's smaller sets and two samples' seeds, of two geometry states); its owner frees it
+    with the viewport."""
 
-    ENTRIES = 4
+    ENTRIES = 6
 
     def __init__(self):
         self._textures: dict = {}
