@@ -2,7 +2,7 @@
 """Change → first coarse image in the Rendered viewport's pipeline, without the window (not a test).
 
     .venv/bin/python benchmarks/first_coarse_image.py [--baseline REV] [--rounds 2] [--repeats 4]
-                                                      [--scene demo] [--no-write]
+                                                      [--scene demo] [--output STEM] [--no-write]
 
 demo.blend with its saved settings, a view_pipeline.ViewPipeline on the real passes (bpy module,
 llvmpipe) through the camera at 1311 × 786 (the window of benchmarks/interactive.py), scale 0.25: the
@@ -15,7 +15,8 @@ processes, alternating round by round (checkout_ab.alternate; absolute times are
 before), and with ``--baseline REV`` an export of commit REV. Each current process also steps the
 pipeline until its samples converged (2 samples at 164 × 98) with and without the preview and
 compares the two accumulated images (they must be identical) and the coarse images against the
-converged one (relative RMSE). Writes benchmarks/results/first_coarse_image.{md,json} unless --no-write.
+converged one per pass (combined, indirect diffuse, indirect specular: relative RMSE and mean).
+Writes benchmarks/results/first_coarse_image.{md,json} (``--output`` another stem) unless --no-write.
 """
 
 from __future__ import annotations
@@ -75,7 +76,11 @@ def measure(repo: Path, scene: str, repeats: int, preview: bool | None) -> dict:
     return row
 
 
-def _draw(pipeline, np, size):
+#: The passes whose coarse image is compared with the converged one.
+COMPARED_PASSES = ("combined", "indirect_diffuse", "indirect_specular")
+
+
+def _draw(pipeline, np, size, view_pass="combined"):
     import gpu
 
     offscreen = gpu.types.GPUOffScreen(*size, format="RGBA32F")
@@ -84,7 +89,7 @@ def _draw(pipeline, np, size):
             framebuffer = gpu.state.active_framebuffer_get()
             framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0))
             gpu.state.viewport_set(0, 0, *size)
-            assert pipeline.draw("combined")
+            assert pipeline.draw(view_pass)
             buffer = framebuffer.read_color(0, 0, size[0], size[1], 4, 0, "FLOAT")
         buffer.dimensions = size[0] * size[1] * 4
         return np.array(buffer, np.float32).reshape(size[1], size[0], 4)[..., :3]
@@ -93,7 +98,9 @@ def _draw(pipeline, np, size):
 
 
 def converged_images(bpy, np, describe, settings, view, projection) -> dict:
-    """With and without the preview: the coarse image and the converged one at CONVERGE_REGION."""
+    """With and without the preview: the coarse image and the converged one at CONVERGE_REGION, per
+    pass of COMPARED_PASSES (the coarse image's relative RMSE and mean against the converged one
+    without the preview)."""
     from vsgl_addon.view_pipeline import ViewPipeline
 
     images = {}
@@ -102,22 +109,27 @@ def converged_images(bpy, np, describe, settings, view, projection) -> dict:
         try:
             pipeline.request_view(view, projection, CONVERGE_REGION)
             pipeline.step(describe, settings, SCALE, CONVERGE_SAMPLES)
-            images[("coarse", preview)] = _draw(pipeline, np, CONVERGE_REGION)
+            for view_pass in COMPARED_PASSES:
+                images[("coarse", preview, view_pass)] = _draw(pipeline, np, CONVERGE_REGION, view_pass)
             while pipeline.step(describe, settings, SCALE, CONVERGE_SAMPLES) is not None:
                 pass
-            images[("converged", preview)] = _draw(pipeline, np, CONVERGE_REGION)
+            for view_pass in COMPARED_PASSES:
+                images[("converged", preview, view_pass)] = _draw(pipeline, np, CONVERGE_REGION, view_pass)
         finally:
             pipeline.free()
-    reference = images[("converged", False)].astype(np.float64)
-    norm = float(np.sqrt(np.mean(reference ** 2)))
-
-    def rmse(image):
-        return float(np.sqrt(np.mean((image.astype(np.float64) - reference) ** 2)) / norm)
-
-    return {"identical": bool(np.array_equal(images[("converged", True)], images[("converged", False)])),
-            "largest_difference": float(np.max(np.abs(images[("converged", True)] - images[("converged", False)]))),
-            "coarse_rmse_preview": rmse(images[("coarse", True)]),
-            "coarse_rmse_full": rmse(images[("coarse", False)])}
+    result = {"identical": all(np.array_equal(images[("converged", True, p)], images[("converged", False, p)])
+                               for p in COMPARED_PASSES),
+              "largest_difference": max(float(np.max(np.abs(images[("converged", True, p)] - images[("converged", False, p)])))
+                                        for p in COMPARED_PASSES)}
+    for view_pass in COMPARED_PASSES:
+        reference = images[("converged", False, view_pass)].astype(np.float64)
+        norm = float(np.sqrt(np.mean(reference ** 2)))
+        for preview, name in ((True, "preview"), (False, "full")):
+            image = images[("coarse", preview, view_pass)].astype(np.float64)
+            suffix = "" if view_pass == "combined" else f"_{view_pass}"
+            result[f"coarse_rmse_{name}{suffix}"] = float(np.sqrt(np.mean((image - reference) ** 2)) / max(norm, 1e-30))
+            result[f"coarse_mean_{name}{suffix}"] = float(image.mean() / max(reference.mean(), 1e-30))
+    return result
 
 
 def _median(steps, key):
@@ -131,6 +143,7 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--baseline", default=None)
     parser.add_argument("--no-write", action="store_true")
+    parser.add_argument("--output", default="first_coarse_image", help="results' file stem (benchmarks/results)")
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
     parser.add_argument("--repo", type=Path, default=REPO, help=argparse.SUPPRESS)
     arguments = parser.parse_args(argv)
@@ -177,10 +190,17 @@ def main(argv=None) -> int:
                      "and without the preview: "
                      + ("identical" if all(c["identical"] for c in checks) else "DIFFERENT")
                      + f" in {len(checks)} of {len(checks)} processes (largest difference "
-                     f"{max(c['largest_difference'] for c in checks):.1e}). The coarse image's relative RMSE "
-                     f"against that converged image: with the preview {statistics.median(c['coarse_rmse_preview'] for c in checks):.3f}, "
-                     f"without {statistics.median(c['coarse_rmse_full'] for c in checks):.3f}.")
-    write_results("first_coarse_image", rows, "\n".join(lines) + "\n")
+                     f"{max(c['largest_difference'] for c in checks):.1e}). The coarse image against that "
+                     "converged image, per pass (median over the processes; mean: the coarse image's / the "
+                     "converged one's):\n")
+        lines += ["| pass | rel RMSE, preview | rel RMSE, without | mean, preview | mean, without |",
+                  "|---|---|---|---|---|"]
+        for view_pass in COMPARED_PASSES:
+            suffix = "" if view_pass == "combined" else f"_{view_pass}"
+            figures = [statistics.median(c[f"coarse_{kind}_{name}{suffix}"] for c in checks)
+                       for kind in ("rmse", "mean") for name in ("preview", "full")]
+            lines.append(f"| {view_pass} | " + " | ".join(f"{value:.3f}" for value in figures) + " |")
+    write_results(arguments.output, rows, "\n".join(lines) + "\n")
     return 0
 
 
