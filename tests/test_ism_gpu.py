@@ -363,3 +363,44 @@ def test_maps_that_keep_their_surfaces_match_the_reference(monkeypatch, plane, c
     cos_theta = (points.normals[0] * offsets).sum(axis=1) / np.linalg.norm(offsets, axis=1)
     radius = ism.splat_radius(offsets, cos_theta, area, 64, ism.SURFACE_SPLAT_MAX_RADIUS)
     assert radius.max() > ism.SPLAT_MAX_RADIUS  # the near floor's splats reach past the others' cap
+
+
+def test_a_splat_in_chunks_of_maps_with_other_maps_built_between_them_gives_the_atlas_of_one_dispatch(monkeypatch):
+    """build_ism_atlas_stages splats SPLATS_PER_STAGE (point, map) pairs per stage, so the viewport
+    can spread one set's splat over steps: here 3 maps per stage over 7 maps, with another atlas
+    built between the stages (it binds the splat shader and its image units to other textures). The
+    atlas equals the one of a single dispatch, bit for bit."""
+    scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
+    points = sp.scene_point_sets(scene, 512, 3, seed=2)
+    area = sp.triangle_areas(scene.positions).sum() / 512
+    rng = np.random.default_rng(4)
+    origins = rng.uniform([-3, -3, 0.2], [3, 3, 2.5], (7, 3))
+    sets = np.arange(7) % 3
+
+    def build(stages, between=None):
+        count = 0
+        while True:
+            try:
+                next(stages)
+            except StopIteration as done:
+                return done.value, count
+            count += 1
+            if between is not None:
+                between()
+
+    def other():
+        ism_pass.PASS.free(ism_pass.PASS.run(points, origins[::-1] + 0.1, sets[::-1], 16, point_area=area))
+
+    whole, whole_stages = build(ism_pass.build_ism_atlas_stages(points, origins, sets, 32, point_area=area,
+                                                                surfaces=True))
+    monkeypatch.setattr(ism_pass, "SPLATS_PER_STAGE", 3 * 512)
+    chunked, chunked_stages = build(ism_pass.build_ism_atlas_stages(points, origins, sets, 32, point_area=area,
+                                                                    surfaces=True), other)
+    try:
+        assert chunked_stages == whole_stages + 2  # splats of maps 0-2, 3-5 and 6
+        expected, got = whole.read(), chunked.read()
+        assert np.isfinite(expected).all() and (expected < np.inf).any()
+        np.testing.assert_array_equal(got, expected)
+    finally:
+        ism_pass.PASS.free(whole)
+        ism_pass.PASS.free(chunked)

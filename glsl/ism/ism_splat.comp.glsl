@@ -1,7 +1,7 @@
 // @require lib/ism.glsl
 //
 // Imperfect shadow maps, splat (vsgl_addon/passes/ism.py; twin: reference/ism.py splat): one
-// invocation per (point, map). Map m, with origin and point set from column m of ism_origins (row
+// invocation per (point, map), the maps from ism_first_map on (a dispatch per chunk of maps). Map m, with origin and point set from column m of ism_origins (row
 // 0: xyz, set; row 1: the map's own minimum distance, so that the points of the reflector a VSGL
 // stands for do not shadow its light; row 2: its half-space, see below), keeps in its tile of the R32UI atlas the nearest radial
 // distance of the set's points beyond that minimum per texel:
@@ -10,7 +10,7 @@
 void main()
 {
   int point = int(gl_GlobalInvocationID.x);
-  int map_index = int(gl_GlobalInvocationID.y);
+  int map_index = int(gl_GlobalInvocationID.y) + ism_first_map;
   if (point >= ism_params.x || map_index >= ism_params.y) {
     return;
   }

@@ -44,13 +44,17 @@ ISM_SIZE_RANGE = (1, 256)
 MAX_POINTS_PER_SET = 16384
 _GROUP = (64, 1, 1)
 _LEVEL_GROUP = (8, 8, 1)
+#: (point, map) pairs splatted per dispatch, each a stage of build_ism_atlas_stages (64 maps of 4096
+#: points): the viewport runs a light build's stages within its step budget, and one set's splat in
+#: one dispatch took up to 129 ms in Blender's window (benchmarks/results/latency_preview.md).
+SPLATS_PER_STAGE = 1 << 18
 
 
 def _splat_interface() -> ShaderInterface:
     return ShaderInterface(
         # (points per set, map count, map side, tiles per atlas row)
         push_constants=[("IVEC4", "ism_params"), ("FLOAT", "ism_point_area"), ("FLOAT", "ism_plane_depth"),
-                        ("INT", "ism_max_radius")],
+                        ("INT", "ism_max_radius"), ("INT", "ism_first_map")],
         # Inputs read as images, not samplers: on llvmpipe an imageLoad costs a fraction of a
         # texelFetch (benchmarks/light_build_profile.py), the same texels either way.
         images=[("R32UI", "UINT_2D", "ism_atlas"), ("RGBA32F", "FLOAT_2D", "scene_points"),
@@ -251,7 +255,7 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
 def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
                            timed: bool = False, point_textures=None, planes=None, surfaces: bool = False,
                            normal_offset=None):
-    """A generator that yields after the splat and after the gap closing (llvmpipe runs a dispatch
+    """A generator that yields after each chunk of SPLATS_PER_STAGE splats and after the gap closing (llvmpipe runs a dispatch
     before it returns, so each part's work is done by then) and returns the ISMAtlas: the viewport
     spreads a light build over steps of its time budget. The ISMs of ``origins`` (M, 3) (or a :class:`MapOrigins`, which holds the sets and minimum
     distances too: ``set_index``, ``min_distance`` and ``planes`` are then unused), map m splatting set ``set_index[m]`` of ``points`` (a
@@ -298,19 +302,30 @@ def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_dista
     atlas.clear(format="UINT", value=(-1,))  # every texel empty: 0xFFFFFFFF
     if count:
         splat = PASS.shader("splat")
-        splat.bind()
-        splat.uniform_int("ism_params", (points.points_per_set, count, size, columns))
-        splat.uniform_float("ism_point_area", float(point_area))
-        splat.uniform_float("ism_plane_depth", float(_reference_ism.SPLAT_PLANE_DEPTH) if surfaces else 0.0)
-        splat.uniform_int("ism_max_radius", int(_reference_ism.SURFACE_SPLAT_MAX_RADIUS if surfaces
-                                                else _reference_ism.SPLAT_MAX_RADIUS))
-        splat.image("scene_points", point_texture)
-        splat.image("scene_point_normals", normal_texture)
-        splat.image("ism_origins", origin_texture)
-        splat.image("ism_atlas", atlas)
-        gpu.compute.dispatch(splat, _groups(points.points_per_set, _GROUP[0]), count, 1)
-    if timed:
-        clock = _finish_stage(atlas, clock, seconds, "splat")
+
+        def bind_splat(first: int) -> None:
+            # Again for every chunk: between stages other passes and Blender's drawing rebind the units.
+            splat.bind()
+            splat.uniform_int("ism_params", (points.points_per_set, count, size, columns))
+            splat.uniform_float("ism_point_area", float(point_area))
+            splat.uniform_float("ism_plane_depth", float(_reference_ism.SPLAT_PLANE_DEPTH) if surfaces else 0.0)
+            splat.uniform_int("ism_max_radius", int(_reference_ism.SURFACE_SPLAT_MAX_RADIUS if surfaces
+                                                    else _reference_ism.SPLAT_MAX_RADIUS))
+            splat.uniform_int("ism_first_map", first)
+            splat.image("scene_points", point_texture)
+            splat.image("scene_point_normals", normal_texture)
+            splat.image("ism_origins", origin_texture)
+            splat.image("ism_atlas", atlas)
+
+        # In chunks of maps, a stage each: the atomic minimum makes the atlas independent of the order.
+        chunk = max(1, SPLATS_PER_STAGE // max(points.points_per_set, 1))
+        for first in range(0, count, chunk):
+            if first:
+                yield
+            bind_splat(first)
+            gpu.compute.dispatch(splat, _groups(points.points_per_set, _GROUP[0]), min(chunk, count - first), 1)
+            if timed:
+                clock = _finish_stage(atlas, clock, seconds, "splat")
     yield
     # Gaps in near occluders closed (reference close_gaps), into a second atlas that pull-push reads.
     closed = gpu.types.GPUTexture((width, height), format="R32UI")
