@@ -365,11 +365,13 @@ def test_maps_that_keep_their_surfaces_match_the_reference(monkeypatch, plane, c
     assert radius.max() > ism.SPLAT_MAX_RADIUS  # the near floor's splats reach past the others' cap
 
 
-def test_a_splat_in_chunks_of_maps_with_other_maps_built_between_them_gives_the_atlas_of_one_dispatch(monkeypatch):
-    """build_ism_atlas_stages splats SPLATS_PER_STAGE (point, map) pairs per stage, so the viewport
-    can spread one set's splat over steps: here 3 maps per stage over 7 maps, with another atlas
-    built between the stages (it binds the splat shader and its image units to other textures). The
-    atlas equals the one of a single dispatch, bit for bit."""
+def test_a_splat_and_gap_closing_in_chunks_with_other_maps_built_between_them_give_the_atlas_of_one_dispatch(
+        monkeypatch):
+    """build_ism_atlas_stages splats SPLATS_PER_STAGE (point, map) pairs and closes the gaps of
+    CLOSED_TEXELS_PER_STAGE atlas texels per stage, so the viewport can spread one set's maps over
+    steps: here 3 maps per splat stage over 7 maps and bands of 16 atlas rows, with another atlas
+    built between the stages (it binds the same shaders and image units to other textures). The
+    atlas equals the one of single dispatches, bit for bit."""
     scene = _geometry(_quad(-4, -4, 4, 4) + [((1, -2, 0), (1, 2, 0), (1, 2, 3)), ((1, -2, 0), (1, 2, 3), (1, -2, 3))])
     points = sp.scene_point_sets(scene, 512, 3, seed=2)
     area = sp.triangle_areas(scene.positions).sum() / 512
@@ -393,11 +395,14 @@ def test_a_splat_in_chunks_of_maps_with_other_maps_built_between_them_gives_the_
 
     whole, whole_stages = build(ism_pass.build_ism_atlas_stages(points, origins, sets, 32, point_area=area,
                                                                 surfaces=True))
+    columns, rows = ism_pass.atlas_layout(7, 32)
     monkeypatch.setattr(ism_pass, "SPLATS_PER_STAGE", 3 * 512)
+    monkeypatch.setattr(ism_pass, "CLOSED_TEXELS_PER_STAGE", 16 * columns * 32)
     chunked, chunked_stages = build(ism_pass.build_ism_atlas_stages(points, origins, sets, 32, point_area=area,
                                                                     surfaces=True), other)
     try:
-        assert chunked_stages == whole_stages + 2  # splats of maps 0-2, 3-5 and 6
+        # Splats of maps 0-2, 3-5 and 6; the closing in bands of 16 of the atlas's rows.
+        assert rows * 32 > 16 and chunked_stages == whole_stages + 2 + (rows * 32 // 16 - 1)
         expected, got = whole.read(), chunked.read()
         assert np.isfinite(expected).all() and (expected < np.inf).any()
         np.testing.assert_array_equal(got, expected)

@@ -434,6 +434,8 @@ def build_visibility_stages(scene_gpu: SceneGPU, vsgls: SceneVSGLs, settings: VS
     point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
     # Uploaded once for every table and every VSGL set of the frame.
     textures = scene_gpu.point_textures(settings.ism_points, POINT_SETS, settings.seed) if vsgls.generations else None
+    if textures is not None:
+        yield  # a new seed's point sets are drawn on the CPU (tens of ms): a stage of their own
     lights = scene_gpu.scene.lights
     if vsgls.merged is not None:
         table_lights = [[lights[index] for index, _, _ in vsgls.generations]]

@@ -83,11 +83,12 @@ def scene_point_sets(geometry, points_per_set: int, set_count: int, seed: int = 
     u, v = rng.random(shape), rng.random(shape)
     root = np.sqrt(u)
     b0, b1, b2 = 1.0 - root, root * (1.0 - v), root * v
-    tri = corners[triangle]  # (S, P, 3, 3)
-    positions = b0[..., None] * tri[..., 0, :] + b1[..., None] * tri[..., 1, :] + b2[..., None] * tri[..., 2, :]
-    face = np.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :])
-    normals = face / np.maximum(np.linalg.norm(face, axis=-1, keepdims=True), 1e-300)
-    return ScenePoints(positions.astype(np.float32), normals.astype(np.float32), triangle.astype(np.int64))
+    # Per triangle first (thousands), then gathered per point (hundreds of thousands): the same floats.
+    positions = (b0[..., None] * corners[:, 0, :][triangle] + b1[..., None] * corners[:, 1, :][triangle]
+                 + b2[..., None] * corners[:, 2, :][triangle])
+    face = np.cross(corners[:, 1, :] - corners[:, 0, :], corners[:, 2, :] - corners[:, 0, :])
+    normals = (face / np.maximum(np.linalg.norm(face, axis=-1, keepdims=True), 1e-300)).astype(np.float32)
+    return ScenePoints(positions.astype(np.float32), normals[triangle], triangle.astype(np.int64))
 
 
 #: Point sets kept between scene uploads (most recent last): a frame re-uploads the scene, but

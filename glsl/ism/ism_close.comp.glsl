@@ -41,7 +41,7 @@ float ism_plane_continued(ivec2 tile, ivec2 local, ivec2 step, int at, int size)
 
 void main()
 {
-  ivec2 texel = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 texel = ivec2(gl_GlobalInvocationID.xy) + ivec2(0, ism_first_row);  // a band of rows per dispatch
   if (any(greaterThanEqual(texel, imageSize(ism_closed)))) {
     return;
   }

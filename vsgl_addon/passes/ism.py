@@ -48,6 +48,9 @@ _LEVEL_GROUP = (8, 8, 1)
 #: points): the viewport runs a light build's stages within its step budget, and one set's splat in
 #: one dispatch took up to 129 ms in Blender's window (benchmarks/results/latency_preview.md).
 SPLATS_PER_STAGE = 1 << 18
+#: Atlas texels the gap closing writes per dispatch, a stage each (128 maps of 64²; the closing of
+#: 512 maps took 117-145 ms in one dispatch, windowless).
+CLOSED_TEXELS_PER_STAGE = 1 << 19
 
 
 def _splat_interface() -> ShaderInterface:
@@ -74,7 +77,7 @@ def _origins_interface() -> ShaderInterface:
 
 
 def _close_interface() -> ShaderInterface:
-    return ShaderInterface(push_constants=[("INT", "ism_size"), ("INT", "ism_continued")],
+    return ShaderInterface(push_constants=[("INT", "ism_size"), ("INT", "ism_continued"), ("INT", "ism_first_row")],
                            images=[("R32UI", "UINT_2D", "ism_splatted"), ("R32UI", "UINT_2D", "ism_closed")],
                            local_group_size=_LEVEL_GROUP)
 
@@ -255,7 +258,8 @@ def build_ism_atlas(points, origins, set_index, size: int = 64, min_distance=0.0
 def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_distance=0.0, point_area: float = 0.0,
                            timed: bool = False, point_textures=None, planes=None, surfaces: bool = False,
                            normal_offset=None):
-    """A generator that yields after each chunk of SPLATS_PER_STAGE splats and after the gap closing (llvmpipe runs a dispatch
+    """A generator that yields after each chunk of SPLATS_PER_STAGE splats and of CLOSED_TEXELS_PER_STAGE
+    closed texels (llvmpipe runs a dispatch
     before it returns, so each part's work is done by then) and returns the ISMAtlas: the viewport
     spreads a light build over steps of its time budget. The ISMs of ``origins`` (M, 3) (or a :class:`MapOrigins`, which holds the sets and minimum
     distances too: ``set_index``, ``min_distance`` and ``planes`` are then unused), map m splatting set ``set_index[m]`` of ``points`` (a
@@ -327,15 +331,24 @@ def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_dista
             if timed:
                 clock = _finish_stage(atlas, clock, seconds, "splat")
     yield
-    # Gaps in near occluders closed (reference close_gaps), into a second atlas that pull-push reads.
+    # Gaps in near occluders closed (reference close_gaps), into a second atlas that pull-push reads,
+    # in bands of atlas rows (whole work groups), a stage each; every texel reads the splatted atlas only.
     closed = gpu.types.GPUTexture((width, height), format="R32UI")
     close = PASS.shader("close")
-    close.bind()
-    close.uniform_int("ism_size", size)
-    close.uniform_int("ism_continued", 1 if surfaces and _reference_ism.GAP_EXTRAPOLATE else 0)
-    close.image("ism_splatted", atlas)
-    close.image("ism_closed", closed)
-    gpu.compute.dispatch(close, _groups(width, _LEVEL_GROUP[0]), _groups(height, _LEVEL_GROUP[1]), 1)
+    band = max(_LEVEL_GROUP[1], CLOSED_TEXELS_PER_STAGE // max(width, 1) // _LEVEL_GROUP[1] * _LEVEL_GROUP[1])
+    for first_row in range(0, height, band):
+        if first_row:
+            if timed:
+                clock = _finish_stage(closed, clock, seconds, "close")
+            yield
+        close.bind()
+        close.uniform_int("ism_size", size)
+        close.uniform_int("ism_continued", 1 if surfaces and _reference_ism.GAP_EXTRAPOLATE else 0)
+        close.uniform_int("ism_first_row", first_row)
+        close.image("ism_splatted", atlas)
+        close.image("ism_closed", closed)
+        gpu.compute.dispatch(close, _groups(width, _LEVEL_GROUP[0]),
+                             _groups(min(band, height - first_row), _LEVEL_GROUP[1]), 1)
     atlas = closed
     if timed:
         clock = _finish_stage(atlas, clock, seconds, "close")
