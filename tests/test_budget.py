@@ -340,7 +340,9 @@ def test_the_viewport_s_first_coarse_image_follows_the_cost_model():
         pipeline.request_view(np.eye(4), np.eye(4), (400, 300))
         pipeline.step(lambda: room, budgeted, 1.0)
         entry = pipeline.statistics
-        expected, predicted = B.coarse_factor(plan, budgeted, (400, 300), 1.0, budget, B.CostModel.fallback(),
+        # The step's light passes took light_seconds of it: the coarse image gets the rest.
+        available = max(budget - entry["light_seconds"], budget / 4)
+        expected, predicted = B.coarse_factor(plan, budgeted, (400, 300), 1.0, available, B.CostModel.fallback(),
                                               room.geometry.triangle_count)
         assert entry["level"] == COARSE and entry["predicted_view_seconds"] == pytest.approx(predicted)
         assert backend.renders[0] == B.scaled_size(400, 300, expected)
@@ -357,7 +359,8 @@ def test_the_viewport_s_first_coarse_image_follows_the_cost_model():
     pipeline.step(lambda: room, budgeted, 0.5)
     preview = preview_light_settings(budgeted)
     assert pipeline.lights_preview and preview != budgeted
-    _, predicted = B.coarse_factor(plan, preview, (400, 300), 0.5, 0.05, B.CostModel.fallback(),
+    available = max(0.05 - pipeline.statistics["light_seconds"], 0.05 / 4)
+    _, predicted = B.coarse_factor(plan, preview, (400, 300), 0.5, available, B.CostModel.fallback(),
                                    room.geometry.triangle_count, None, preview_stride(preview.rsm_size ** 2))
     assert pipeline.statistics["predicted_view_seconds"] == pytest.approx(predicted)
     pipeline.free()

@@ -244,6 +244,29 @@ def test_a_slow_coarse_image_gets_fewer_pixels_next_time(pipeline, monkeypatch):
     assert pipeline.coarse_factor == 1.0
 
 
+def test_a_light_change_s_step_sizes_its_coarse_image_to_what_its_light_passes_leave(pipeline, monkeypatch):
+    """Light passes of 30 ms and a 100 x 50 coarse image (scale 0.5) of 50 ms: the step of a light
+    change is both, so its coarse images shrink until the two fit one step budget; a view change
+    (no light passes) lets them grow back."""
+    module = __import__(__name__)
+    monkeypatch.setattr(module, "LIGHT_SECONDS", 0.03)
+    monkeypatch.setattr(module, "SECONDS_PER_PIXEL", 1e-5)
+    steps = []
+    for _ in range(8):
+        pipeline.mark_scene_dirty()
+        assert pipeline.step(describe, SETTINGS, 0.5, 1) == LIGHTS
+        steps.append((pipeline.statistics["light_seconds"], pipeline.statistics["view_seconds"]))
+    assert steps[0] == pytest.approx((0.03, 0.05), rel=0.1)  # the view render with its guide
+    assert all(light + view <= STEP_BUDGET * 1.05 for light, view in steps[2:]), steps
+    shrunk = pipeline.coarse_factor
+    assert shrunk < 1.0
+    for shift in range(1, 6):
+        pipeline.request_view(np.eye(4) * (1 + shift), np.diag([1.0, 2.0, -1.0, 0.0]), REGION)
+        assert pipeline.step(describe, SETTINGS, 0.5, 1) == COARSE
+        assert pipeline.statistics["view_seconds"] <= STEP_BUDGET
+    assert pipeline.coarse_factor > shrunk
+
+
 def test_a_fixed_cost_per_band_does_not_shrink_the_bands_to_a_row(pipeline, monkeypatch):
     """30 ms per render whatever its size (half the budget), 1e-6 s per pixel: bands stay tens of
     rows (a 200-pixel row costs 0.2 ms), and steps stay near the budget."""

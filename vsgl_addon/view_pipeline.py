@@ -258,7 +258,7 @@ class ViewPipeline:
                 entry["preview_lights"] = self.lights_preview
                 work = COARSE
             if work == COARSE or not self._fresh(scale):
-                entry.update(self._render_coarse(scale))
+                entry.update(self._render_coarse(scale, entry.get("light_seconds", 0.0)))
             else:
                 entry.update(self._refine(describe_scene, settings, started, max_samples))
         except Exception as error:  # noqa: BLE001 - shown in the header, never raised into Blender's loop
@@ -378,12 +378,15 @@ class ViewPipeline:
         """The settings the current light passes were built with (the view passes read them too)."""
         return self._lights_built
 
-    def _render_coarse(self, scale: float) -> dict:
+    def _render_coarse(self, scale: float, spent: float = 0.0) -> dict:
+        """The coarse image, sized to what the step has left after ``spent`` seconds (its light
+        passes, when it rebuilt them), at least a quarter of the step budget."""
         # A new view restarts the samples: a build for the old ones is abandoned.
         self._close_build()
         request = self.request
         full = request.region_size
-        predicted = self._predict_coarse_factor(full, scale)
+        available = max(self.step_budget - spent, self.step_budget / 4)
+        predicted = self._predict_coarse_factor(full, scale, available)
         width, height = view_size(full, scale * self.coarse_factor)
         started = self.clock()
         target = self._ensure_target("target", full)
@@ -402,10 +405,10 @@ class ViewPipeline:
             self._seconds_per_pixel = seconds / (width * height)
         # Cost grows with the pixels, i.e. with the factor squared; the full-resolution guide's
         # share does not shrink, so the factor moves by at most 2x per coarse image.
-        if seconds > self.step_budget:
-            self.coarse_factor = max(self.coarse_factor * max((self.step_budget / seconds) ** 0.5, 0.5), 0.05)
-        elif seconds < 0.5 * self.step_budget and self.coarse_factor < 1.0:
-            self.coarse_factor = min(self.coarse_factor * min((0.7 * self.step_budget / seconds) ** 0.5, 2.0), 1.0)
+        if seconds > available:
+            self.coarse_factor = max(self.coarse_factor * max((available / seconds) ** 0.5, 0.5), 0.05)
+        elif seconds < 0.5 * available and self.coarse_factor < 1.0:
+            self.coarse_factor = min(self.coarse_factor * min((0.7 * available / seconds) ** 0.5, 2.0), 1.0)
         self._accumulated_for = (self.lights_version, request, scale)
         self._seeds_used = set()
         self._rows_done = 0
@@ -447,7 +450,7 @@ class ViewPipeline:
             self.guide_builds += 1
         return self.guide
 
-    def _predict_coarse_factor(self, full, scale: float) -> float | None:
+    def _predict_coarse_factor(self, full, scale: float, available: float) -> float | None:
         """In Budget mode, with the backend's cost model (budget.py, the time budget's): the coarse
         factor whose view render it predicts within the step budget, once per new settings of the
         light passes (not per seed, view or edit: there the measured times adjust it). Returns the
@@ -479,7 +482,7 @@ class ViewPipeline:
         known = getattr(vpls, "known_count", None)
         views = sum(light.rsm_views for light in plan.lights if light.gets_rsm)
         fraction = known / (views * built.rsm_size ** 2) if known is not None and views else None
-        self.coarse_factor, predicted = coarse_factor(plan, built, full, scale, self.step_budget,
+        self.coarse_factor, predicted = coarse_factor(plan, built, full, scale, available,
                                                       self.cost_model, triangles, fraction,
                                                       preview_stride(built.rsm_size ** 2),
                                                       guide=not self._guide_kept(self.request))
