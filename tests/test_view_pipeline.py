@@ -106,6 +106,9 @@ class FakeBackend:
     def finish(self, target):
         pass
 
+    def finish_view(self, view):
+        pass
+
     def display(self, target, weight, view_pass, look=None):
         self.displayed.append((target.image * weight, view_pass, look))
 
@@ -265,6 +268,32 @@ def test_a_light_change_s_step_sizes_its_coarse_image_to_what_its_light_passes_l
         assert pipeline.step(describe, SETTINGS, 0.5, 1) == COARSE
         assert pipeline.statistics["view_seconds"] <= STEP_BUDGET
     assert pipeline.coarse_factor > shrunk
+
+
+def test_a_resolve_that_costs_the_budget_alone_does_not_shrink_the_coarse_image(pipeline, monkeypatch):
+    """A full-resolution resolve of 50 ms, whatever the coarse image's size, and cheap view passes
+    (5 ms at 100 x 50): shrinking the coarse image would save nothing of it, so it keeps its size
+    after light changes whose steps overrun; costly passes still shrink it."""
+    module = __import__(__name__)
+    monkeypatch.setattr(module, "SECONDS_PER_PIXEL", 1e-6)
+    resolve = pipeline.backend.resolve
+
+    def slow_resolve(*arguments, **keywords):
+        pipeline.clock.now += 0.05
+        return resolve(*arguments, **keywords)
+
+    monkeypatch.setattr(pipeline.backend, "resolve", slow_resolve)
+    for _ in range(6):
+        pipeline.mark_scene_dirty()
+        assert pipeline.step(describe, SETTINGS, 0.5, 1) == LIGHTS
+        assert pipeline.statistics["view_passes_seconds"] == pytest.approx(0.005)
+    assert pipeline.coarse_factor == 1.0 and pipeline.statistics["size"] == (100, 50)
+    monkeypatch.setattr(module, "SECONDS_PER_PIXEL", 1e-5)  # passes of 50 ms: over their quarter
+    for _ in range(6):
+        pipeline.mark_scene_dirty()
+        pipeline.step(describe, SETTINGS, 0.5, 1)
+    assert pipeline.coarse_factor < 1.0
+    assert pipeline.statistics["view_passes_seconds"] <= STEP_BUDGET / 4 * 1.05
 
 
 def test_a_fixed_cost_per_band_does_not_shrink_the_bands_to_a_row(pipeline, monkeypatch):

@@ -297,6 +297,12 @@ class GPUViewBackend:
         resolve(view, guide.textures["position"], guide.textures["normal"], camera,
                 float(np.asarray(guide.projection_matrix)[1, 1]), target, rows, weight, add)
 
+    def finish_view(self, view) -> None:
+        """Wait for a view render's passes (one texel read), so its time is theirs alone."""
+        from .passes.gpu_util import finish
+
+        finish(view.textures["indirect_diffuse"])
+
     def guide_of(self, view):
         """The G-buffer a full-resolution view render carries (its own guide)."""
         return view.gbuffer

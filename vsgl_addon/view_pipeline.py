@@ -380,7 +380,9 @@ class ViewPipeline:
 
     def _render_coarse(self, scale: float, spent: float = 0.0) -> dict:
         """The coarse image, sized to what the step has left after ``spent`` seconds (its light
-        passes, when it rebuilt them), at least a quarter of the step budget."""
+        passes, when it rebuilt them) and after the part of the view render its size does not
+        change (the full-resolution guide and resolve): its view passes get the rest, at least a
+        quarter of the step budget."""
         # A new view restarts the samples: a build for the old ones is abandoned.
         self._close_build()
         request = self.request
@@ -394,6 +396,8 @@ class ViewPipeline:
                                         request.view_matrix, request.projection_matrix,
                                         preview=(width, height) != tuple(full))
         try:
+            self.backend.finish_view(view)
+            passes = self.clock() - started
             guide = self.backend.guide_of(view) if (width, height) == tuple(full) else self._full_guide(request)
             self.backend.resolve(view, guide, target, None, 1.0, add=False)
             counts = view.counts  # lazy: the VPL count is read back only when the statistics are shown
@@ -403,12 +407,15 @@ class ViewPipeline:
         seconds = self.clock() - started
         if self._seconds_per_pixel is None:
             self._seconds_per_pixel = seconds / (width * height)
-        # Cost grows with the pixels, i.e. with the factor squared; the full-resolution guide's
-        # share does not shrink, so the factor moves by at most 2x per coarse image.
-        if seconds > available:
-            self.coarse_factor = max(self.coarse_factor * max((available / seconds) ** 0.5, 0.5), 0.05)
-        elif seconds < 0.5 * available and self.coarse_factor < 1.0:
-            self.coarse_factor = min(self.coarse_factor * min((0.7 * available / seconds) ** 0.5, 2.0), 1.0)
+        # The view passes' cost grows with the pixels, i.e. with the factor squared; the
+        # full-resolution guide and resolve do not shrink with it, so they are left out of the
+        # passes' share (a factor chasing them would shrink the image to nothing for no time), and
+        # the factor moves by at most 2x per coarse image.
+        share = max(available - (seconds - passes), self.step_budget / 4)
+        if passes > share:
+            self.coarse_factor = max(self.coarse_factor * max((share / passes) ** 0.5, 0.5), 0.05)
+        elif passes < 0.5 * share and self.coarse_factor < 1.0:
+            self.coarse_factor = min(self.coarse_factor * min((0.7 * share / max(passes, 1e-9)) ** 0.5, 2.0), 1.0)
         self._accumulated_for = (self.lights_version, request, scale)
         self._seeds_used = set()
         self._rows_done = 0
@@ -419,7 +426,8 @@ class ViewPipeline:
         if self.samples:
             self._seeds_used.add(self.lights_seed)
         self.has_image = True
-        entry = {"level": COARSE, "size": (width, height), "view_seconds": seconds, "counts": counts,
+        entry = {"level": COARSE, "size": (width, height), "view_seconds": seconds, "view_passes_seconds": passes,
+                 "counts": counts,
                  "coarse_scale": scale * self.coarse_factor if (width, height) != tuple(full) else 1.0}
         if predicted is not None:
             entry["predicted_view_seconds"] = predicted
