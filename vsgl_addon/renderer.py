@@ -201,7 +201,8 @@ class SceneLights:
                 # Made on the GPU, with their clusters' shadow maps when VPL shadows are on, with nothing
                 # read back: the viewport rebuilds them per change.
                 shadows = settings if settings.visibility and settings.vpl_visibility else None
-                vpls = vpl_culling.extract_vpls(scene_gpu, settings.rsm_size, settings.caustic_roughness, shadows)
+                vpls = yield from clock.through(vpl_culling.extract_vpls_stages(
+                    scene_gpu, settings.rsm_size, settings.caustic_roughness, shadows))
                 _finish(vpls.table if vpls.isms is None else vpls.isms.texture)
                 yield from clock.pause()
             timings[VPL_EXTRACTION.name] = clock.seconds()

@@ -418,7 +418,16 @@ def cluster_sets(origins, first_map: int, point_sets: int) -> None:
 
 
 def extract_vpls(scene_gpu, rsm_size: int, caustic_roughness: float, shadows=None, first_map: int = 0) -> VPLSet:
-    """The glossy VPLs of every light made on the GPU (004 §3): :func:`scene_vpls`' set, in its
+    """:func:`extract_vpls_stages` at once."""
+    from .contract import run_stages
+
+    return run_stages(extract_vpls_stages(scene_gpu, rsm_size, caustic_roughness, shadows, first_map))
+
+
+def extract_vpls_stages(scene_gpu, rsm_size: int, caustic_roughness: float, shadows=None, first_map: int = 0):
+    """A generator that yields after each RSM view's VPLs and between the clusters' shadow maps'
+    stages (passes/ism.py build_ism_atlas_stages) and returns the VPLSet: the viewport spreads a light
+    build over steps of its time budget. The glossy VPLs of every light made on the GPU (004 §3): :func:`scene_vpls`' set, in its
     order, without a read-back. Each light's RSM views (seen by diffuse rays) are rendered, turned
     into VPLs by :func:`extract_view` and dropped. The table has room for every texel of the views
     (64 bytes a texel, 4/5 of the RSM's colour attachments), since the count stays on the GPU.
@@ -444,22 +453,31 @@ def extract_vpls(scene_gpu, rsm_size: int, caustic_roughness: float, shadows=Non
         maps = views * _clusters.cluster_blocks(rsm_size) ** 2
         origins = MapOrigins(gpu.types.GPUTexture((max(maps, 1), 3), format="RGBA32F"), maps)
     view_index = 0
-    for index, light in enumerate(lights):
-        for view in render_rsm_views(scene_gpu, index, rsm_size, "diffuse", specs=specs[index]):
-            extract_view(vpl_set, view.textures, rsm_size, light_vector(light), caustic_roughness,
-                         view_index if origins is not None else -1)
-            if origins is not None:
-                cluster_view(origins, view.textures, rsm_size, light_vector(light), caustic_roughness,
-                             view_index, OWN_REFLECTOR_SIGMAS)
-            view.free()
-            view_index += 1
-    if origins is not None and origins.count:
-        vpl_set.isms, vpl_set.map_origins = _cluster_maps(scene_gpu, shadows, origins, first_map), origins.texture
+    try:
+        for index, light in enumerate(lights):
+            for view in render_rsm_views(scene_gpu, index, rsm_size, "diffuse", specs=specs[index]):
+                if view_index:
+                    yield
+                extract_view(vpl_set, view.textures, rsm_size, light_vector(light), caustic_roughness,
+                             view_index if origins is not None else -1)
+                if origins is not None:
+                    cluster_view(origins, view.textures, rsm_size, light_vector(light), caustic_roughness,
+                                 view_index, OWN_REFLECTOR_SIGMAS)
+                view.free()
+                view_index += 1
+        if origins is not None and origins.count:
+            yield
+            vpl_set.isms = yield from _cluster_maps_stages(scene_gpu, shadows, origins, first_map)
+            vpl_set.map_origins = origins.texture
+    except BaseException:
+        vpl_set.free()
+        raise
     return vpl_set
 
 
-def _cluster_maps(scene_gpu, settings, origins, first_map: int):
-    """The ISM atlas of the clusters' maps of ``origins`` (settings.ism_size, ism_points)."""
+def _cluster_maps_stages(scene_gpu, settings, origins, first_map: int):
+    """The ISM atlas of the clusters' maps of ``origins`` (settings.ism_size, ism_points), in the
+    stages of passes/ism.py build_ism_atlas_stages."""
     from ..pipeline import POINT_SETS
     from ..scene_points import triangle_areas
     from . import ism
@@ -469,8 +487,8 @@ def _cluster_maps(scene_gpu, settings, origins, first_map: int):
     point_area = float(triangle_areas(scene_gpu.scene.geometry.positions).sum()) / settings.ism_points
     # The VSGL maps' point sets on the GPU (kept across the viewport's builds), not a second upload.
     textures = scene_gpu.point_textures(settings.ism_points, POINT_SETS, settings.seed)
-    return ism.PASS.run(points, origins, None, ism.fitting_size(origins.count, settings.ism_size),
-                        point_area=point_area, point_textures=textures)
+    return (yield from ism.build_ism_atlas_stages(points, origins, None, ism.fitting_size(origins.count, settings.ism_size),
+                                                  point_area=point_area, point_textures=textures))
 
 
 def vpl_table(vpls) -> np.ndarray:
