@@ -180,10 +180,12 @@ def main(argv=None) -> int:
              f"median of {arguments.rounds} processes × {arguments.repeats} steps per variant, alternating "
              "(benchmarks/first_coarse_image.py), ms. The step is the light passes of the new state and the "
              "coarse image (its view render: passes, full-resolution guide, resolve).\n",
-             f"| variant | step | light passes | view render | step / {reference} |", "|---|---|---|---|---|"]
+             f"| variant | step | light passes | view render | coarse image (median pixels) | step / {reference} |",
+             "|---|---|---|---|---|---|"]
     for label, row in rows.items():
+        pixels = statistics.median(step["size"][0] * step["size"][1] for step in row["steps"] if step["size"])
         lines.append(f"| {label} | {1000 * row['seconds']:.0f} | {1000 * row['light_seconds']:.0f} | "
-                     f"{1000 * row['view_seconds']:.0f} | {row['seconds'] / rows[reference]['seconds']:.2f} |")
+                     f"{1000 * row['view_seconds']:.0f} | {pixels:.0f} | {row['seconds'] / rows[reference]['seconds']:.2f} |")
     checks = [c for c in rows["preview"]["converged"] + rows["no preview"]["converged"] if c]
     if checks:
         lines.append(f"\nConverged ({CONVERGE_SAMPLES} samples at {CONVERGE_REGION[0]}×{CONVERGE_REGION[1]}) with "
