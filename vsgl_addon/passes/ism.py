@@ -338,8 +338,6 @@ def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_dista
     band = max(_LEVEL_GROUP[1], CLOSED_TEXELS_PER_STAGE // max(width, 1) // _LEVEL_GROUP[1] * _LEVEL_GROUP[1])
     for first_row in range(0, height, band):
         if first_row:
-            if timed:
-                clock = _finish_stage(closed, clock, seconds, "close")
             yield
         close.bind()
         close.uniform_int("ism_size", size)
@@ -349,9 +347,9 @@ def build_ism_atlas_stages(points, origins, set_index, size: int = 64, min_dista
         close.image("ism_closed", closed)
         gpu.compute.dispatch(close, _groups(width, _LEVEL_GROUP[0]),
                              _groups(min(band, height - first_row), _LEVEL_GROUP[1]), 1)
+        if timed:
+            clock = _finish_stage(closed, clock, seconds, "close")
     atlas = closed
-    if timed:
-        clock = _finish_stage(atlas, clock, seconds, "close")
     yield
     # Pull: level l of every tile from level l - 1 (level 0 is the splatted atlas itself).
     levels = int(math.log2(size))
