@@ -296,6 +296,35 @@ def test_a_resolve_that_costs_the_budget_alone_does_not_shrink_the_coarse_image(
     assert pipeline.statistics["view_passes_seconds"] <= STEP_BUDGET / 4 * 1.05
 
 
+@pytest.mark.parametrize("share", [None, 1.0])
+def test_bands_sized_from_the_last_sample_s_rows_leave_room_for_another_seed_s_costs(pipeline, monkeypatch, share):
+    """Every other sample's rows cost 1.2x the one before (another seed's lights, the machine's
+    load): bands sized to BAND_SHARE of the step from the last sample's row costs stay within the
+    budget, and stay large; sized to all of it (share 1), the costlier samples' bands go over."""
+    import vsgl_addon.view_pipeline as module
+
+    if share is not None:
+        monkeypatch.setattr(module, "BAND_SHARE", share)
+    render = pipeline.backend.render_view
+
+    def seeded_cost(renderer, lights, settings, width, height, *rest, **keywords):
+        view = render(renderer, lights, settings, width, height, *rest, **keywords)
+        if width == REGION[0] and lights.seed % 2 == 0:  # the samples' bands of every other seed
+            pipeline.clock.now += 0.2 * SECONDS_PER_PIXEL * width * height
+        return view
+
+    monkeypatch.setattr(pipeline.backend, "render_view", seeded_cost)
+    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (200, 600))
+    run(pipeline, samples=8, limit=2000)
+    bands = [entry["seconds"] for entry in pipeline.history
+             if entry.get("rows") and entry["rows"][1] > entry["rows"][0] and entry["samples"] >= 2]
+    over = sum(seconds > STEP_BUDGET for seconds in bands) / len(bands)
+    if share is None:
+        assert over <= 0.1 and np.median(bands) >= 0.6 * STEP_BUDGET, (over, sorted(bands))
+    else:
+        assert over >= 0.3, (over, sorted(bands))
+
+
 def test_a_fixed_cost_per_band_does_not_shrink_the_bands_to_a_row(pipeline, monkeypatch):
     """30 ms per render whatever its size (half the budget), 1e-6 s per pixel: bands stay tens of
     rows (a 200-pixel row costs 0.2 ms), and steps stay near the budget."""

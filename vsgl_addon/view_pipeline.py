@@ -41,6 +41,11 @@ from .views import band_projection
 
 #: Seconds one step should take (one frame here): bands of full-resolution samples are sized to it.
 STEP_BUDGET = 0.06
+#: The share of a band's step left after its fixed cost that its rows are sized to when their costs
+#: come from the previous sample's rows: another seed's lights and the machine's load make them
+#: vary by tens of per cent, and sized to all of it, half the steps went over the budget
+#: (benchmarks/results/interactive_session.md: refinement steps median 60 ms, 43 % over 60 ms).
+BAND_SHARE = 0.8
 #: Samples averaged before the viewport stops refining (the property viewport_samples overrides it).
 DEFAULT_SAMPLES = 16
 LIGHTS, COARSE, SAMPLE = "lights", "coarse", "sample"
@@ -523,7 +528,8 @@ class ViewPipeline:
         first = self._rows_done
         profile = self._row_seconds
         if profile is not None and len(profile) == height and np.all(np.isfinite(profile[first:])):
-            rows = max(int(np.searchsorted(np.cumsum(profile[first:]), remaining - fixed, side="right")), 1)
+            rows = max(int(np.searchsorted(np.cumsum(profile[first:]), BAND_SHARE * (remaining - fixed),
+                                           side="right")), 1)
         elif self._band_times:
             # Without it a band at most doubles the last: rows differ in cost (sky above the scene
             # costs nothing), so a rate measured on cheap rows must not size one band for the rest.
