@@ -94,7 +94,7 @@ def test_one_full_resolution_sample_is_the_renderers_image_and_every_pass_is_sho
 def test_view_updates_make_no_cpu_round_trip(demo):
     """After the light passes, a view change's coarse image and its samples stay on the GPU: no
     texture read back, no image uploaded (only the direct-light and MRP-ASG passes' per-light tables, a
-    few texels per render, and one texel read per step to wait for the GPU)."""
+    few texels per render, and one texel read per step to wait for the GPU, two for a coarse image)."""
     view, projection = demo.camera.view_matrix(), demo.camera.projection_matrix()
     pipeline = ViewPipeline()
     try:

@@ -8,7 +8,8 @@ full-resolution G-buffer) straight into RGBA32F accumulation textures, finished 
 blending (``glsl/view/accumulate.frag.glsl``), and ``glsl/view/display.frag.glsl`` draws the average
 into the bound framebuffer. No image is read back or uploaded per update
 (``passes.gpu_util.RoundTrips`` counts them); one texel is read per step only to wait for the GPU
-(``RoundTrips.syncs``), so a step's measured time is its own.
+(``RoundTrips.syncs``), so a step's measured time is its own, and a coarse image reads one more
+after its view passes, whose time alone sizes the next one.
 
 Never touches bpy.context. Needs a GPU context, main thread.
 """
