@@ -262,19 +262,10 @@ def test_shared_weights_give_the_per_image_filter_bit_for_bit():
                                                                position, normal, footprint))
 
 
-@pytest.mark.gpu
-def test_viewport_resolve_reads_images_and_matches_the_reference():
-    """The viewport's resolve (view_gpu.resolve: jbu_weights / jbu_apply's image overloads, the
-    render's eight textures bound as images, the guides as samplers) against the twin at every
-    pixel of a guide 4x the render's size, a pass's 1x1 black texel included: the four-texel,
-    fallback and background branches."""
-    from types import SimpleNamespace
-
-    from vsgl_addon import view_gpu
-    from vsgl_addon.passes.gpu_util import read_texture, texture_from_array
-
-    rng = np.random.default_rng(8)
-    low_h, low_w, scale = 9, 11, 4
+def _viewport_inputs(seed=8, low_h=9, low_w=11, scale=4):
+    """A render of low_w x low_h texels (its images and G-buffer, float32-exact) and a guide
+    `scale` times its size whose pixels sit near the render's surfaces, some uncovered."""
+    rng = np.random.default_rng(seed)
     low, low_position, low_normal = _scene(rng, h=low_h, w=low_w, background=0.3)
     low_position[:3, :3, 3] = 0.0  # background all around some pixels
     low, low_position, low_normal = (as_gpu_floats(a.reshape(-1, 4)).reshape(a.shape)
@@ -292,7 +283,31 @@ def test_viewport_resolve_reads_images_and_matches_the_reference():
     guide_position, guide_normal = (as_gpu_floats(a) for a in (guide_position, guide_normal))
     images = {"direct_diffuse": low, "indirect_diffuse": 0.5 * low, "indirect_specular": low[..., ::-1].copy(),
               "position": low_position, "normal": low_normal}
-    view = SimpleNamespace(textures={name: texture_from_array(a.astype(np.float32)) for name, a in images.items()})
+    return images, uv, guide_position, guide_normal, (w, h)
+
+
+def _view(images, size):
+    from types import SimpleNamespace
+
+    from vsgl_addon.passes.gpu_util import texture_from_array
+
+    return SimpleNamespace(width=size[0], height=size[1],
+                           textures={name: texture_from_array(a.astype(np.float32)) for name, a in images.items()})
+
+
+@pytest.mark.gpu
+def test_viewport_resolve_reads_images_and_matches_the_reference():
+    """The viewport's resolve (view_gpu.resolve: jbu_weights / jbu_apply's image overloads, the
+    render's eight textures bound as images, the guides as samplers) against the twin at every
+    pixel of a guide 4x the render's size, a pass's 1x1 black texel included: the four-texel,
+    fallback and background branches."""
+    from vsgl_addon import view_gpu
+    from vsgl_addon.passes.gpu_util import read_texture, texture_from_array
+
+    images, uv, guide_position, guide_normal, (w, h) = _viewport_inputs()
+    low_position, low_normal = images["position"], images["normal"]
+    low_h = low_position.shape[0]
+    view = _view(images, (low_position.shape[1], low_h))
     camera, projection_11 = np.array([0.3, 0.4, 5.0, 1.0]), 1.5
     target = view_gpu.ViewTarget(w, h)
     try:
@@ -315,3 +330,53 @@ def test_viewport_resolve_reads_images_and_matches_the_reference():
         np.testing.assert_array_equal(out[name][:, 3], covered.astype(float))
     for name in ("indirect_caustics", "indirect_glossy_reflectors"):
         assert (out[name][:, :3] == 0).all()
+
+
+@pytest.mark.gpu
+def test_kept_weights_resolve_the_same_floats_for_every_render_of_their_size():
+    """A kept guide (view_gpu.ViewGuide: jbu_weights.frag.glsl on the second render of a size, then
+    resolve_weighted) gives bit for bit what the one-pass resolve gives, for later renders of the
+    same size and G-buffer with other images (the weights are not recomputed), over the four-texel,
+    fallback and background branches; a render of another size gets its own weights."""
+    from types import SimpleNamespace
+
+    from vsgl_addon import view_gpu
+    from vsgl_addon.passes.gpu_util import read_texture, texture_from_array
+
+    images, uv, guide_position, guide_normal, (w, h) = _viewport_inputs()
+    low_size = images["position"].shape[1::-1]
+    # An eye at the origin (views.camera_vector of the identity view): the one-pass resolve below
+    # gets the same camera.
+    camera = np.array([0.0, 0.0, 0.0, 1.0])
+    projection = np.diag([1.2, 1.5, -1.0, 0.0])
+    gbuffer = SimpleNamespace(width=w, height=h, view_matrix=np.eye(4), projection_matrix=projection,
+                              textures={name: texture_from_array(a.reshape(h, w, 4).astype(np.float32))
+                                        for name, a in (("position", guide_position), ("normal", guide_normal))},
+                              free=lambda: None)
+    guide = view_gpu.ViewGuide(gbuffer)
+    backend = view_gpu.GPUViewBackend()
+    other = dict(images, direct_diffuse=images["indirect_specular"] * 3.0, indirect_specular=images["direct_diffuse"],
+                 indirect_caustics=0.25 * images["direct_diffuse"])
+    # A render of half the size: another G-buffer, so other weights.
+    half = {name: a[::2, ::2].copy() for name, a in images.items()}
+    targets = [view_gpu.ViewTarget(w, h) for _ in range(2)]
+    try:
+        # The first render of a size is resolved in one pass; the second computes the weights.
+        for images_k, builds in ((images, 0), (other, 1), (images, 1), (half, 1), (half, 2), (images, 2), (other, 3),
+                                 (images, 3)):
+            view = _view(images_k, images_k["position"].shape[1::-1])
+            backend.resolve(view, guide, targets[0], None)
+            assert guide.weight_builds == builds
+            view_gpu.resolve(view, guide.textures["position"], guide.textures["normal"], camera, 1.5, targets[1])
+            got, expected = ({name: read_texture(t.textures[name], w, h) for name in view_gpu.IMAGES} for t in targets)
+            for name in view_gpu.IMAGES:
+                np.testing.assert_array_equal(got[name], expected[name], err_msg=name)
+            assert (got["indirect_caustics"][..., :3] != 0).any() == ("indirect_caustics" in images_k)
+        kinds = jbu_weights(images["position"], images["normal"], uv, guide_position[:, :3], guide_normal[:, :3],
+                            jbu_footprint(camera, guide_position[:, :3], 1.5, low_size[1])).kind
+        assert {0, 1, 2} <= set(kinds[guide_position[:, 3] > 0].tolist())
+    finally:
+        for target in targets:
+            target.free()
+        guide.free()
+    assert guide.weights is None

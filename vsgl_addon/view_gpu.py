@@ -54,6 +54,30 @@ def _resolve_interface() -> ShaderInterface:
         vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")], fragment_outputs=_OUTPUTS)
 
 
+#: What jbu_weights.frag.glsl writes per guide pixel (RGBA32F): (base texel x, y, weight sum,
+#: coverage) and the four texels' weights.
+WEIGHT_IMAGES = ("taps", "weights")
+
+
+def _weights_interface() -> ShaderInterface:
+    return ShaderInterface(
+        push_constants=[("VEC4", "camera"), ("FLOAT", "projection_11"), ("FLOAT", "sigma_position"),
+                        ("FLOAT", "normal_power")],
+        images=[("RGBA32F", "FLOAT_2D", "low_position"), ("RGBA32F", "FLOAT_2D", "low_normal")],
+        samplers=[("FLOAT_2D", "guide_position"), ("FLOAT_2D", "guide_normal")],
+        vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")],
+        fragment_outputs=[("VEC4", f"out_{name}") for name in WEIGHT_IMAGES])
+
+
+def _resolve_weighted_interface() -> ShaderInterface:
+    # The render's six images and the kept weights: Blender's limit of 8 images, all read as images.
+    return ShaderInterface(
+        push_constants=[("FLOAT", "weight")],
+        images=[("RGBA32F", "FLOAT_2D", f"low_{name}") for name in LOW_IMAGES[:6]]
+        + [("RGBA32F", "FLOAT_2D", name) for name in WEIGHT_IMAGES],
+        vertex_inputs=[("VEC2", "position")], varyings=[("VEC2", "uv")], fragment_outputs=_OUTPUTS)
+
+
 def _accumulate_interface() -> ShaderInterface:
     # One texel of each image per pixel, read as images (an imageLoad costs less than a texelFetch
     # on llvmpipe; see _resolve_interface).
@@ -86,6 +110,8 @@ VIEW = GPUPass(
     label="View Resolve",
     step=Step("view_resolve", "View Resolve"),
     shaders={"resolve": ShaderSpec(_resolve_interface, _stages("resolve")),
+             "jbu_weights": ShaderSpec(_weights_interface, _stages("jbu_weights")),
+             "resolve_weighted": ShaderSpec(_resolve_weighted_interface, _stages("resolve_weighted")),
              "accumulate": ShaderSpec(_accumulate_interface, _stages("accumulate")),
              "display": ShaderSpec(_display_interface, _stages("display"))},
     reads=("gbuffer", "direct_light", "vsgl_shading"),
@@ -113,12 +139,14 @@ def _batch():
 class ViewTarget:
     """The accumulation images of one view (IMAGES, RGBA32F, width × height) and their framebuffer."""
 
+    IMAGES = IMAGES
+
     def __init__(self, width: int, height: int):
         import gpu
 
         self.size = (int(width), int(height))
-        self.textures = {name: gpu.types.GPUTexture(self.size, format="RGBA32F") for name in IMAGES}
-        self.framebuffer = gpu.types.GPUFrameBuffer(color_slots=[self.textures[name] for name in IMAGES])
+        self.textures = {name: gpu.types.GPUTexture(self.size, format="RGBA32F") for name in self.IMAGES}
+        self.framebuffer = gpu.types.GPUFrameBuffer(color_slots=[self.textures[name] for name in self.IMAGES])
         self.clear()
 
     def clear(self) -> None:
@@ -126,7 +154,7 @@ class ViewTarget:
             self.framebuffer.clear(color=(0.0, 0.0, 0.0, 0.0))
 
     def finish(self) -> None:
-        finish(self.textures["direct"])
+        finish(self.textures[self.IMAGES[0]])
 
     def free(self) -> None:
         self.framebuffer = None
@@ -181,6 +209,105 @@ def resolve(view, guide_position, guide_normal, camera, projection_11: float, ta
         program.uniform_sampler("guide_normal", guide_normal)
 
     _draw_into(target, rows, "ADDITIVE" if add else "NONE", "resolve", set_inputs)
+
+
+def jbu_weights(low_position, low_normal, guide_position, guide_normal, camera, projection_11: float,
+                target: "GuideWeights") -> None:
+    """The upsampler's weights of every guide pixel for renders whose G-buffer is (low_position,
+    low_normal) into `target` (the guide's size)."""
+    def set_inputs(program):
+        program.uniform_float("camera", tuple(float(v) for v in camera))
+        program.uniform_float("projection_11", float(projection_11))
+        program.uniform_float("sigma_position", SIGMA_POSITION)
+        program.uniform_float("normal_power", NORMAL_POWER)
+        program.image("low_position", low_position)
+        program.image("low_normal", low_normal)
+        program.uniform_sampler("guide_position", guide_position)
+        program.uniform_sampler("guide_normal", guide_normal)
+
+    _draw_into(target, None, "NONE", "jbu_weights", set_inputs)
+
+
+def resolve_weighted(view, weights: "GuideWeights", target: ViewTarget, weight: float = 1.0,
+                     add: bool = False) -> None:
+    """resolve() of `view` with kept `weights` (jbu_weights of a render of its size, view and
+    triangles), into the whole of `target` (the weights' size): the same floats."""
+    def set_inputs(program):
+        program.uniform_float("weight", float(weight))
+        for name in LOW_IMAGES[:6]:
+            texture = view.textures.get(name)
+            program.image(f"low_{name}", texture if texture is not None else _black())
+        for name in WEIGHT_IMAGES:
+            program.image(name, weights.textures[name])
+
+    _draw_into(target, None, "ADDITIVE" if add else "NONE", "resolve_weighted", set_inputs)
+
+
+class GuideWeights(ViewTarget):
+    """jbu_weights' images (WEIGHT_IMAGES, RGBA32F, the guide's size) for renders of `low_size`."""
+
+    IMAGES = WEIGHT_IMAGES
+
+    def __init__(self, width: int, height: int):
+        super().__init__(width, height)
+        self.low_size = None
+
+
+class ViewGuide:
+    """A viewport's full-resolution guide (passes.gbuffer.GBuffer) and the upsampler's weights for
+    the last render size it guided, kept and freed together.
+
+    The weights depend on the guide and on the render's G-buffer alone. The view pipeline keeps a
+    guide only while the view and the triangles stay (view_pipeline.ViewPipeline._full_guide), and a
+    render of the same size then rasterises the same G-buffer; so after a light, material or setting
+    change the coarse image is resolve_weighted alone (benchmarks/results/resolve_weights.md)."""
+
+    def __init__(self, gbuffer):
+        self.gbuffer = gbuffer
+        self.weights = None
+        self.weight_builds = 0
+        self._last_low_size = None
+
+    @property
+    def textures(self):
+        return self.gbuffer.textures
+
+    @property
+    def view_matrix(self):
+        return self.gbuffer.view_matrix
+
+    @property
+    def projection_matrix(self):
+        return self.gbuffer.projection_matrix
+
+    @property
+    def size(self):
+        return (self.gbuffer.width, self.gbuffer.height)
+
+    def weights_for(self, view, camera, projection_11: float) -> GuideWeights | None:
+        """The weights for renders of `view`'s size, computed from its G-buffer on the second render
+        of that size in a row; None on the first (resolve in one pass: a guide that serves one render,
+        as while the view moves, would pay for writing them and reading them back)."""
+        low_size = (view.width, view.height)
+        if self.weights is not None and self.weights.low_size == low_size:
+            return self.weights
+        if self._last_low_size != low_size:
+            self._last_low_size = low_size
+            return None
+        if self.weights is None:
+            self.weights = GuideWeights(*self.size)
+        if self.weights.low_size != low_size:
+            jbu_weights(view.textures["position"], view.textures["normal"], self.textures["position"],
+                        self.textures["normal"], camera, projection_11, self.weights)
+            self.weights.low_size = (view.width, view.height)
+            self.weight_builds += 1
+        return self.weights
+
+    def free(self) -> None:
+        if self.weights is not None:
+            self.weights.free()
+        self.weights = None
+        self.gbuffer.free()
 
 
 def accumulate(source: ViewTarget, target: ViewTarget, weight: float = 1.0, add: bool = True) -> None:
@@ -284,19 +411,26 @@ class GPUViewBackend:
         return renderer.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix,
                                              vpl_stride=stride)
 
-    def guide(self, renderer, lights, width, height, view_matrix, projection_matrix):
-        return renderer.guide(lights, width, height, view_matrix, projection_matrix)
+    def guide(self, renderer, lights, width, height, view_matrix, projection_matrix) -> ViewGuide:
+        return ViewGuide(renderer.guide(lights, width, height, view_matrix, projection_matrix))
 
     def target(self, width, height) -> ViewTarget:
         return ViewTarget(width, height)
 
     def resolve(self, view, guide, target, rows, weight=1.0, add=False) -> None:
-        """`guide`: the GBuffer whose pixels are the rows' (the view's own for a full-resolution band)."""
+        """`guide`: the GBuffer whose pixels are the rows' (the view's own for a full-resolution band),
+        or a kept ViewGuide, whose weights serve every render of one size."""
         from .views import camera_vector
 
         camera = camera_vector(guide.view_matrix, guide.projection_matrix)
-        resolve(view, guide.textures["position"], guide.textures["normal"], camera,
-                float(np.asarray(guide.projection_matrix)[1, 1]), target, rows, weight, add)
+        projection_11 = float(np.asarray(guide.projection_matrix)[1, 1])
+        if isinstance(guide, ViewGuide) and rows is None and (view.width, view.height) != guide.size:
+            weights = guide.weights_for(view, camera, projection_11)
+            if weights is not None:
+                resolve_weighted(view, weights, target, weight, add)
+                return
+        resolve(view, guide.textures["position"], guide.textures["normal"], camera, projection_11, target, rows,
+                weight, add)
 
     def finish_view(self, view) -> None:
         """Wait for a view render's passes (one texel read), so its time is theirs alone."""

@@ -45,10 +45,15 @@ float jbu_range_weight(vec3 position, vec3 normal, vec4 low_position, vec4 low_n
 
 // The upsampler's weights at one pixel. They depend on the guides alone, so the images of one
 // render (all of the low guide's size, or a 1x1 black texel) share them: jbu_weights once per pixel,
-// jbu_apply per image (Kopf et al. 2007 eq. 2's sum with the weights kept). `kind` 0: the four
-// nearest texels from `base`, raw weights `weights` summing to `weight_sum` > JBU_MIN_WEIGHT; 1: the
-// one texel `pick`, the best-matching geometry texel of the 4x4 neighbourhood when the four nearest
-// all show other surfaces (a thin feature the low image missed); 2: none of the sixteen is geometry.
+// jbu_apply per image (Kopf et al. 2007 eq. 2's sum with the weights kept), and a viewport whose
+// guides did not change keeps them (glsl/view/jbu_weights.frag.glsl). `kind` 0: the four nearest
+// texels from `base`, raw weights `weights` summing to `weight_sum` > JBU_MIN_WEIGHT; 1: the one
+// texel `pick`, the best-matching geometry texel of the 4x4 neighbourhood when the four nearest all
+// show other surfaces (a thin feature the low image missed); 2: none of the sixteen is geometry.
+// Kinds 1 and 2 are written as four-texel weights too (base = pick, weights (1, 0, 0, 0) or 0, sum
+// 1), so jbu_apply has one branch-free path: on llvmpipe a branch between the two, or a fallback
+// loop every pixel steps into, costs a SIMD group both sides; the sum gives the picked texel's
+// float exactly.
 struct JBUWeights {
   ivec2 base;
   ivec2 pick;
@@ -85,9 +90,11 @@ JBUWeights jbu_weights(sampler2D low_position, sampler2D low_normal, vec2 uv, ve
   }
   jw.kind = 2;
   float best = 0.0;
-  for (int j = -1; j <= 2; j++) {
-    for (int i = -1; i <= 2; i++) {
-      ivec2 t = clamp(jw.base + ivec2(i, j), ivec2(0), hi);
+  // One loop of sixteen, not two nested: with nested loops the resolve took 20 % longer on
+  // llvmpipe although almost no pixel gets here (benchmarks/results/resolve_weights.md).
+  for (int n = 0; n < 16; n++) {
+    {
+      ivec2 t = clamp(jw.base + ivec2((n & 3) - 1, (n >> 2) - 1), ivec2(0), hi);
       vec4 p = texelFetch(low_position, t, 0);
       if (p.a <= 0.0) {
         continue;
@@ -103,6 +110,9 @@ JBUWeights jbu_weights(sampler2D low_position, sampler2D low_normal, vec2 uv, ve
       }
     }
   }
+  jw.base = jw.pick;
+  jw.weights = vec4(jw.kind == 1 ? 1.0 : 0.0, 0.0, 0.0, 0.0);
+  jw.weight_sum = 1.0;
   return jw;
 }
 
@@ -111,15 +121,12 @@ JBUWeights jbu_weights(sampler2D low_position, sampler2D low_normal, vec2 uv, ve
 vec4 jbu_apply(JBUWeights jw, sampler2D low)
 {
   ivec2 hi = textureSize(low, 0) - 1;
-  if (jw.kind == 0) {
-    vec4 sum = vec4(0.0);
-    for (int k = 0; k < 4; k++) {
-      ivec2 t = clamp(jw.base + ivec2(k & 1, k >> 1), ivec2(0), hi);
-      sum += jw.weights[k] * texelFetch(low, t, 0);
-    }
-    return sum / jw.weight_sum;
+  vec4 sum = vec4(0.0);
+  for (int k = 0; k < 4; k++) {
+    ivec2 t = clamp(jw.base + ivec2(k & 1, k >> 1), ivec2(0), hi);
+    sum += jw.weights[k] * texelFetch(low, t, 0);
   }
-  return jw.kind == 1 ? texelFetch(low, min(jw.pick, hi), 0) : vec4(0.0);
+  return sum / jw.weight_sum;
 }
 
 // jbu_weights and jbu_apply reading RGBA32F images instead of samplers (the viewport's resolve,
@@ -153,9 +160,11 @@ JBUWeights jbu_weights(restrict image2D low_position, restrict image2D low_norma
   }
   jw.kind = 2;
   float best = 0.0;
-  for (int j = -1; j <= 2; j++) {
-    for (int i = -1; i <= 2; i++) {
-      ivec2 t = clamp(jw.base + ivec2(i, j), ivec2(0), hi);
+  // One loop of sixteen, not two nested: with nested loops the resolve took 20 % longer on
+  // llvmpipe although almost no pixel gets here (benchmarks/results/resolve_weights.md).
+  for (int n = 0; n < 16; n++) {
+    {
+      ivec2 t = clamp(jw.base + ivec2((n & 3) - 1, (n >> 2) - 1), ivec2(0), hi);
       vec4 p = imageLoad(low_position, t);
       if (p.a <= 0.0) {
         continue;
@@ -170,21 +179,21 @@ JBUWeights jbu_weights(restrict image2D low_position, restrict image2D low_norma
       }
     }
   }
+  jw.base = jw.pick;
+  jw.weights = vec4(jw.kind == 1 ? 1.0 : 0.0, 0.0, 0.0, 0.0);
+  jw.weight_sum = 1.0;
   return jw;
 }
 
 vec4 jbu_apply(JBUWeights jw, restrict image2D low)
 {
   ivec2 hi = imageSize(low) - 1;
-  if (jw.kind == 0) {
-    vec4 sum = vec4(0.0);
-    for (int k = 0; k < 4; k++) {
-      ivec2 t = clamp(jw.base + ivec2(k & 1, k >> 1), ivec2(0), hi);
-      sum += jw.weights[k] * imageLoad(low, t);
-    }
-    return sum / jw.weight_sum;
+  vec4 sum = vec4(0.0);
+  for (int k = 0; k < 4; k++) {
+    ivec2 t = clamp(jw.base + ivec2(k & 1, k >> 1), ivec2(0), hi);
+    sum += jw.weights[k] * imageLoad(low, t);
   }
-  return jw.kind == 1 ? imageLoad(low, min(jw.pick, hi)) : vec4(0.0);
+  return sum / jw.weight_sum;
 }
 
 // The upsampled value of `low` (of the low guide's size) at texture coordinates `uv` of a pixel
