@@ -178,3 +178,13 @@ def test_cost_model_fit_recovers_the_model_its_frames_were_timed_with():
     assert np.median(T.ratios(dict(B.FALLBACK_COEFFICIENTS), samples)) < 0.7
     text = T.markdown(results, dict(B.FALLBACK_COEFFICIENTS), refitted, "cost_model_fit.py", 1.0)
     assert "| made_up | 10 | 8 | 12 | 0.12 |" in text and '"vpl_culling": (' in text
+
+
+def test_resolve_weights_benchmark_times_each_piece_and_finds_kept_weights_bit_identical():
+    result = _run("benchmarks/resolve_weights.py", "--scenes", "demo", "--rounds", 1, "--repeats", 1, "--no-write",
+                  timeout=600)
+    assert result.returncode == 0, result.stderr
+    row = json.loads(result.stdout.strip().splitlines()[-1])
+    assert row["scene"] == "demo"
+    assert set(row["current"]) >= {"one_pass", "weights", "with_kept_weights", "identical"}
+    assert row["current"]["identical"] is True
