@@ -404,3 +404,49 @@ def test_a_staged_light_build_with_other_gpu_work_between_its_stages_lights_the_
                 lights.free()
         cache.free()
         renderer.free()
+
+
+def test_coarse_images_after_light_edits_reuse_the_guides_weights_and_equal_the_one_pass_resolve(demo):
+    """Light edits through a kept guide: its first coarse image is resolved in one pass, the later
+    ones with the weights computed once from a render of their size (view_gpu.ViewGuide); each coarse
+    image is bit for bit the one-pass resolve's (a backend whose guide is the bare G-buffer), so the
+    render's G-buffer of the same view, triangles and size is the same one the weights came from."""
+    from vsgl_addon.passes.gpu_util import read_texture
+    from vsgl_addon.view_gpu import IMAGES, GPUViewBackend, ViewGuide
+
+    class OnePass(GPUViewBackend):
+        def guide(self, *arguments):
+            return super().guide(*arguments).gbuffer
+
+    light = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
+    location = light.location.copy()
+
+    def describe():
+        return extract_scene(bpy.context.evaluated_depsgraph_get())
+
+    pipelines = [ViewPipeline(), ViewPipeline(OnePass())]
+    try:
+        for pipeline in pipelines:
+            pipeline.request_view(demo.camera.view_matrix(), demo.camera.projection_matrix(), REGION)
+        for move, factor in enumerate((0.5, 0.5, 0.5, 0.25, 0.5)):
+            light.location.x += 0.1 * (1 if move % 2 == 0 else -1)
+            bpy.context.view_layer.update()
+            images = []
+            for pipeline in pipelines:
+                pipeline.mark_scene_dirty()
+                pipeline.coarse_factor = factor  # not the measured times: both render the same size
+                pipeline.step(describe, SETTINGS, 0.5, 2)
+                assert pipeline.history[-1]["level"] == "coarse"
+                images.append({name: read_texture(pipeline.target.textures[name], *REGION) for name in IMAGES})
+            for name in IMAGES:
+                np.testing.assert_array_equal(images[0][name], images[1][name], err_msg=f"move {move}: {name}")
+            assert images[0]["indirect_diffuse"][..., :3].max() > 0
+        guide = pipelines[0].guide
+        assert isinstance(guide, ViewGuide) and pipelines[0].guide_builds == 1
+        # Moves 1, 3 and 4 compute the weights of their size (0.5, 0.25, 0.5 again); 2 reuses move 1's.
+        assert guide.weight_builds == 3 and guide.renders == 5
+    finally:
+        for pipeline in pipelines:
+            pipeline.free()
+        light.location = location
+        bpy.context.view_layer.update()

@@ -266,7 +266,7 @@ class ViewGuide:
         self.gbuffer = gbuffer
         self.weights = None
         self.weight_builds = 0
-        self._last_low_size = None
+        self.renders = 0  # renders this guide has resolved
 
     @property
     def textures(self):
@@ -285,14 +285,16 @@ class ViewGuide:
         return (self.gbuffer.width, self.gbuffer.height)
 
     def weights_for(self, view, camera, projection_11: float) -> GuideWeights | None:
-        """The weights for renders of `view`'s size, computed from its G-buffer on the second render
-        of that size in a row; None on the first (resolve in one pass: a guide that serves one render,
-        as while the view moves, would pay for writing them and reading them back)."""
+        """The weights for renders of `view`'s size, computed from its G-buffer when the guide
+        serves a second render; None for its first (resolve in one pass: a guide that serves one
+        render, as while the view moves, would pay for writing the weights and reading them back).
+        A render of another size than the kept weights' computes them again: together with their
+        use that costs about what the one pass does."""
         low_size = (view.width, view.height)
+        self.renders += 1
         if self.weights is not None and self.weights.low_size == low_size:
             return self.weights
-        if self._last_low_size != low_size:
-            self._last_low_size = low_size
+        if self.renders == 1:
             return None
         if self.weights is None:
             self.weights = GuideWeights(*self.size)
@@ -412,6 +414,9 @@ class GPUViewBackend:
                                              vpl_stride=stride)
 
     def guide(self, renderer, lights, width, height, view_matrix, projection_matrix) -> ViewGuide:
+        # The view stages' shaders with the first guide (cached for the process), so the first
+        # render that reuses a guide does not pay for compiling the kept weights' two.
+        VIEW.compile_shaders()
         return ViewGuide(renderer.guide(lights, width, height, view_matrix, projection_matrix))
 
     def target(self, width, height) -> ViewTarget:
