@@ -46,6 +46,11 @@ STEP_BUDGET = 0.06
 #: vary by tens of per cent, and sized to all of it, half the steps went over the budget
 #: (benchmarks/results/interactive_session.md: refinement steps median 60 ms, 43 % over 60 ms).
 BAND_SHARE = 0.8
+#: The share of what a coarse image's step leaves after its light passes and its fixed view cost
+#: (guide, resolve) that its view passes are sized to, for the same reason: the light passes and the
+#: passes' own time vary from edit to edit, and sized to all of it the step's median sat at the
+#: budget (benchmarks/results/latency_resolve_weights.md).
+COARSE_SHARE = 0.8
 #: Samples averaged before the viewport stops refining (the property viewport_samples overrides it).
 DEFAULT_SAMPLES = 16
 LIGHTS, COARSE, SAMPLE = "lights", "coarse", "sample"
@@ -418,7 +423,7 @@ class ViewPipeline:
         # full-resolution guide and resolve do not shrink with it, so they are left out of the
         # passes' share (a factor chasing them would shrink the image to nothing for no time), and
         # the factor moves by at most 2x per coarse image.
-        share = max(available - (seconds - passes), self.step_budget / 4)
+        share = COARSE_SHARE * max(available - (seconds - passes), self.step_budget / 4)
         if passes > share:
             self.coarse_factor = max(self.coarse_factor * max((share / passes) ** 0.5, 0.5), 0.05)
         elif passes < 0.5 * share and self.coarse_factor < 1.0:
