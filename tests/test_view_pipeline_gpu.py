@@ -445,6 +445,15 @@ def test_coarse_images_after_light_edits_reuse_the_guides_weights_and_equal_the_
         assert isinstance(guide, ViewGuide) and pipelines[0].guide_builds == 1
         # Moves 1, 3 and 4 compute the weights of their size (0.5, 0.25, 0.5 again); 2 reuses move 1's.
         assert guide.weight_builds == 3 and guide.renders == 5
+        # A view change: the new guide's weights are the old one's textures (view_gpu.WeightsPool),
+        # and its first coarse image is resolved in one pass.
+        weights = guide.weights
+        view = demo.camera.view_matrix().copy()
+        view[0, 3] += 0.05
+        pipelines[0].request_view(view, demo.camera.projection_matrix(), REGION)
+        pipelines[0].step(describe, SETTINGS, 0.5, 2)
+        assert pipelines[0].guide is not guide and pipelines[0].guide.weights is weights
+        assert pipelines[0].guide.weight_builds == 0 and len(pipelines[0].backend.weights_pool) == 0
     finally:
         for pipeline in pipelines:
             pipeline.free()

@@ -17,6 +17,7 @@ Never touches bpy.context. Needs a GPU context, main thread.
 from __future__ import annotations
 
 import atexit
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -253,6 +254,53 @@ class GuideWeights(ViewTarget):
         self.low_size = None
 
 
+def _warm_kept_weights() -> None:
+    """Once per compile of the view shaders: jbu_weights and resolve_weighted drawn into one-texel
+    targets, since llvmpipe compiles a shader's machine code at its first draw, not when Blender
+    creates it; the first guide's coarse image compiles the rest of the view stages anyway."""
+    def make():
+        black = _black()
+        one = SimpleNamespace(width=1, height=1, textures={"position": black, "normal": black})
+        weights, target = GuideWeights(1, 1), ViewTarget(1, 1)
+        try:
+            jbu_weights(black, black, black, black, (0.0, 0.0, 0.0, 1.0), 1.0, weights)
+            resolve_weighted(one, weights, target)
+            target.finish()
+        finally:
+            weights.free()
+            target.free()
+        return None
+
+    VIEW.resource("kept_weights_warm", make)
+
+
+class WeightsPool:
+    """GuideWeights kept across guides, by size: on llvmpipe a region-sized pair of RGBA32F textures
+    took 20-140 ms to create, as much as the kept weights save in a coarse image. A guide takes one
+    when it is made (its coarse image pays for the view change anyway) and gives it back when freed;
+    free() releases the idle ones."""
+
+    def __init__(self):
+        self._idle: dict = {}  # size -> [GuideWeights]
+
+    def take(self, size) -> GuideWeights:
+        idle = self._idle.get(tuple(size))
+        return idle.pop() if idle else GuideWeights(*size)
+
+    def give(self, weights: GuideWeights) -> None:
+        weights.low_size = None
+        self._idle.setdefault(tuple(weights.size), []).append(weights)
+
+    def free(self) -> None:
+        for idle in self._idle.values():
+            for weights in idle:
+                weights.free()
+        self._idle.clear()
+
+    def __len__(self) -> int:
+        return sum(len(idle) for idle in self._idle.values())
+
+
 class ViewGuide:
     """A viewport's full-resolution guide (passes.gbuffer.GBuffer) and the upsampler's weights for
     the last render size it guided, kept and freed together.
@@ -262,9 +310,10 @@ class ViewGuide:
     render of the same size then rasterises the same G-buffer; so after a light, material or setting
     change the coarse image is resolve_weighted alone (benchmarks/results/resolve_weights.md)."""
 
-    def __init__(self, gbuffer):
+    def __init__(self, gbuffer, pool: WeightsPool | None = None):
         self.gbuffer = gbuffer
-        self.weights = None
+        self.pool = pool  # where the weights' textures come from and go back to (else made when needed)
+        self.weights = pool.take(self.size) if pool is not None else None
         self.weight_builds = 0
         self.renders = 0  # renders this guide has resolved
 
@@ -307,7 +356,10 @@ class ViewGuide:
 
     def free(self) -> None:
         if self.weights is not None:
-            self.weights.free()
+            if self.pool is not None:
+                self.pool.give(self.weights)
+            else:
+                self.weights.free()
         self.weights = None
         self.gbuffer.free()
 
@@ -393,13 +445,17 @@ class GPUViewBackend:
         return SceneLights.build_stages(description, settings, point_cache=self.point_cache)
 
     def free(self) -> None:
-        """Drop the point sets kept across builds."""
+        """Drop the point sets kept across builds and the guides' idle weights."""
         if self.point_cache is not None:
             self.point_cache.free()
         self.point_cache = None
+        if self.weights_pool is not None:
+            self.weights_pool.free()
+        self.weights_pool = None
 
     def gpu_resource_count(self) -> int:
-        return len(self.point_cache) if self.point_cache is not None else 0
+        return ((len(self.point_cache) if self.point_cache is not None else 0)
+                + (len(self.weights_pool) if self.weights_pool is not None else 0))
 
     def render_view(self, renderer, lights, settings, width, height, view_matrix, projection_matrix,
                     preview: bool = False):
@@ -413,11 +469,16 @@ class GPUViewBackend:
         return renderer.render_view_textures(lights, settings, width, height, view_matrix, projection_matrix,
                                              vpl_stride=stride)
 
+    #: WeightsPool of this backend's guides, made on first use.
+    weights_pool = None
+
     def guide(self, renderer, lights, width, height, view_matrix, projection_matrix) -> ViewGuide:
-        # The view stages' shaders with the first guide (cached for the process), so the first
-        # render that reuses a guide does not pay for compiling the kept weights' two.
-        VIEW.compile_shaders()
-        return ViewGuide(renderer.guide(lights, width, height, view_matrix, projection_matrix))
+        # What a guide's kept weights need is made with the guide, whose coarse image pays for a
+        # view change anyway, not at the first light edit that reuses it.
+        _warm_kept_weights()
+        if self.weights_pool is None:
+            self.weights_pool = WeightsPool()
+        return ViewGuide(renderer.guide(lights, width, height, view_matrix, projection_matrix), self.weights_pool)
 
     def target(self, width, height) -> ViewTarget:
         return ViewTarget(width, height)
