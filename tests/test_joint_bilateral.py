@@ -334,8 +334,8 @@ def test_viewport_resolve_reads_images_and_matches_the_reference():
 
 @pytest.mark.gpu
 def test_kept_weights_resolve_the_same_floats_for_every_render_of_their_size():
-    """A kept guide (view_gpu.ViewGuide: jbu_weights.frag.glsl from its second render on, then
-    resolve_weighted) gives bit for bit what the one-pass resolve gives, for later renders of the
+    """A kept guide (view_gpu.ViewGuide: jbu_weights.frag.glsl at the second render of a size in a
+    row, then resolve_weighted) gives bit for bit what the one-pass resolve gives, for later renders of the
     same size and G-buffer with other images (the weights are not recomputed), over the four-texel,
     fallback and background branches; a render of another size gets its own weights."""
     from types import SimpleNamespace
@@ -361,9 +361,10 @@ def test_kept_weights_resolve_the_same_floats_for_every_render_of_their_size():
     half = {name: a[::2, ::2].copy() for name, a in images.items()}
     targets = [view_gpu.ViewTarget(w, h) for _ in range(2)]
     try:
-        # The guide's first render is resolved in one pass; later ones compute the weights for their
-        # size and keep them while renders of that size follow.
-        for images_k, builds in ((images, 0), (other, 1), (images, 1), (half, 2), (half, 2), (images, 3), (other, 3)):
+        # A render of another size than the last one's is resolved in one pass; the second of a size
+        # in a row computes the weights, kept while renders of that size follow.
+        for images_k, builds in ((images, 0), (other, 1), (images, 1), (half, 1), (half, 2), (images, 2),
+                                 (other, 3), (images, 3)):
             view = _view(images_k, images_k["position"].shape[1::-1])
             backend.resolve(view, guide, targets[0], None)
             assert guide.weight_builds == builds

@@ -407,8 +407,9 @@ def test_a_staged_light_build_with_other_gpu_work_between_its_stages_lights_the_
 
 
 def test_coarse_images_after_light_edits_reuse_the_guides_weights_and_equal_the_one_pass_resolve(demo):
-    """Light edits through a kept guide: its first coarse image is resolved in one pass, the later
-    ones with the weights computed once from a render of their size (view_gpu.ViewGuide); each coarse
+    """Light edits through a kept guide: a coarse image whose size differs from the last one's is
+    resolved in one pass, the next of that size computes its weights and later ones reuse them
+    (view_gpu.ViewGuide); each coarse
     image is bit for bit the one-pass resolve's (a backend whose guide is the bare G-buffer), so the
     render's G-buffer of the same view, triangles and size is the same one the weights came from."""
     from vsgl_addon.passes.gpu_util import read_texture
@@ -428,7 +429,7 @@ def test_coarse_images_after_light_edits_reuse_the_guides_weights_and_equal_the_
     try:
         for pipeline in pipelines:
             pipeline.request_view(demo.camera.view_matrix(), demo.camera.projection_matrix(), REGION)
-        for move, factor in enumerate((0.5, 0.5, 0.5, 0.25, 0.5)):
+        for move, factor in enumerate((0.5, 0.5, 0.5, 0.25, 0.25, 0.5)):
             light.location.x += 0.1 * (1 if move % 2 == 0 else -1)
             bpy.context.view_layer.update()
             images = []
@@ -443,8 +444,9 @@ def test_coarse_images_after_light_edits_reuse_the_guides_weights_and_equal_the_
             assert images[0]["indirect_diffuse"][..., :3].max() > 0
         guide = pipelines[0].guide
         assert isinstance(guide, ViewGuide) and pipelines[0].guide_builds == 1
-        # Moves 1, 3 and 4 compute the weights of their size (0.5, 0.25, 0.5 again); 2 reuses move 1's.
-        assert guide.weight_builds == 3 and guide.renders == 5
+        # Moves 1 and 4 compute the weights of their size (0.5, then 0.25) as the second of it in a
+        # row, 2 reuses move 1's; 3 and 5 (a size unlike the last one's) are resolved in one pass.
+        assert guide.weight_builds == 2 and guide.renders == 6
         # A view change: the new guide's weights are the old one's textures (view_gpu.WeightsPool),
         # and its first coarse image is resolved in one pass.
         weights = guide.weights

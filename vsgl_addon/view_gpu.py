@@ -316,6 +316,7 @@ class ViewGuide:
         self.weights = pool.take(self.size) if pool is not None else None
         self.weight_builds = 0
         self.renders = 0  # renders this guide has resolved
+        self._last_low_size = None  # the size of the last of them
 
     @property
     def textures(self):
@@ -334,16 +335,18 @@ class ViewGuide:
         return (self.gbuffer.width, self.gbuffer.height)
 
     def weights_for(self, view, camera, projection_11: float) -> GuideWeights | None:
-        """The weights for renders of `view`'s size, computed from its G-buffer when the guide
-        serves a second render; None for its first (resolve in one pass: a guide that serves one
-        render, as while the view moves, would pay for writing the weights and reading them back).
-        A render of another size than the kept weights' computes them again: together with their
-        use that costs about what the one pass does."""
+        """The weights for renders of `view`'s size: kept ones, or computed from its G-buffer when
+        the guide's last render had the same size; else None (resolve in one pass). Computing them
+        and resolving with them costs more than the one pass (the weights are written and read
+        back), so they are made only where a size repeats: a guide that serves one render, as while
+        the view moves, or a coarse size that changes from edit to edit, would pay for them each
+        time (benchmarks/results/first_coarse_image_resolve_weights.md)."""
         low_size = (view.width, view.height)
         self.renders += 1
+        repeated, self._last_low_size = self._last_low_size == low_size, low_size
         if self.weights is not None and self.weights.low_size == low_size:
             return self.weights
-        if self.renders == 1:
+        if not repeated:
             return None
         if self.weights is None:
             self.weights = GuideWeights(*self.size)
