@@ -90,6 +90,7 @@ def analyse_move(events: list) -> dict:
             entry = extra.get("entry", {})
             steps.append({"begin": begin, "end": t, "work": entry.get("work"), "level": entry.get("level"),
                           "light_seconds": entry.get("light_seconds"), "view_seconds": entry.get("view_seconds"),
+                          "view_passes_seconds": entry.get("view_passes_seconds"),
                           "rows": entry.get("rows"), "columns": entry.get("columns"), "seconds": entry.get("seconds"),
                           "size": entry.get("size"),
                           "spans": entry.get("spans")})
@@ -116,6 +117,7 @@ def analyse_move(events: list) -> dict:
             "coarse_step_ms": (coarse["end"] - coarse["begin"]) * 1000,
             "coarse_light_ms": (coarse["light_seconds"] or 0) * 1000,
             "coarse_view_ms": (coarse["view_seconds"] or 0) * 1000,
+            "coarse_view_passes_ms": (coarse["view_passes_seconds"] or 0) * 1000,
             "coarse_pixels": None if not coarse.get("size") else coarse["size"][0] * coarse["size"][1],
             "coarse_spans": coarse.get("spans"),
             "view_draw_ms": [(e - b) * 1000 for b, e in draws if b < on_screen],
@@ -140,6 +142,7 @@ def summarise(results: list[dict]) -> dict:
             "coarse_step_ms": med([m["coarse_step_ms"] for m in moves]),
             "coarse_light_ms": med([m["coarse_light_ms"] for m in moves]),
             "coarse_view_ms": med([m["coarse_view_ms"] for m in moves]),
+            "coarse_view_passes_ms": med([m.get("coarse_view_passes_ms", 0.0) for m in moves]),
             "coarse_pixels": med([m["coarse_pixels"] for m in moves if m.get("coarse_pixels") is not None]),
             "view_draw_ms": med([d for m in moves for d in m["view_draw_ms"]]),
             "redraws_before_step": {k: med([m["redraws_before_step"][k] for m in moves])
@@ -166,7 +169,9 @@ def table(summaries: dict[str, dict], arguments) -> str:
     for name in summaries[labels[0]]["milestones_ms"]:
         row(f"change → {name}", [summaries[label]["milestones_ms"][name] for label in labels])
     for key, name in (("coarse_step_ms", "coarse step"), ("coarse_light_ms", "its light passes"),
-                      ("coarse_view_ms", "its view render"), ("coarse_pixels", "its coarse image (pixels)"),
+                      ("coarse_view_ms", "its view render"),
+                      ("coarse_view_passes_ms", "of which view passes (the rest: guide, resolve)"),
+                      ("coarse_pixels", "its coarse image (pixels)"),
                       ("view_draw_ms", "one view_draw"),
                       ("refinement_median_ms", "refinement step median"),
                       ("refinement_max_ms", "refinement step max"),
