@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -61,11 +62,32 @@ def alternate(variants: list[tuple[str, Path]], rounds: int, run: Callable[[str,
     return results
 
 
+#: run_child's ``python`` for a child in Blender 5.2 without its window (``real-blender run -b``;
+#: the child reads its arguments after ``--``, see child_arguments): the application the artist runs
+#: instead of the bpy module.
+REAL_BLENDER = "real-blender"
+
+
+def child_arguments(argv=None):
+    """A child's own command line: ``argv``, or in Blender (``--python SCRIPT -- ARGS``) the ARGS."""
+    if argv is not None:
+        return argv
+    return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+
+
 def run_child(script: Path, arguments: list[str], python: str, timeout: float, nice: int = 0) -> dict:
-    """A child process of `script` whose last line of output is a JSON object: that object."""
-    command = (["nice", "-n", str(nice)] if nice else []) + [python, str(script), *arguments]
-    output = subprocess.run(command, check=True, capture_output=True, text=True, timeout=timeout).stdout
-    return json.loads(output.strip().splitlines()[-1])
+    """A child process of `script` whose last line of output that is a JSON object: that object.
+    ``python`` REAL_BLENDER runs the script in Blender 5.2 (real-blender run -b)."""
+    if python == REAL_BLENDER:
+        tool = Path(os.environ.get("REAL_BLENDER") or REPO.parent / "shared" / "tools" / "real-blender")
+        launcher = [str(tool), "run", "-b", "--factory-startup", "--python", str(script), "--"]
+        environment = {key: value for key, value in os.environ.items() if not key.startswith("BLENDER_")}
+    else:
+        launcher, environment = [python, str(script)], None
+    command = (["nice", "-n", str(nice)] if nice else []) + launcher + list(arguments)
+    output = subprocess.run(command, check=True, capture_output=True, text=True, timeout=timeout,
+                            env=environment).stdout
+    return json.loads(next(line for line in reversed(output.strip().splitlines()) if line.startswith("{")))
 
 
 def image_difference(old, new, keys) -> dict[str, float]:
@@ -98,7 +120,8 @@ def run_as_child(arguments, measure: Callable) -> bool:
 
 
 def compare_scenes(script: Path, arguments, medians: Callable, summary: Callable, image_keys: Callable,
-                   timeout: float, nice: int = 0, pair_ratios: Callable | None = None) -> list[dict]:
+                   timeout: float, nice: int = 0, pair_ratios: Callable | None = None,
+                   python: str = sys.executable) -> list[dict]:
     """Per scene of ``arguments.scenes``, ``arguments.rounds`` children of ``script`` for this checkout
     and, with ``arguments.baseline``, for that commit's export, alternating (absolute times are noisy on
     this shared machine: the ratios are what it allows). A row per scene: ``medians`` of each
@@ -119,7 +142,7 @@ def compare_scenes(script: Path, arguments, medians: Callable, summary: Callable
             children = alternate(variants, arguments.rounds, lambda label, repo: run_child(
                 script, ["--child", name, "--repo", str(repo), "--repeats", str(arguments.repeats),
                          "--image", str(temporary / f"{label}_{name}.npz")],
-                sys.executable, timeout=timeout, nice=nice))
+                python, timeout=timeout, nice=nice))
             for label, _ in variants:
                 row[label] = medians(children[label])
             if base is not None:

@@ -2,7 +2,7 @@
 """The viewport's resolve (view_gpu.py), piece by piece, without the window (not a test).
 
     .venv/bin/python benchmarks/resolve_weights.py [--baseline REV] [--scenes demo ...] [--rounds 2]
-                                                   [--repeats 16] [--no-write]
+                                                   [--repeats 16] [--real-blender] [--no-write]
 
 Per scene: its saved settings, a view_pipeline.ViewPipeline through the camera at 1311 × 786 (the
 window of benchmarks/interactive.py) at scale 0.25, stepped once (light passes and coarse image);
@@ -13,8 +13,10 @@ applied), the weights alone (jbu_weights.frag.glsl, what a kept guide computes o
 size) and the resolve with kept weights (resolve_weighted.frag.glsl: what the coarse image after a
 light, material or setting change costs). The kept weights' images are checked bit for bit against
 the one-pass resolve's. With ``--baseline REV`` that commit's one-pass resolve is measured in the
-same run, process by process in alternation, and its images compared with this checkout's.
-Writes benchmarks/results/resolve_weights.{md,json} unless --no-write.
+same run, process by process in alternation, and its images compared with this checkout's. With
+``--real-blender`` the processes are Blender 5.2 without its window (real-blender run -b) instead
+of the bpy module. Writes benchmarks/results/resolve_weights.{md,json} (``resolve_weights_blender``
+with --real-blender) unless --no-write.
 """
 
 from __future__ import annotations
@@ -26,7 +28,9 @@ import sys
 import time
 from pathlib import Path
 
-from checkout_ab import add_scene_arguments, baseline_sentence, compare_scenes, open_scene, run_as_child, write_results
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # a child in Blender: --python adds no folder
+from checkout_ab import (REAL_BLENDER, add_scene_arguments, baseline_sentence, child_arguments, compare_scenes,
+                         open_scene, run_as_child, write_results)
 
 REGION = (1311, 786)
 SCALE = 0.25
@@ -115,20 +119,24 @@ def _medians(children) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     add_scene_arguments(parser, SCENES, 16, "timed runs of each piece per process")
-    arguments = parser.parse_args(argv)
+    parser.add_argument("--real-blender", action="store_true", help="children in Blender 5.2 (real-blender run -b)")
+    arguments = parser.parse_args(child_arguments(argv))
     if run_as_child(arguments, measure):
         return 0
     rows = compare_scenes(Path(__file__).resolve(), arguments, _medians,
                           lambda row: {key: round(1000 * value, 1) if isinstance(value, float) else value
                                        for key, value in row.items()},
-                          lambda old, new: list(old.keys()), timeout=1800)
+                          lambda old, new: list(old.keys()), timeout=1800,
+                          python=REAL_BLENDER if arguments.real_blender else sys.executable)
     if arguments.no_write:
         return 0
     baseline = arguments.baseline
     lines = ["# The viewport's resolve, piece by piece\n",
              f"Each scene's saved settings, its camera at {REGION[0]}×{REGION[1]}, the coarse image's render size "
              f"after one step at scale {SCALE}; medians of {arguments.rounds} processes × {arguments.repeats} timed "
-             "runs per piece (benchmarks/resolve_weights.py), ms, llvmpipe." + baseline_sentence(baseline)
+             "runs per piece (benchmarks/resolve_weights.py), ms, llvmpipe, "
+             + ("Blender 5.2 without its window (--real-blender)." if arguments.real_blender else "the bpy module.")
+             + baseline_sentence(baseline)
              + " One pass: the guides' reads, the range weights and six images applied per pixel; weights: "
              "jbu_weights.frag.glsl alone; with kept weights: resolve_weighted.frag.glsl, the coarse image after "
              "a change that leaves the view and the triangles.\n"]
@@ -149,7 +157,8 @@ def main(argv=None) -> int:
                 f"; baseline's largest difference {max(row['image_difference'].values()):.1e}"
         cells.append(identical)
         lines.append("| " + " | ".join(cells) + " |")
-    write_results("resolve_weights", rows, "\n".join(lines) + "\n")
+    write_results("resolve_weights_blender" if arguments.real_blender else "resolve_weights", rows,
+                  "\n".join(lines) + "\n")
     return 0
 
 

@@ -180,9 +180,11 @@ def test_cost_model_fit_recovers_the_model_its_frames_were_timed_with():
     assert "| made_up | 10 | 8 | 12 | 0.12 |" in text and '"vpl_culling": (' in text
 
 
-def test_resolve_weights_benchmark_times_each_piece_and_finds_kept_weights_bit_identical():
+@pytest.mark.parametrize("application", ["bpy", "real-blender"])
+def test_resolve_weights_benchmark_times_each_piece_and_finds_kept_weights_bit_identical(application):
+    extra = ["--real-blender"] if application == "real-blender" else []
     result = _run("benchmarks/resolve_weights.py", "--scenes", "demo", "--rounds", 1, "--repeats", 1, "--no-write",
-                  timeout=600)
+                  *extra, timeout=600)
     assert result.returncode == 0, result.stderr
     row = json.loads(result.stdout.strip().splitlines()[-1])
     assert row["scene"] == "demo"
