@@ -208,6 +208,16 @@ vec4 joint_bilateral_upsample(sampler2D low, sampler2D low_position, sampler2D l
                                normal_power), low);
 }
 
+// The full-resolution guide's texel under the fragment's texture coordinates `uv`: world position
+// (a = coverage) and unit normal.
+void jbu_guide_texel(sampler2D guide_position, sampler2D guide_normal, vec2 uv, out vec4 position, out vec3 normal)
+{
+  ivec2 size = textureSize(guide_position, 0);
+  ivec2 pixel = clamp(ivec2(uv * vec2(size)), ivec2(0), size - 1);
+  position = texelFetch(guide_position, pixel, 0);
+  normal = texelFetch(guide_normal, pixel, 0).xyz;
+}
+
 // World size of one low-resolution texel at `position`: the vertical extent of the view over
 // `low_height` texels, at the pixel's distance for a perspective camera. `camera` is (position, 1)
 // perspective or (direction towards the camera, 0) orthographic; `projection_11` the projection's

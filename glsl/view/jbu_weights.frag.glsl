@@ -8,10 +8,9 @@
 // out_weights = the four texels' weights; an uncovered pixel (coverage 0) gets no weight.
 void main()
 {
-  ivec2 pixel = clamp(ivec2(uv * vec2(textureSize(guide_position, 0))), ivec2(0),
-                      textureSize(guide_position, 0) - 1);
-  vec4 position = texelFetch(guide_position, pixel, 0);
-  vec3 normal = texelFetch(guide_normal, pixel, 0).xyz;
+  vec4 position;
+  vec3 normal;
+  jbu_guide_texel(guide_position, guide_normal, uv, position, normal);
   float coverage = clamp(position.a, 0.0, 1.0);
   if (coverage <= 0.0) {
     out_taps = vec4(0.0, 0.0, 1.0, 0.0);
