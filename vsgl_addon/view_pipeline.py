@@ -51,6 +51,10 @@ BAND_SHARE = 0.8
 #: passes' own time vary from edit to edit, and sized to all of it the step's median sat at the
 #: budget (benchmarks/results/latency_resolve_weights.md).
 COARSE_SHARE = 0.8
+#: The share of the step a light-pass stage's time from the last build may fill: another seed's
+#: stage costs more or less (in Blender 5.2's window 13 % of the samples' light-pass steps ran
+#: 60-104 ms, benchmarks/results/latency_resolve_weights.md).
+STAGE_SHARE = 0.8
 #: Samples averaged before the viewport stops refining (the property viewport_samples overrides it).
 DEFAULT_SAMPLES = 16
 LIGHTS, COARSE, SAMPLE = "lights", "coarse", "sample"
@@ -349,7 +353,7 @@ class ViewPipeline:
             index = self._building[3]
             if last is not None:
                 predicted = known[index] if index < len(known) else last
-                if self.clock() - started + predicted > self.step_budget:
+                if self.clock() - started + predicted / STAGE_SHARE > self.step_budget:
                     return False, self.clock() - clock
             stage_started = self.clock()
             try:
