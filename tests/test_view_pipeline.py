@@ -333,36 +333,6 @@ def test_coarse_images_sized_with_a_margin_keep_light_edits_of_varying_cost_with
 
 
 @pytest.mark.parametrize("share", [None, 1.0])
-def test_the_first_sample_s_bands_leave_room_for_rows_costlier_than_the_rate_so_far(pipeline, monkeypatch, share):
-    """Rows whose cost varies smoothly by +-25 % down the image (the scene's detail): the first
-    sample's bands, sized from the time per pixel measured so far, aim at BAND_SHARE of the step and
-    stay within the budget; sized to all of it (share 1), the bands entering costlier rows go over."""
-    import vsgl_addon.view_pipeline as module
-
-    if share is not None:
-        monkeypatch.setattr(module, "BAND_SHARE", share)
-    width, height = 200, 600
-    pipeline.request_view(np.eye(4), np.diag([1.0, 2.0, -1.0, 0.0]), (width, height))
-    render = pipeline.backend.render_view
-
-    def varying_rows(renderer, lights, settings, w, h, *rest, **keywords):
-        view = render(renderer, lights, settings, w, h, *rest, **keywords)
-        if w == width:  # a band of the full-resolution sample, from the rows done
-            rows = np.arange(pipeline._rows_done, pipeline._rows_done + h)
-            pipeline.clock.now += SECONDS_PER_PIXEL * w * float(np.sum(0.25 * np.sin(rows / 30.0)))
-        return view
-
-    monkeypatch.setattr(pipeline.backend, "render_view", varying_rows)
-    run(pipeline, samples=1, limit=2000)
-    bands = [entry["seconds"] for entry in pipeline.history if entry.get("rows") and entry["rows"][1] > entry["rows"][0]]
-    over = sum(seconds > STEP_BUDGET for seconds in bands[2:]) / len(bands[2:])
-    if share is None:
-        assert over <= 0.05 and np.median(bands) >= 0.6 * STEP_BUDGET, (over, sorted(bands))
-    else:
-        assert over >= 0.2, (over, sorted(bands))
-
-
-@pytest.mark.parametrize("share", [None, 1.0])
 def test_bands_sized_from_the_last_sample_s_rows_leave_room_for_another_seed_s_costs(pipeline, monkeypatch, share):
     """Every other sample's rows cost 1.2x the one before (another seed's lights, the machine's
     load): bands sized to BAND_SHARE of the step from the last sample's row costs stay within the

@@ -41,14 +41,9 @@ from .views import band_projection
 
 #: Seconds one step should take (one frame here): bands of full-resolution samples are sized to it.
 STEP_BUDGET = 0.06
-#: How much a band of the first sample may grow on the last one's rows (at least by a row): its
-#: rows' cost is known only as a time per pixel so far, and a band grown from sky into the scene's
-#: rows overshoots by the rows it takes past them.
-FIRST_BAND_GROWTH = 1.5
-#: The share of a band's step left after its fixed cost that its rows are sized to, from the
-#: previous sample's row costs or, in the first sample, the time per pixel so far: another seed's
-#: lights, rows costlier than those measured and the machine's load make them vary by tens of per
-#: cent, and sized to all of it, half the steps went over the budget
+#: The share of a band's step left after its fixed cost that its rows are sized to when their costs
+#: come from the previous sample's rows: another seed's lights and the machine's load make them
+#: vary by tens of per cent, and sized to all of it, half the steps went over the budget
 #: (benchmarks/results/interactive_session.md: refinement steps median 60 ms, 43 % over 60 ms).
 BAND_SHARE = 0.8
 #: The share of what a coarse image's step leaves after its light passes and its fixed view cost
@@ -534,8 +529,7 @@ class ViewPipeline:
         sample = self._ensure_target("sample_target", (width, height))
         remaining = max(self.step_budget - (self.clock() - started), self.step_budget / 4)
         fixed = self._band_fixed_seconds or 0.0
-        rows = height if not self._seconds_per_pixel else int(BAND_SHARE * (remaining - fixed)
-                                                                / (self._seconds_per_pixel * width))
+        rows = height if not self._seconds_per_pixel else int((remaining - fixed) / (self._seconds_per_pixel * width))
         # At least one row, so a sample always progresses; not more, so that a wide viewport on a
         # slow GPU (a 1311-pixel row costs about 13 ms on llvmpipe) still keeps each step near the
         # budget: a floor of height / 64 rows made steps of 150-800 ms there.
@@ -546,11 +540,9 @@ class ViewPipeline:
             rows = max(int(np.searchsorted(np.cumsum(profile[first:]), BAND_SHARE * (remaining - fixed),
                                            side="right")), 1)
         elif self._band_times:
-            # Without it a band grows by at most FIRST_BAND_GROWTH: rows differ in cost (sky above
-            # the scene costs nothing), so a rate measured on cheap rows must not size one band for
-            # the rest.
-            last_rows = max(int(self._band_times[-1][0]) // width, 1)
-            rows = min(rows, max(int(np.ceil(FIRST_BAND_GROWTH * last_rows)), last_rows + 1))
+            # Without it a band at most doubles the last: rows differ in cost (sky above the scene
+            # costs nothing), so a rate measured on cheap rows must not size one band for the rest.
+            rows = min(rows, 2 * max(int(self._band_times[-1][0]) // width, 1))
         end = min(height, first + max(1, rows))
         clock = self.clock()
         view = self.backend.render_view(self.renderer, self.lights, self._seeded_settings(), width, end - first,
