@@ -193,6 +193,13 @@ def _draw_into(target: ViewTarget, rows, blend: str, shader: str, set_inputs) ->
         gpu.state.viewport_set(*saved[3])
 
 
+def _bind_low_images(program, view, names) -> None:
+    """`view`'s textures `names` as the images low_NAME (a pass that did not run: a black texel)."""
+    for name in names:
+        texture = view.textures.get(name)
+        program.image(f"low_{name}", texture if texture is not None else _black())
+
+
 def resolve(view, guide_position, guide_normal, camera, projection_11: float, target: ViewTarget,
             rows=None, weight: float = 1.0, add: bool = False) -> None:
     """`view` (renderer.ViewTextures) upsampled to the guide's pixels into rows [first, end) of
@@ -203,9 +210,7 @@ def resolve(view, guide_position, guide_normal, camera, projection_11: float, ta
         program.uniform_float("sigma_position", SIGMA_POSITION)
         program.uniform_float("normal_power", NORMAL_POWER)
         program.uniform_float("weight", float(weight))
-        for name in LOW_IMAGES:
-            texture = view.textures.get(name)
-            program.image(f"low_{name}", texture if texture is not None else _black())
+        _bind_low_images(program, view, LOW_IMAGES)
         program.uniform_sampler("guide_position", guide_position)
         program.uniform_sampler("guide_normal", guide_normal)
 
@@ -235,9 +240,7 @@ def resolve_weighted(view, weights: "GuideWeights", target: ViewTarget, weight: 
     triangles), into the whole of `target` (the weights' size): the same floats."""
     def set_inputs(program):
         program.uniform_float("weight", float(weight))
-        for name in LOW_IMAGES[:6]:
-            texture = view.textures.get(name)
-            program.image(f"low_{name}", texture if texture is not None else _black())
+        _bind_low_images(program, view, LOW_IMAGES[:6])
         for name in WEIGHT_IMAGES:
             program.image(name, weights.textures[name])
 
