@@ -356,7 +356,7 @@ class ViewGuide:
         if self.weights.low_size != low_size:
             jbu_weights(view.textures["position"], view.textures["normal"], self.textures["position"],
                         self.textures["normal"], camera, projection_11, self.weights)
-            self.weights.low_size = (view.width, view.height)
+            self.weights.low_size = low_size
             self.weight_builds += 1
         return self.weights
 
