@@ -12,7 +12,6 @@ import bpy
 import numpy as np
 import pytest
 
-from image_compare import assert_same_floats, same_floats
 from scene_generator import GPUResourceTracker
 from vsgl_addon.passes.gpu_util import RoundTrips
 from vsgl_addon.renderer import FrameRenderer
@@ -277,7 +276,7 @@ def test_coarse_preview_thins_the_vpls_and_the_samples_shade_them_all(demo, monk
     (16 with demo.blend's 128 x 128 RSMs, here with 32 VSGLs), weighted S: at the window's coarse size its combined
     image is within 0.5 % relative RMSE of shading them all (measured 0.30 %; 0.78 % at 328 x 197),
     unbiased on average. The samples shade every VPL: the converged image is the one without the
-    preview, bit for bit (image_compare: but for denormal residue)."""
+    preview, bit for bit."""
     from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.reference import vpl_culling as reference
     from vsgl_addon.renderer import SceneLights
@@ -327,14 +326,14 @@ def test_coarse_preview_thins_the_vpls_and_the_samples_shade_them_all(demo, monk
 
     with_preview = converged()
     monkeypatch.setattr(module, "preview_stride", lambda texels: 1)
-    assert same_floats(with_preview, converged())
+    assert np.array_equal(with_preview, converged())
 
 
 def test_preview_light_passes_light_only_the_coarse_image_and_the_converged_image_is_unchanged(demo):
     """The coarse image after a change is lit by preview_light_settings' passes (here 16 VSGLs of 32²
     RSMs with 32² shadow maps, in one set that keeps the VPLs' and MRP-ASG's light); the samples
     rebuild them at the settings' own, so two samples converge to the very image of a pipeline
-    without the preview, bit for bit (but for denormal residue, image_compare), every pass."""
+    without the preview, bit for bit, every pass."""
     from vsgl_addon.view_pipeline import preview_light_settings
 
     view, projection = demo.camera.view_matrix(), demo.camera.projection_matrix()
@@ -360,16 +359,16 @@ def test_preview_light_passes_light_only_the_coarse_image_and_the_converged_imag
         finally:
             pipeline.free()
     for view_pass in ("combined", "indirect_diffuse", "indirect_specular"):
-        assert_same_floats(images[True][view_pass], images[False][view_pass], err_msg=view_pass)
+        np.testing.assert_array_equal(images[True][view_pass], images[False][view_pass], err_msg=view_pass)
     # The preview's coarse image is another one (fewer, wider VSGLs), not the same passes twice.
-    assert not same_floats(images[True]["coarse"], images[False]["coarse"])
+    assert not np.array_equal(images[True]["coarse"], images[False]["coarse"])
 
 
 def test_a_staged_light_build_with_other_gpu_work_between_its_stages_lights_the_frame_of_one_build(demo):
     """The viewport spreads a light build over steps (SceneLights.build_stages), and Blender draws,
     other viewports render, between them: with a view rendered and drawn after every stage, the
-    light passes give the frame of SceneLights.build exactly, but for denormal residue (image_compare;
-    the demo: three VSGL sets with shadow maps, the VPLs)."""
+    light passes give the frame of SceneLights.build exactly (the demo: three VSGL sets with shadow
+    maps, the VPLs)."""
     from vsgl_addon.passes.scene_gpu import PointTextureCache
     from vsgl_addon.renderer import SceneLights
 
@@ -397,7 +396,7 @@ def test_a_staged_light_build_with_other_gpu_work_between_its_stages_lights_the_
         b = renderer.render_view(staged, settings, 80, 60, view, projection)
         for name in ("direct_diffuse", "indirect_diffuse", "indirect_specular", "indirect_caustics",
                      "indirect_glossy_reflectors"):
-            assert_same_floats(getattr(a, name), getattr(b, name), err_msg=name)
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
         assert float(a.indirect_diffuse.max()) > 0.0
     finally:
         for lights in (whole, other, staged):
@@ -411,8 +410,7 @@ def test_coarse_images_after_light_edits_reuse_the_guides_weights_and_equal_the_
     """Light edits through a kept guide: a coarse image whose size differs from the last one's is
     resolved in one pass, the next of that size computes its weights and later ones reuse them
     (view_gpu.ViewGuide); each coarse
-    image is bit for bit (but for denormal residue, image_compare) the one-pass resolve's (a backend
-    whose guide is the bare G-buffer), so the
+    image is bit for bit the one-pass resolve's (a backend whose guide is the bare G-buffer), so the
     render's G-buffer of the same view, triangles and size is the same one the weights came from."""
     from vsgl_addon.passes.gpu_util import read_texture
     from vsgl_addon.view_gpu import IMAGES, GPUViewBackend, ViewGuide
@@ -442,7 +440,7 @@ def test_coarse_images_after_light_edits_reuse_the_guides_weights_and_equal_the_
                 assert pipeline.history[-1]["level"] == "coarse"
                 images.append({name: read_texture(pipeline.target.textures[name], *REGION) for name in IMAGES})
             for name in IMAGES:
-                assert_same_floats(images[0][name], images[1][name], err_msg=f"move {move}: {name}")
+                np.testing.assert_array_equal(images[0][name], images[1][name], err_msg=f"move {move}: {name}")
             assert images[0]["indirect_diffuse"][..., :3].max() > 0
         guide = pipelines[0].guide
         assert isinstance(guide, ViewGuide) and pipelines[0].guide_builds == 1
