@@ -21,7 +21,8 @@ of those names, for functions that read an image (``lib/image.glsl``).
 
 A compiled probe is cached by its source, so evaluating the same body again (other inputs, other n)
 costs no shader compile (40–60 ms of JIT each on llvmpipe). Needs a GPU context (main thread).
-Shader arithmetic flushes denormals to zero: inputs below ~1.2e-38 arrive as 0.
+Fragment shader arithmetic flushes denormals to zero on llvmpipe: inputs below ~1.2e-38 arrive as 0
+(compute shaders keep them; denormal_mode.py).
 """
 
 from __future__ import annotations
