@@ -22,16 +22,18 @@ void main()
   for (int r = first; r < last; r++) {
     sum += imageLoad(vpl_run_counts, run_texel(r)).x;
   }
-  // Every invocation reads the running total before the one write at the end (after the barriers).
-  uint base = imageLoad(vpl_count, ivec2(0)).x;
-  uint inclusive = workgroup_inclusive_sum(sum, local);
-  uint offset = base + inclusive - sum;
+  // The running total enters the sum as invocation 0's addend: one invocation reads it, and its value
+  // is in shared memory before the first barrier, so the write at the end (after the barriers) cannot
+  // overtake the read on any GPU (image loads are not ordered by barrier() alone).
+  uint base = local == 0u ? imageLoad(vpl_count, ivec2(0)).x : 0u;
+  uint inclusive = workgroup_inclusive_sum(sum + base, local);
+  uint offset = inclusive - sum;
   for (int r = first; r < last; r++) {
     uint count = imageLoad(vpl_run_counts, run_texel(r)).x;
     imageStore(vpl_run_offsets, run_texel(r), uvec4(offset));
     offset += count;
   }
   if (local == uint(PREFIX_SUM_SIZE - 1)) {
-    imageStore(vpl_count, ivec2(0), uvec4(base + inclusive));
+    imageStore(vpl_count, ivec2(0), uvec4(inclusive));
   }
 }
