@@ -55,6 +55,6 @@ def _gpu_for_marked_tests(request):
 
     now = fragment_denormals_kept()
     if now != start:
-        pytest.fail(f"this test changed the GPU's fragment denormal mode ({start:.0%} -> {now:.0%} of a probe's "
+        pytest.fail(f"this test changed the GPU's fragment denormal mode ({start:.1%} -> {now:.1%} of a probe's "
                     "pixels keep denormals; llvmpipe's FTZ leak, tests/denormal_mode.py): render with "
                     "Workbench or EEVEE in a subprocess", pytrace=False)

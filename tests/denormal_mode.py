@@ -21,35 +21,37 @@ _SIDE = 256  # 16 of llvmpipe's 64 x 64 bins: both rasterizer threads take some
 _probe = None
 
 
-def _make_probe():
+def _shader():
+    """The probe's shader, compiled once (shaders are shared by Blender's GPU contexts)."""
+    global _probe
     import gpu
-    from gpu_extras.batch import batch_for_shader
 
-    info = gpu.types.GPUShaderCreateInfo()
-    info.push_constant("FLOAT", "value")
-    info.vertex_in(0, "VEC2", "position")
-    info.fragment_out(0, "VEC4", "out_color")
-    info.vertex_source("void main() { gl_Position = vec4(position, 0.5, 1.0); }")
-    # value² is denormal (1e-40): 0 where the thread flushes. The vertex stage's interpolation and the
-    # fragment coordinate keep the product from being folded at compile time.
-    info.fragment_source("void main() { float v = value * (1.0 + 1e-30 * gl_FragCoord.x); "
-                         "out_color = vec4(v * v, 0.0, 0.0, 1.0); }")
-    shader = gpu.shader.create_from_info(info)
-    batch = batch_for_shader(shader, "TRIS", {"position": ((-1, -1), (3, -1), (-1, 3))})
-    texture = gpu.types.GPUTexture((_SIDE, _SIDE), format="RGBA32F")
-    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[texture])
-    return shader, batch, texture, framebuffer
+    if _probe is None:
+        info = gpu.types.GPUShaderCreateInfo()
+        info.push_constant("FLOAT", "value")
+        info.vertex_in(0, "VEC2", "position")
+        info.fragment_out(0, "VEC4", "out_color")
+        info.vertex_source("void main() { gl_Position = vec4(position, 0.5, 1.0); }")
+        # value² is denormal (1e-40): 0 where the thread flushes. The fragment coordinate keeps the
+        # product from being folded at compile time.
+        info.fragment_source("void main() { float v = value * (1.0 + 1e-30 * gl_FragCoord.x); "
+                             "out_color = vec4(v * v, 0.0, 0.0, 1.0); }")
+        _probe = gpu.shader.create_from_info(info)
+    return _probe
 
 
 def fragment_denormals_kept(draws: int = 3) -> float:
     """The share of the probe's pixels whose fragment shader kept a denormal product, over `draws`
     draws (0 where fragment shaders flush, 1 where none does). Needs the GPU context."""
-    global _probe
     import gpu
+    from gpu_extras.batch import batch_for_shader
 
-    if _probe is None:
-        _probe = _make_probe()
-    shader, batch, texture, framebuffer = _probe
+    shader = _shader()
+    # The batch and framebuffer are made in the context that is current now: an engine render in
+    # the bpy module can leave another one current, where a cached one would not exist.
+    batch = batch_for_shader(shader, "TRIS", {"position": ((-1, -1), (3, -1), (-1, 3))})
+    texture = gpu.types.GPUTexture((_SIDE, _SIDE), format="RGBA32F")
+    framebuffer = gpu.types.GPUFrameBuffer(color_slots=[texture])
     kept = 0
     saved = (gpu.state.depth_test_get(), gpu.state.blend_get(), tuple(gpu.state.viewport_get()))
     try:
@@ -70,8 +72,3 @@ def fragment_denormals_kept(draws: int = 3) -> float:
         gpu.state.blend_set(saved[1])
         gpu.state.viewport_set(*saved[2])
     return kept / (draws * _SIDE * _SIDE)
-
-
-def free() -> None:
-    global _probe
-    _probe = None

@@ -5,6 +5,7 @@ named, instead of a later bit-for-bit comparison failing in some runs (denormal_
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -52,4 +53,6 @@ def test_a_gpu_test_that_changes_the_fragment_denormal_mode_fails_by_name():
     out = child.stdout + child.stderr
     assert child.returncode != 0, out[-3000:]
     assert "ERROR at teardown of test_leaks_the_denormal_mode" in out or "1 error" in out, out[-3000:]
-    assert "changed the GPU's fragment denormal mode (0% -> 100%" in out, out[-3000:]
+    # One thread or both may have run the failed blocks: some or all of the probe's pixels.
+    changed = re.search(r"changed the GPU's fragment denormal mode \(0\.0% -> ([\d.]+)%", out)
+    assert changed is not None and float(changed.group(1)) > 0.0, out[-3000:]
