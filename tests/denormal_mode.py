@@ -18,26 +18,23 @@ from __future__ import annotations
 import numpy as np
 
 _SIDE = 256  # 16 of llvmpipe's 64 x 64 bins: both rasterizer threads take some
-_probe = None
 
 
 def _shader():
-    """The probe's shader, compiled once (shaders are shared by Blender's GPU contexts)."""
-    global _probe
+    """The probe's shader. Made in each call: in the bpy module an engine render can leave another
+    GPU context current, where objects of the last one (shaders, batches, framebuffers) are gone."""
     import gpu
 
-    if _probe is None:
-        info = gpu.types.GPUShaderCreateInfo()
-        info.push_constant("FLOAT", "value")
-        info.vertex_in(0, "VEC2", "position")
-        info.fragment_out(0, "VEC4", "out_color")
-        info.vertex_source("void main() { gl_Position = vec4(position, 0.5, 1.0); }")
-        # value² is denormal (1e-40): 0 where the thread flushes. The fragment coordinate keeps the
-        # product from being folded at compile time.
-        info.fragment_source("void main() { float v = value * (1.0 + 1e-30 * gl_FragCoord.x); "
-                             "out_color = vec4(v * v, 0.0, 0.0, 1.0); }")
-        _probe = gpu.shader.create_from_info(info)
-    return _probe
+    info = gpu.types.GPUShaderCreateInfo()
+    info.push_constant("FLOAT", "value")
+    info.vertex_in(0, "VEC2", "position")
+    info.fragment_out(0, "VEC4", "out_color")
+    info.vertex_source("void main() { gl_Position = vec4(position, 0.5, 1.0); }")
+    # value² is denormal (1e-40): 0 where the thread flushes. The fragment coordinate keeps the
+    # product from being folded at compile time.
+    info.fragment_source("void main() { float v = value * (1.0 + 1e-30 * gl_FragCoord.x); "
+                         "out_color = vec4(v * v, 0.0, 0.0, 1.0); }")
+    return gpu.shader.create_from_info(info)
 
 
 def fragment_denormals_kept(draws: int = 3) -> float:
@@ -47,8 +44,6 @@ def fragment_denormals_kept(draws: int = 3) -> float:
     from gpu_extras.batch import batch_for_shader
 
     shader = _shader()
-    # The batch and framebuffer are made in the context that is current now: an engine render in
-    # the bpy module can leave another one current, where a cached one would not exist.
     batch = batch_for_shader(shader, "TRIS", {"position": ((-1, -1), (3, -1), (-1, 3))})
     texture = gpu.types.GPUTexture((_SIDE, _SIDE), format="RGBA32F")
     framebuffer = gpu.types.GPUFrameBuffer(color_slots=[texture])
