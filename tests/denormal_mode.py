@@ -10,7 +10,9 @@ jumps past. Workbench and EEVEE renders do such draws. Afterwards two draws of t
 other floats wherever a value passes through a denormal, by which thread ran its tile: one thread
 or both may leak, so from run to run the suite's bit-for-bit comparisons hold or fail.
 
-The suite keeps the mode it started with (conftest: every `gpu` test is followed by this probe).
+So the suite renders with Workbench or EEVEE only in child processes (test_denormal_mode.py shows
+the leak there). Probing after every test was tried: a shader kept across tests crashed once an
+engine render had made another GPU context current, and one made per probe broke later tests.
 """
 
 from __future__ import annotations
