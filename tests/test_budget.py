@@ -318,7 +318,7 @@ def test_the_coarse_factor_is_the_largest_the_model_predicts_within_the_step_bud
 
 def test_the_viewport_s_first_coarse_image_follows_the_cost_model():
     import test_view_pipeline as V
-    from vsgl_addon.view_pipeline import COARSE, ViewPipeline
+    from vsgl_addon.view_pipeline import COARSE, COARSE_SHARE, ViewPipeline
 
     room, plan = _plan()
 
@@ -340,8 +340,8 @@ def test_the_viewport_s_first_coarse_image_follows_the_cost_model():
         pipeline.request_view(np.eye(4), np.eye(4), (400, 300))
         pipeline.step(lambda: room, budgeted, 1.0)
         entry = pipeline.statistics
-        # The step's light passes took light_seconds of it: the coarse image gets the rest.
-        available = max(budget - entry["light_seconds"], budget / 4)
+        # The step's light passes took light_seconds of it: the coarse image gets a share of the rest.
+        available = COARSE_SHARE * max(budget - entry["light_seconds"], budget / 4)
         expected, predicted = B.coarse_factor(plan, budgeted, (400, 300), 1.0, available, B.CostModel.fallback(),
                                               room.geometry.triangle_count)
         assert entry["level"] == COARSE and entry["predicted_view_seconds"] == pytest.approx(predicted)
@@ -359,7 +359,7 @@ def test_the_viewport_s_first_coarse_image_follows_the_cost_model():
     pipeline.step(lambda: room, budgeted, 0.5)
     preview = preview_light_settings(budgeted)
     assert pipeline.lights_preview and preview != budgeted
-    available = max(0.05 - pipeline.statistics["light_seconds"], 0.05 / 4)
+    available = COARSE_SHARE * max(0.05 - pipeline.statistics["light_seconds"], 0.05 / 4)
     _, predicted = B.coarse_factor(plan, preview, (400, 300), 0.5, available, B.CostModel.fallback(),
                                    room.geometry.triangle_count, None, preview_stride(preview.rsm_size ** 2))
     assert pipeline.statistics["predicted_view_seconds"] == pytest.approx(predicted)

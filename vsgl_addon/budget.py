@@ -78,10 +78,11 @@ FALLBACK_COEFFICIENTS = {
     "upscale": (1.2e-2,),
 }
 
-#: Seconds per 10⁵ of the region's pixels of the viewport's joint bilateral resolve (view_gpu.py,
-#: six images with shared weights): the demo's 1311 x 786 took 0.21-0.36 s on the reference machine.
-#: Not a step of F12's frames, so no calibration frame fits it.
-VIEW_RESOLVE_SECONDS = 2.5e-2
+#: Seconds per 10⁵ of the region's pixels of the viewport's joint bilateral resolve in one pass
+#: (view_gpu.py, six images with shared weights; a new coarse size resolves so): 1311 x 786 took
+#: 30-38 ms alone in the bpy module and 26-33 ms in Blender 5.2 (benchmarks/results/resolve_weights*.md),
+#: 33-50 ms inside the coarse step. Not a step of F12's frames, so no calibration frame fits it.
+VIEW_RESOLVE_SECONDS = 4.0e-3
 
 #: Culled VPLs per pixel against δ, relative to δ = 10⁻³: benchmarks/results/vpl_caustics.md's
 #: "listed per pixel" on caustic_panel (2806, 1923, 1242, 346 at δ = 10⁻⁵ … 10⁻²; 004 Eq. 2's

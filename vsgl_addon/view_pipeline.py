@@ -49,7 +49,8 @@ BAND_SHARE = 0.8
 #: The share of what a coarse image's step leaves after its light passes and its fixed view cost
 #: (guide, resolve) that its view passes are sized to, for the same reason: the light passes and the
 #: passes' own time vary from edit to edit, and sized to all of it the step's median sat at the
-#: budget (benchmarks/results/latency_resolve_weights.md).
+#: budget (benchmarks/results/latency_resolve_weights.md). Budget mode's predicted view render
+#: (budget.coarse_factor) is fitted to this share of what the step leaves after its light passes.
 COARSE_SHARE = 0.8
 #: The share of the step a light-pass stage's time from the last build may fill: another seed's
 #: stage costs more or less (in Blender 5.2's window 13 % of the samples' light-pass steps ran
@@ -476,7 +477,7 @@ class ViewPipeline:
 
     def _predict_coarse_factor(self, full, scale: float, available: float) -> float | None:
         """In Budget mode, with the backend's cost model (budget.py, the time budget's): the coarse
-        factor whose view render it predicts within the step budget, once per new settings of the
+        factor whose view render it predicts within COARSE_SHARE of what the step has left, once per new settings of the
         light passes (not per seed, view or edit: there the measured times adjust it). Returns the
         predicted seconds. Manual mode starts at the asked scale, as before (at scale 1 the first
         image is then a full-resolution sample)."""
@@ -506,7 +507,7 @@ class ViewPipeline:
         known = getattr(vpls, "known_count", None)
         views = sum(light.rsm_views for light in plan.lights if light.gets_rsm)
         fraction = known / (views * built.rsm_size ** 2) if known is not None and views else None
-        self.coarse_factor, predicted = coarse_factor(plan, built, full, scale, available,
+        self.coarse_factor, predicted = coarse_factor(plan, built, full, scale, COARSE_SHARE * available,
                                                       self.cost_model, triangles, fraction,
                                                       preview_stride(built.rsm_size ** 2),
                                                       guide=not self._guide_kept(self.request))
