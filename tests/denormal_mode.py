@@ -17,8 +17,15 @@ engine render had made another GPU context current, and one made per probe broke
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 
+_TESTS = Path(__file__).resolve().parent
 _SIDE = 256  # 16 of llvmpipe's 64 x 64 bins: both rasterizer threads take some
 
 
@@ -69,3 +76,17 @@ def fragment_denormals_kept(draws: int = 3) -> float:
         gpu.state.blend_set(saved[1])
         gpu.state.viewport_set(*saved[2])
     return kept / (draws * _SIDE * _SIDE)
+
+
+def run_in_child(source: str, timeout: float = 600.0) -> dict:
+    """Run `source` in a fresh Python process with the bpy module and its GPU context (tests/ and the
+    repository on its path), where a Workbench or EEVEE render cannot leak into this one; returns the
+    JSON object its last line prints."""
+    prelude = ("import bpy  # noqa: F401\n"
+               "from vsgl_addon.gpu_context import ensure_gpu_context\n"
+               "ensure_gpu_context()\n")
+    child = subprocess.run([sys.executable, "-c", prelude + source], cwd=_TESTS.parent, capture_output=True,
+                           text=True, timeout=timeout,
+                           env={**os.environ, "PYTHONPATH": f"{_TESTS}{os.pathsep}{_TESTS.parent}"})
+    assert child.returncode == 0, child.stderr[-3000:]
+    return json.loads(child.stdout.strip().splitlines()[-1])

@@ -535,11 +535,8 @@ def test_cycles_truth_helper_bounces_and_passes():
 
 
 _EEVEE_CHILD = """
-import json, sys
+import json
 import numpy as np
-import bpy  # noqa: F401
-from vsgl_addon.gpu_context import ensure_gpu_context
-ensure_gpu_context()
 from test_direct_light import build_scene
 from cycles_truth import render_eevee
 build_scene("POINT", "glossy")
@@ -554,17 +551,8 @@ def test_eevee_helper_renders_combined():
     llvmpipe). In a process of its own: an EEVEE render leaves llvmpipe's fragment shaders keeping
     denormals on some threads, which later bit-for-bit tests of this process would see
     (denormal_mode.py)."""
-    import json
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
+    from denormal_mode import run_in_child
 
-    tests = Path(__file__).resolve().parent
-    child = subprocess.run([sys.executable, "-c", _EEVEE_CHILD], cwd=tests.parent, capture_output=True,
-                           text=True, timeout=600,
-                           env={**os.environ, "PYTHONPATH": f"{tests}:{tests.parent}"})
-    assert child.returncode == 0, child.stderr[-3000:]
-    result = json.loads(child.stdout.strip().splitlines()[-1])
+    result = run_in_child(_EEVEE_CHILD)
     assert result["shape"] == [48, 64, 3]
     assert result["finite"] and result["mean"] > 0.01
