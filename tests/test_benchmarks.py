@@ -190,3 +190,14 @@ def test_resolve_weights_benchmark_times_each_piece_and_finds_kept_weights_bit_i
     assert row["scene"] == "demo"
     assert set(row["current"]) >= {"one_pass", "weights", "with_kept_weights", "identical"}
     assert row["current"]["identical"] is True
+
+
+def test_budget_coarse_prediction_benchmark_reports_the_switchs_coarse_image():
+    result = _run("benchmarks/budget_coarse_prediction.py", "--scenes", "demo", "--rounds", 1, "--repeats", 1,
+                  "--no-write", timeout=600)
+    assert result.returncode == 0, result.stderr
+    row = json.loads(result.stdout.strip().splitlines()[-1])
+    current = row["current"]
+    assert row["scene"] == "demo" and current["steps"] == 1 and len(current["sizes"]) == 1
+    # The cost model's prediction is of the view render it sized, in the same units as the measurement.
+    assert 0.0 < current["predicted"] < 1000.0 and 0.0 < current["view"] <= current["step"]
