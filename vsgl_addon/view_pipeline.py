@@ -477,9 +477,9 @@ class ViewPipeline:
 
     def _predict_coarse_factor(self, full, scale: float, available: float) -> float | None:
         """In Budget mode, with the backend's cost model (budget.py, the time budget's): the coarse
-        factor whose view render it predicts within COARSE_SHARE of what the step has left, once per new settings of the
-        light passes (not per seed, view or edit: there the measured times adjust it). Returns the
-        predicted seconds. Manual mode starts at the asked scale, as before (at scale 1 the first
+        factor whose view render it predicts within COARSE_SHARE of what the step has left, once per
+        new settings of the light passes (not per seed, view or edit: there the measured times adjust
+        it). Returns the predicted seconds. Manual mode starts at the asked scale, as before (at scale 1 the first
         image is then a full-resolution sample)."""
         plan = getattr(self.lights, "plan", None)
         settings = self.lights_settings
