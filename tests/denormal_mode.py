@@ -50,10 +50,11 @@ def fragment_denormals_kept(draws: int = 3) -> float:
     """The share of the probe's pixels whose fragment shader kept a denormal product, over `draws`
     draws (0 where fragment shaders flush, 1 where none does). Needs the GPU context."""
     import gpu
-    from gpu_extras.batch import batch_for_shader
+
+    from vsgl_addon.passes.gpu_util import fullscreen_triangle_batch
 
     shader = _shader()
-    batch = batch_for_shader(shader, "TRIS", {"position": ((-1, -1), (3, -1), (-1, 3))})
+    batch = fullscreen_triangle_batch(shader)
     texture = gpu.types.GPUTexture((_SIDE, _SIDE), format="RGBA32F")
     framebuffer = gpu.types.GPUFrameBuffer(color_slots=[texture])
     kept = 0
